@@ -1,0 +1,98 @@
+//! Frequency-response data: complex responses (ny×nu) at frequencies in Hz, optionally with the
+//! variance of each complex estimate.
+
+use crate::error::{ModelError, Result};
+use crate::time::SampleTime;
+use nalgebra::DMatrix;
+use num_complex::Complex64 as C;
+
+/// Frequency-response data.
+///
+/// Invariants (checked by [`Frd::new`]): one ny×nu response per frequency, all of one shape;
+/// frequencies finite and ≥ 0; responses finite; variances (if any) finite, ≥ 0, same shapes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Frd {
+    freq_hz: Vec<f64>,
+    response: Vec<DMatrix<C>>,
+    variance: Option<Vec<DMatrix<f64>>>,
+    time: SampleTime,
+}
+
+impl Frd {
+    /// Builds and validates an FRD.
+    pub fn new(
+        freq_hz: Vec<f64>,
+        response: Vec<DMatrix<C>>,
+        variance: Option<Vec<DMatrix<f64>>>,
+        time: SampleTime,
+    ) -> Result<Self> {
+        if freq_hz.len() != response.len() {
+            return Err(ModelError::dim("FRD responses (one per frequency)", freq_hz.len(), response.len()));
+        }
+        if let Some((i, f)) = freq_hz.iter().enumerate().find(|(_, f)| !(f.is_finite() && **f >= 0.0)) {
+            return Err(ModelError::InvalidArgument(format!("FRD frequency #{i} = {f} must be finite and >= 0")));
+        }
+        let shape = response.first().map(|r| r.shape()).unwrap_or((1, 1));
+        for (i, r) in response.iter().enumerate() {
+            if r.shape() != shape {
+                return Err(ModelError::dim(format!("FRD response #{i}"), format!("{}x{}", shape.0, shape.1), format!("{}x{}", r.nrows(), r.ncols())));
+            }
+            if r.iter().any(|v| !(v.re.is_finite() && v.im.is_finite())) {
+                return Err(ModelError::NonFinite { what: format!("FRD response at {} Hz (a pole on the frequency axis?)", freq_hz[i]) });
+            }
+        }
+        if let Some(var) = &variance {
+            if var.len() != freq_hz.len() {
+                return Err(ModelError::dim("FRD variances (one per frequency)", freq_hz.len(), var.len()));
+            }
+            for (i, v) in var.iter().enumerate() {
+                if v.shape() != shape {
+                    return Err(ModelError::dim(format!("FRD variance #{i}"), format!("{}x{}", shape.0, shape.1), format!("{}x{}", v.nrows(), v.ncols())));
+                }
+                if v.iter().any(|x| !(x.is_finite() && *x >= 0.0)) {
+                    return Err(ModelError::InvalidArgument(format!("FRD variance at {} Hz must be finite and >= 0", freq_hz[i])));
+                }
+            }
+        }
+        if let SampleTime::Discrete { ts } = time {
+            SampleTime::discrete(ts)?;
+        }
+        Ok(Frd { freq_hz, response, variance, time })
+    }
+    /// Frequencies in Hz.
+    pub fn freq_hz(&self) -> &[f64] {
+        &self.freq_hz
+    }
+    /// Responses, one ny×nu matrix per frequency.
+    pub fn response(&self) -> &[DMatrix<C>] {
+        &self.response
+    }
+    /// Variances of the complex estimates, if known.
+    pub fn variance(&self) -> Option<&[DMatrix<f64>]> {
+        self.variance.as_deref()
+    }
+    /// Sample time of the data.
+    pub fn time(&self) -> SampleTime {
+        self.time
+    }
+    /// Number of frequencies.
+    pub fn len(&self) -> usize {
+        self.freq_hz.len()
+    }
+    /// True when there are no frequencies.
+    pub fn is_empty(&self) -> bool {
+        self.freq_hz.is_empty()
+    }
+    /// (ny, nu).
+    pub fn shape(&self) -> (usize, usize) {
+        self.response.first().map(|r| r.shape()).unwrap_or((0, 0))
+    }
+    /// The SISO response `(out, inp)` as a vector.
+    pub fn siso(&self, out: usize, inp: usize) -> Result<Vec<C>> {
+        let (ny, nu) = self.shape();
+        if out >= ny || inp >= nu {
+            return Err(ModelError::InvalidArgument(format!("channel ({out}, {inp}) outside {ny}x{nu}")));
+        }
+        Ok(self.response.iter().map(|r| r[(out, inp)]).collect())
+    }
+}

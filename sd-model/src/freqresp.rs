@@ -1,0 +1,136 @@
+//! Frequency response of state-space models at many frequencies.
+//!
+//! `G(s) = C (sI − A)⁻¹ B + D` with `s = j2πf` (continuous) or `s = e^{j2πf·ts}` (discrete).
+//! A dense O(n³) solve per frequency is never used: A is reduced **once** to block-diagonal
+//! form `V⁻¹AV = diag(T₁, …, T_k)` with upper-triangular blocks ([`crate::linalg::schur`]:
+//! complex Schur, then Bavely–Stewart decoupling with `‖X‖ ≤ 10⁴`); then per frequency
+//! `G(s) = D + Σ_b C̃_b (sI − T_b)⁻¹ B̃_b`, a back-substitution per block. Cost per frequency
+//! O(Σ m_b²·nu + n·ny·nu) — O(n) for distinct poles. Close or defective poles (the rigid-body
+//! Jordan block at z = 1) stay together in one triangular block, so nothing is inverted that is
+//! ill-conditioned. Accuracy: within 1e-10 relative of LU solves of `sI − A` on the 60-state
+//! stage test (`tests/freqresp_stage.rs`). Frequencies are evaluated in parallel (rayon).
+
+use crate::error::{ModelError, Result};
+use crate::frd::Frd;
+use crate::linalg::schur::{block_diagonalize, shifted_triangular_solve, to_complex, BlockDiagonal, SPLIT_BOUND};
+use crate::ss::StateSpace;
+use crate::time::SampleTime;
+use nalgebra::DMatrix;
+use num_complex::Complex64 as C;
+use rayon::prelude::*;
+use std::f64::consts::PI;
+
+/// A model prepared for fast evaluation at many points.
+#[derive(Debug, Clone)]
+pub struct FreqRespEvaluator {
+    bd: BlockDiagonal,
+    d: DMatrix<C>,
+    time: SampleTime,
+}
+
+impl FreqRespEvaluator {
+    /// Reduces the model once (O(n³)).
+    pub fn new(sys: &StateSpace) -> Result<Self> {
+        let bd = block_diagonalize(&to_complex(sys.a()), &to_complex(sys.b()), &to_complex(sys.c()), SPLIT_BOUND)?;
+        Ok(FreqRespEvaluator { bd, d: to_complex(sys.d()), time: sys.time() })
+    }
+
+    /// `G(s)` at a point of the complex plane (s for CT, z for DT).
+    pub fn eval_at(&self, s: C) -> DMatrix<C> {
+        let mut g = self.d.clone();
+        for &(st, sz) in &self.bd.blocks {
+            if sz == 1 {
+                let den = s - self.bd.t[(st, st)];
+                let cc = self.bd.ct.column(st);
+                let bb = self.bd.bt.row(st);
+                for j in 0..g.ncols() {
+                    let bj = bb[j] / den;
+                    for i in 0..g.nrows() {
+                        g[(i, j)] += cc[i] * bj;
+                    }
+                }
+            } else {
+                let tb = self.bd.t.view((st, st), (sz, sz)).into_owned();
+                let x = shifted_triangular_solve(&tb, s, &self.bd.bt.rows(st, sz).into_owned());
+                g += self.bd.ct.columns(st, sz) * x;
+            }
+        }
+        g
+    }
+
+    /// The point of the complex plane for a frequency in Hz.
+    pub fn point(&self, f_hz: f64) -> C {
+        match self.time {
+            SampleTime::Continuous => C::new(0.0, 2.0 * PI * f_hz),
+            SampleTime::Discrete { ts } => C::from_polar(1.0, 2.0 * PI * f_hz * ts),
+        }
+    }
+
+    /// `G` at a frequency in Hz.
+    pub fn eval_hz(&self, f_hz: f64) -> DMatrix<C> {
+        self.eval_at(self.point(f_hz))
+    }
+
+    /// `G` at many frequencies (parallel).
+    pub fn eval_many(&self, freq_hz: &[f64]) -> Vec<DMatrix<C>> {
+        freq_hz.par_iter().with_min_len(256).map(|&f| self.eval_hz(f)).collect()
+    }
+
+    /// Block sizes of the reduced form (1 for each simple pole).
+    pub fn block_sizes(&self) -> Vec<usize> {
+        self.bd.blocks.iter().map(|b| b.1).collect()
+    }
+}
+
+fn check_freqs(freq_hz: &[f64]) -> Result<()> {
+    if let Some(f) = freq_hz.iter().find(|f| !f.is_finite()) {
+        return Err(ModelError::InvalidArgument(format!("frequency {f} is not finite")));
+    }
+    Ok(())
+}
+
+impl StateSpace {
+    /// Frequency response at `freq_hz` (Hz) as an [`Frd`]. Discrete models are evaluated on
+    /// the unit circle; frequencies above Nyquist are allowed here (the response is periodic)
+    /// — the command line refuses them.
+    pub fn freqresp(&self, freq_hz: &[f64]) -> Result<Frd> {
+        check_freqs(freq_hz)?;
+        let ev = FreqRespEvaluator::new(self)?;
+        Frd::new(freq_hz.to_vec(), ev.eval_many(freq_hz), None, self.time())
+    }
+
+    /// `G(s)` at one point by a dense LU solve of `(sI − A) X = B` — the O(n³) reference.
+    pub fn eval_direct(&self, s: C) -> Result<DMatrix<C>> {
+        let n = self.n();
+        let m = DMatrix::<C>::identity(n, n) * s - to_complex(self.a());
+        let x = m.lu().solve(&to_complex(self.b())).ok_or_else(|| ModelError::Singular {
+            what: format!("sI − A at s = {s} (a pole)"),
+        })?;
+        Ok(to_complex(self.c()) * x + to_complex(self.d()))
+    }
+}
+
+/// A frequency grid: `n` points from `fmin` to `fmax` Hz, linear or logarithmic.
+pub fn grid(fmin: f64, fmax: f64, n: usize, log: bool) -> Result<Vec<f64>> {
+    if !(fmin.is_finite() && fmax.is_finite() && fmin <= fmax && fmin >= 0.0) || n == 0 {
+        return Err(ModelError::InvalidArgument(format!(
+            "grid {fmin}:{fmax}:{n} must have 0 <= FMIN <= FMAX and N >= 1"
+        )));
+    }
+    if log && fmin <= 0.0 {
+        return Err(ModelError::InvalidArgument("a logarithmic grid needs FMIN > 0".into()));
+    }
+    if n == 1 {
+        return Ok(vec![fmin]);
+    }
+    Ok((0..n)
+        .map(|i| {
+            let t = i as f64 / (n - 1) as f64;
+            if log {
+                (fmin.ln() + t * (fmax.ln() - fmin.ln())).exp()
+            } else {
+                fmin + t * (fmax - fmin)
+            }
+        })
+        .collect())
+}

@@ -1,0 +1,198 @@
+//! JSON (de)serialisation of models and FRDs in the formats of DESIGN §4 (contracts).
+//!
+//! Model: `{"type": "ss", "ts": 0.0002 | null, "a": [[..]], "b": [[..]], "c": [[..]], "d": [[..]],
+//! "name"?, "inputs"?, "outputs"?}` with row-major arrays of rows; `d` fixes ny and nu. A SISO
+//! transfer function `{"type": "tf", "ts": .., "num": [..], "den": [..]}` is read too (realised
+//! in observable canonical form). FRD: `{"type": "frd", "ts": .., "freq_hz": [..],
+//! "re": [f][o][i], "im": [f][o][i], "var"?: [f][o][i]}`.
+
+use crate::error::{ModelError, Result};
+use crate::frd::Frd;
+use crate::ss::StateSpace;
+use crate::tf::TransferFunction;
+use crate::time::SampleTime;
+use nalgebra::DMatrix;
+use num_complex::Complex64 as C;
+use serde::{Deserialize, Serialize};
+use std::io::{Read, Write};
+
+#[derive(Serialize, Deserialize)]
+struct SsJson {
+    #[serde(rename = "type")]
+    kind: String,
+    ts: Option<f64>,
+    a: Vec<Vec<f64>>,
+    b: Vec<Vec<f64>>,
+    c: Vec<Vec<f64>>,
+    d: Vec<Vec<f64>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    name: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    inputs: Option<Vec<String>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    outputs: Option<Vec<String>>,
+}
+
+#[derive(Deserialize)]
+struct TfJson {
+    ts: Option<f64>,
+    num: Vec<f64>,
+    den: Vec<f64>,
+}
+
+#[derive(Serialize, Deserialize)]
+struct FrdJson {
+    #[serde(rename = "type")]
+    kind: String,
+    ts: Option<f64>,
+    freq_hz: Vec<f64>,
+    re: Vec<Vec<Vec<f64>>>,
+    im: Vec<Vec<Vec<f64>>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    var: Option<Vec<Vec<Vec<f64>>>>,
+}
+
+fn parse_err(what: &str, e: impl std::fmt::Display) -> ModelError {
+    ModelError::Parse { what: what.into(), detail: e.to_string() }
+}
+
+fn rows_to_matrix(rows: &[Vec<f64>], nrows: usize, ncols: usize, what: &str) -> Result<DMatrix<f64>> {
+    // A matrix with zero columns may be written as [] or as nrows empty rows.
+    if ncols == 0 && rows.is_empty() {
+        return Ok(DMatrix::zeros(nrows, 0));
+    }
+    if rows.len() != nrows {
+        return Err(ModelError::dim(format!("\"{what}\" (rows)"), nrows, rows.len()));
+    }
+    for (i, r) in rows.iter().enumerate() {
+        if r.len() != ncols {
+            return Err(ModelError::dim(format!("\"{what}\" row {i} (ragged or wrong width)"), ncols, r.len()));
+        }
+    }
+    Ok(DMatrix::from_fn(nrows, ncols, |i, j| rows[i][j]))
+}
+
+fn matrix_to_rows(m: &DMatrix<f64>) -> Vec<Vec<f64>> {
+    (0..m.nrows()).map(|i| m.row(i).iter().cloned().collect()).collect()
+}
+
+/// Reads a model (state space, or SISO transfer function) from JSON text.
+pub fn model_from_json_str(text: &str) -> Result<StateSpace> {
+    let v: serde_json::Value = serde_json::from_str(text).map_err(|e| parse_err("model JSON", e))?;
+    let kind = v.get("type").and_then(|t| t.as_str()).unwrap_or("ss");
+    match kind {
+        "ss" => {
+            let s: SsJson = serde_json::from_value(v).map_err(|e| parse_err("state-space model JSON", e))?;
+            let ny = s.d.len();
+            let nu = s.d.first().map(|r| r.len()).unwrap_or(0);
+            let n = s.a.len();
+            let time = SampleTime::from_option(s.ts)?;
+            let a = rows_to_matrix(&s.a, n, n, "a")?;
+            let b = rows_to_matrix(&s.b, n, nu, "b")?;
+            let c = rows_to_matrix(&s.c, ny, n, "c")?;
+            let d = rows_to_matrix(&s.d, ny, nu, "d")?;
+            let mut sys = StateSpace::new(a, b, c, d, time)?;
+            if let Some(name) = s.name {
+                sys = sys.with_name(name);
+            }
+            sys.with_signal_names(s.inputs, s.outputs)
+        }
+        "tf" => {
+            let t: TfJson = serde_json::from_value(v).map_err(|e| parse_err("transfer-function JSON", e))?;
+            TransferFunction::new(t.num, t.den, SampleTime::from_option(t.ts)?)?.to_ss()
+        }
+        other => Err(parse_err("model JSON", format!("unknown \"type\": \"{other}\" (expected \"ss\" or \"tf\")"))),
+    }
+}
+
+/// Reads a model from a reader.
+pub fn read_model<R: Read>(mut r: R) -> Result<StateSpace> {
+    let mut s = String::new();
+    r.read_to_string(&mut s).map_err(|e| parse_err("model JSON", e))?;
+    model_from_json_str(&s)
+}
+
+/// Serialises a model to a JSON string.
+pub fn model_to_json_string(sys: &StateSpace) -> Result<String> {
+    let s = SsJson {
+        kind: "ss".into(),
+        ts: sys.ts(),
+        a: matrix_to_rows(sys.a()),
+        b: matrix_to_rows(sys.b()),
+        c: matrix_to_rows(sys.c()),
+        d: matrix_to_rows(sys.d()),
+        name: sys.name().map(String::from),
+        inputs: sys.input_names().map(|v| v.to_vec()),
+        outputs: sys.output_names().map(|v| v.to_vec()),
+    };
+    serde_json::to_string(&s).map_err(|e| parse_err("model", e))
+}
+
+/// Writes a model as JSON.
+pub fn write_model<W: Write>(sys: &StateSpace, mut w: W) -> Result<()> {
+    let s = model_to_json_string(sys)?;
+    w.write_all(s.as_bytes()).map_err(|e| parse_err("model output", e))
+}
+
+/// Reads an FRD from JSON text.
+pub fn frd_from_json_str(text: &str) -> Result<Frd> {
+    let f: FrdJson = serde_json::from_str(text).map_err(|e| parse_err("FRD JSON", e))?;
+    if f.kind != "frd" {
+        return Err(parse_err("FRD JSON", format!("\"type\" is \"{}\", expected \"frd\"", f.kind)));
+    }
+    let nf = f.freq_hz.len();
+    if f.re.len() != nf || f.im.len() != nf {
+        return Err(ModelError::dim("FRD \"re\"/\"im\" (one matrix per frequency)", nf, format!("{}/{}", f.re.len(), f.im.len())));
+    }
+    let ny = f.re.first().map(|m| m.len()).unwrap_or(1);
+    let nu = f.re.first().and_then(|m| m.first()).map(|r| r.len()).unwrap_or(1);
+    let mut resp = Vec::with_capacity(nf);
+    for k in 0..nf {
+        let re = rows_to_matrix(&f.re[k], ny, nu, &format!("re[{k}]"))?;
+        let im = rows_to_matrix(&f.im[k], ny, nu, &format!("im[{k}]"))?;
+        resp.push(DMatrix::from_fn(ny, nu, |i, j| C::new(re[(i, j)], im[(i, j)])));
+    }
+    let var = match &f.var {
+        None => None,
+        Some(v) => {
+            if v.len() != nf {
+                return Err(ModelError::dim("FRD \"var\" (one matrix per frequency)", nf, v.len()));
+            }
+            Some(v.iter().enumerate().map(|(k, m)| rows_to_matrix(m, ny, nu, &format!("var[{k}]"))).collect::<Result<Vec<_>>>()?)
+        }
+    };
+    Frd::new(f.freq_hz, resp, var, SampleTime::from_option(f.ts)?)
+}
+
+/// Serialises an FRD to a JSON string.
+pub fn frd_to_json_string(frd: &Frd) -> Result<String> {
+    let split = |g: fn(&C) -> f64| -> Vec<Vec<Vec<f64>>> {
+        frd.response().iter().map(|m| matrix_to_rows(&m.map(|v| g(&v)))).collect()
+    };
+    let f = FrdJson {
+        kind: "frd".into(),
+        ts: frd.time().ts(),
+        freq_hz: frd.freq_hz().to_vec(),
+        re: split(|v| v.re),
+        im: split(|v| v.im),
+        var: frd.variance().map(|v| v.iter().map(matrix_to_rows).collect()),
+    };
+    serde_json::to_string(&f).map_err(|e| parse_err("FRD", e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn roundtrip_and_static_gain() {
+        let txt = r#"{"type":"ss","ts":0.001,"a":[[0.5]],"b":[[1.0]],"c":[[2.0]],"d":[[0.0]],"name":"x"}"#;
+        let m = model_from_json_str(txt).unwrap();
+        let back = model_from_json_str(&model_to_json_string(&m).unwrap()).unwrap();
+        assert_eq!(m, back);
+        let g = model_from_json_str(r#"{"type":"ss","ts":null,"a":[],"b":[],"c":[[],[]],"d":[[1,2],[3,4]]}"#).unwrap();
+        assert_eq!((g.n(), g.ny(), g.nu()), (0, 2, 2));
+        let tf = model_from_json_str(r#"{"type":"tf","ts":null,"num":[1],"den":[1,2,1]}"#).unwrap();
+        assert_eq!(tf.n(), 2);
+    }
+}

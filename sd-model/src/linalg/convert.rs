@@ -1,0 +1,62 @@
+//! The one place where nalgebra and faer matrices are converted.
+
+use crate::error::{ModelError, Result};
+use nalgebra::DMatrix;
+use num_complex::Complex64 as C;
+
+/// nalgebra → faer.
+pub fn to_faer(a: &DMatrix<f64>) -> faer::Mat<f64> {
+    faer::Mat::from_fn(a.nrows(), a.ncols(), |i, j| a[(i, j)])
+}
+
+/// faer → nalgebra.
+pub fn from_faer(a: faer::MatRef<'_, f64>) -> DMatrix<f64> {
+    DMatrix::from_fn(a.nrows(), a.ncols(), |i, j| a[(i, j)])
+}
+
+/// Eigenvalues of a real square matrix (faer's multishift QR).
+pub fn eigenvalues(a: &DMatrix<f64>) -> Result<Vec<C>> {
+    if a.nrows() == 0 {
+        return Ok(Vec::new());
+    }
+    let m = to_faer(a);
+    let ev = m
+        .eigenvalues()
+        .map_err(|e| ModelError::NotConverged { what: format!("the eigenvalue iteration ({e:?})") })?;
+    Ok(ev.into_iter().map(|z| C::new(z.re, z.im)).collect())
+}
+
+/// Generalized eigenvalues `(α, β)` of the pencil `A − λ E` (λ = α/β), by faer's QZ.
+pub fn generalized_eigenvalues(a: &DMatrix<f64>, e: &DMatrix<f64>) -> Result<Vec<(C, C)>> {
+    if a.nrows() == 0 {
+        return Ok(Vec::new());
+    }
+    let fa = to_faer(a);
+    let fe = to_faer(e);
+    let g = fa
+        .generalized_eigen(&fe)
+        .map_err(|e| ModelError::NotConverged { what: format!("the QZ iteration ({e:?})") })?;
+    let sa = g.S_a();
+    let sb = g.S_b();
+    Ok((0..a.nrows())
+        .map(|i| {
+            let x = sa[i];
+            let y = sb[i];
+            (C::new(x.re, x.im), C::new(y.re, y.im))
+        })
+        .collect())
+}
+
+/// Singular values (descending) and thin factors `(U, σ, V)` of a real matrix, by faer's SVD.
+pub fn svd(a: &DMatrix<f64>) -> Result<(DMatrix<f64>, Vec<f64>, DMatrix<f64>)> {
+    let (m, n) = a.shape();
+    if m == 0 || n == 0 {
+        return Ok((DMatrix::zeros(m, 0), Vec::new(), DMatrix::zeros(n, 0)));
+    }
+    let fa = to_faer(a);
+    let s = fa.thin_svd().map_err(|e| ModelError::NotConverged { what: format!("the SVD ({e:?})") })?;
+    let u = from_faer(s.U());
+    let v = from_faer(s.V());
+    let sv = s.S().column_vector().iter().cloned().collect();
+    Ok((u, sv, v))
+}
