@@ -1,1 +1,35 @@
-//! Shared helpers of the integration tests.
+//! Shared helpers of the cross-crate integration and property tests (package `sd-tests`).
+
+use nalgebra::DMatrix;
+use std::path::PathBuf;
+
+/// Path of a file in the repository's `test_data/` folder.
+pub fn test_data(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..").join("test_data").join(name)
+}
+
+/// Reads a JSON file of `test_data/`.
+pub fn read_json(name: &str) -> serde_json::Value {
+    let p = test_data(name);
+    let text = std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("cannot read {}: {e}", p.display()));
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("bad JSON in {}: {e}", p.display()))
+}
+
+/// A row-major JSON array of rows as a matrix.
+pub fn mat(v: &serde_json::Value) -> DMatrix<f64> {
+    let rows: Vec<Vec<f64>> = serde_json::from_value(v.clone()).expect("matrix as array of rows");
+    let nr = rows.len();
+    let nc = rows.first().map(|r| r.len()).unwrap_or(0);
+    DMatrix::from_fn(nr, nc, |i, j| rows[i][j])
+}
+
+/// ‖X − Y‖_F / ‖Y‖_F (absolute when Y = 0).
+pub fn rel_err(x: &DMatrix<f64>, y: &DMatrix<f64>) -> f64 {
+    let d = (x - y).norm();
+    let s = y.norm();
+    if s == 0.0 {
+        d
+    } else {
+        d / s
+    }
+}

@@ -61,7 +61,8 @@ fn pade_coeffs(m: usize) -> &'static [f64] {
     }
 }
 
-pub(crate) fn norm1(a: &DMatrix<f64>) -> f64 {
+/// Matrix 1-norm (maximum absolute column sum).
+pub fn norm1(a: &DMatrix<f64>) -> f64 {
     a.column_iter().map(|c| c.iter().map(|v| v.abs()).sum::<f64>()).fold(0.0, f64::max)
 }
 

@@ -1,0 +1,303 @@
+//! Command definitions and their implementations.
+
+use crate::io::{emit, from_model, read_model, CliError};
+use clap::{Parser, Subcommand, ValueEnum};
+use sd_model::{c2d, d2c_with_aliases, Discretization, StateSpace};
+use serde_json::json;
+
+/// Sampled-data control design on files: models (JSON), FRDs (JSON), experiments (TOML + CSV).
+#[derive(Parser, Debug)]
+#[command(name = "sdctl", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum Method {
+    Zoh,
+    Foh,
+    Tustin,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum Conn {
+    Series,
+    Parallel,
+    Feedback,
+}
+
+#[derive(Subcommand, Debug)]
+enum Cmd {
+    /// Discretise a continuous model (exact ZOH by default).
+    C2d {
+        /// Model JSON file ("-" for stdin).
+        model: String,
+        /// Sampling period in seconds.
+        #[arg(long)]
+        ts: f64,
+        #[arg(long, value_enum, default_value = "zoh")]
+        method: Method,
+        /// Tustin prewarp frequency in Hz.
+        #[arg(long)]
+        prewarp_hz: Option<f64>,
+        /// Output file (default stdout).
+        #[arg(short, long)]
+        output: Option<String>,
+    },
+    /// Continuous model from a discrete one (principal branch); alias candidates on stderr.
+    D2c {
+        model: String,
+        /// Highest candidate frequency listed per mode (Hz; default 3 × the sample rate).
+        #[arg(long)]
+        max_hz: Option<f64>,
+        #[arg(short, long)]
+        output: Option<String>,
+    },
+    /// Where a continuous frequency appears after sampling, and what folds onto it.
+    Alias {
+        #[arg(long)]
+        freq_hz: f64,
+        #[arg(long)]
+        rate_hz: f64,
+        /// Highest folding frequency listed (Hz; default 5 × the rate).
+        #[arg(long)]
+        max_hz: Option<f64>,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Frequency response on a grid FMIN:FMAX:N[:log] (Hz) as FRD JSON.
+    Freqresp {
+        model: String,
+        #[arg(long)]
+        grid: String,
+        #[arg(short, long)]
+        output: Option<String>,
+    },
+    /// Poles with frequency (Hz) and damping.
+    Poles {
+        model: String,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Invariant zeros.
+    Zeros {
+        model: String,
+        #[arg(long)]
+        json: bool,
+    },
+    /// H2 and H∞ norms (with the H∞ peak frequency).
+    Norm {
+        model: String,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Balanced truncation to N states (unstable/marginal poles kept); summary on stderr.
+    Reduce {
+        model: String,
+        #[arg(long)]
+        order: usize,
+        #[arg(short, long)]
+        output: Option<String>,
+    },
+    /// Interconnect two models: series (A then B), parallel, feedback (negative by default).
+    Connect {
+        #[arg(value_enum)]
+        kind: Conn,
+        a: String,
+        b: String,
+        /// Feedback sign: -1 (negative, default) or +1.
+        #[arg(long, default_value_t = -1.0, allow_negative_numbers = true)]
+        sign: f64,
+        #[arg(short, long)]
+        output: Option<String>,
+    },
+}
+
+fn finite_pos(v: f64, what: &str) -> Result<f64, CliError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(CliError::input(format!("{what} = {v} must be finite and > 0")))
+    }
+}
+
+fn model_json(sys: &StateSpace) -> Result<String, CliError> {
+    sd_model::model_to_json_string(sys).map_err(|e| from_model("output", e))
+}
+
+fn pole_info(p: num_complex::Complex64, ts: Option<f64>) -> (f64, f64) {
+    // (frequency Hz, damping) of the equivalent continuous pole
+    let s = match ts {
+        None => p,
+        Some(h) => p.ln() / h,
+    };
+    let f = s.norm() / (2.0 * std::f64::consts::PI);
+    let z = if s.norm() == 0.0 { 1.0 } else { -s.re / s.norm() };
+    (f, z)
+}
+
+/// Parses FMIN:FMAX:N[:log].
+fn parse_grid(g: &str) -> Result<Vec<f64>, CliError> {
+    let parts: Vec<&str> = g.split(':').collect();
+    let bad = || CliError::input(format!("--grid {g}: expected FMIN:FMAX:N[:log], e.g. 1:500:1000:log"));
+    if parts.len() < 3 || parts.len() > 4 {
+        return Err(bad());
+    }
+    let fmin: f64 = parts[0].trim().parse().map_err(|_| bad())?;
+    let fmax: f64 = parts[1].trim().parse().map_err(|_| bad())?;
+    let n: usize = parts[2].trim().parse().map_err(|_| bad())?;
+    let log = match parts.get(3).map(|s| s.trim()) {
+        None | Some("lin") => false,
+        Some("log") => true,
+        Some(_) => return Err(bad()),
+    };
+    sd_model::grid(fmin, fmax, n, log).map_err(|e| from_model("--grid", e))
+}
+
+pub fn run(cli: Cli) -> Result<(), CliError> {
+    match cli.cmd {
+        Cmd::C2d { model, ts, method, prewarp_hz, output } => {
+            let sys = read_model(&model)?;
+            finite_pos(ts, "--ts")?;
+            if prewarp_hz.is_some() && !matches!(method, Method::Tustin) {
+                return Err(CliError::input("--prewarp-hz only applies to --method tustin"));
+            }
+            let m = match method {
+                Method::Zoh => Discretization::Zoh,
+                Method::Foh => Discretization::Foh,
+                Method::Tustin => Discretization::Tustin { prewarp_hz },
+            };
+            let d = c2d(&sys, ts, m).map_err(|e| from_model(&model, e))?;
+            emit(&model_json(&d)?, output.as_deref())
+        }
+        Cmd::D2c { model, max_hz, output } => {
+            let sys = read_model(&model)?;
+            let ts = sys.ts().unwrap_or(1.0);
+            let max_hz = finite_pos(max_hz.unwrap_or(3.0 / ts), "--max-hz")?;
+            let (c, modes) = d2c_with_aliases(&sys, max_hz).map_err(|e| from_model(&model, e))?;
+            emit(&model_json(&c)?, output.as_deref())?;
+            eprintln!("mode alias candidates (Hz, damping) up to {max_hz} Hz:");
+            for m in modes {
+                let list: Vec<String> = m.candidates.iter().map(|(f, z)| format!("{f:.4} (ζ={z:.4})")).collect();
+                eprintln!("  z = {:.6}{:+.6}i  principal {:.4} Hz ζ={:.5}: {}", m.z.re, m.z.im, m.freq_hz, m.damping, list.join(", "));
+            }
+            Ok(())
+        }
+        Cmd::Alias { freq_hz, rate_hz, max_hz, json } => {
+            let a = sd_model::alias(freq_hz, rate_hz).map_err(|e| from_model("alias", e))?;
+            let max_hz = max_hz.unwrap_or(5.0 * rate_hz);
+            let folds = sd_model::folding_frequencies(a.alias_hz, rate_hz, max_hz).map_err(|e| from_model("alias", e))?;
+            if json {
+                let v = json!({
+                    "freq_hz": a.freq_hz, "rate_hz": a.rate_hz, "alias_hz": a.alias_hz,
+                    "fold_index": a.fold_index, "mirrored": a.mirrored,
+                    "nyquist_hz": rate_hz / 2.0,
+                    "folding_frequencies_hz": folds, "folding_max_hz": max_hz,
+                });
+                emit(&v.to_string(), None)
+            } else {
+                let list: Vec<String> = folds.iter().map(|f| format!("{f}")).collect();
+                emit(
+                    &format!(
+                        "{} Hz sampled at {} Hz appears at {} Hz (fold index {}{}).\nContinuous frequencies up to {} Hz that appear there: {}",
+                        a.freq_hz, a.rate_hz, a.alias_hz, a.fold_index, if a.mirrored { ", mirrored" } else { "" }, max_hz, list.join(", ")
+                    ),
+                    None,
+                )
+            }
+        }
+        Cmd::Freqresp { model, grid, output } => {
+            let sys = read_model(&model)?;
+            let f = parse_grid(&grid)?;
+            if let Some(ny) = sys.time().nyquist_hz() {
+                if let Some(fm) = f.iter().cloned().reduce(f64::max) {
+                    if fm > ny * (1.0 + 1e-12) {
+                        return Err(CliError::input(format!("--grid {grid}: FMAX = {fm} Hz is above the model's Nyquist frequency {ny} Hz")));
+                    }
+                }
+            }
+            let frd = sys.freqresp(&f).map_err(|e| from_model(&model, e))?;
+            let txt = sd_model::frd_to_json_string(&frd).map_err(|e| from_model("output", e))?;
+            emit(&txt, output.as_deref())
+        }
+        Cmd::Poles { model, json } => roots(&model, json, true),
+        Cmd::Zeros { model, json } => roots(&model, json, false),
+        Cmd::Norm { model, json } => {
+            let sys = read_model(&model)?;
+            let hinf = sys.hinf_norm().map_err(|e| from_model(&model, e))?;
+            let h2 = sys.h2_norm().ok();
+            if json {
+                emit(
+                    &json!({"hinf": if hinf.value.is_finite() { json!(hinf.value) } else { json!("inf") },
+                            "hinf_db": if hinf.value.is_finite() { json!(20.0 * hinf.value.log10()) } else { json!("inf") },
+                            "peak_hz": hinf.peak_hz, "stable": hinf.stable,
+                            "h2": h2.map(|v| json!(v)).unwrap_or(json!("inf"))})
+                    .to_string(),
+                    None,
+                )
+            } else {
+                emit(
+                    &format!(
+                        "H-infinity norm {} ({:.3} dB) at {:.6} Hz{}\nH2 norm {}",
+                        hinf.value,
+                        20.0 * hinf.value.log10(),
+                        hinf.peak_hz,
+                        if hinf.stable { "" } else { " (unstable model: L-infinity norm)" },
+                        h2.map(|v| v.to_string()).unwrap_or_else(|| "inf".into())
+                    ),
+                    None,
+                )
+            }
+        }
+        Cmd::Reduce { model, order, output } => {
+            let sys = read_model(&model)?;
+            let r = sys.balanced_truncation(order).map_err(|e| from_model(&model, e))?;
+            emit(&model_json(&r.model)?, output.as_deref())?;
+            eprintln!(
+                "balanced truncation {} -> {} states ({} unstable/marginal kept); error bound ‖G−Gr‖∞ ≤ {:.6e}",
+                sys.n(),
+                r.model.n(),
+                r.n_unstable,
+                r.error_bound
+            );
+            let hs: Vec<String> = r.hankel_sv.iter().take(20).map(|v| format!("{v:.4e}")).collect();
+            eprintln!("Hankel singular values (stable part): {}", hs.join(" "));
+            Ok(())
+        }
+        Cmd::Connect { kind, a, b, sign, output } => {
+            let ga = read_model(&a)?;
+            let gb = read_model(&b)?;
+            let r = match kind {
+                Conn::Series => sd_model::series(&ga, &gb),
+                Conn::Parallel => sd_model::parallel(&ga, &gb),
+                Conn::Feedback => sd_model::feedback(&ga, &gb, sign),
+            }
+            .map_err(|e| from_model("connect", e))?;
+            emit(&model_json(&r)?, output.as_deref())
+        }
+    }
+}
+
+fn roots(model: &str, json: bool, poles: bool) -> Result<(), CliError> {
+    let sys = read_model(model)?;
+    let r = if poles { sys.poles() } else { sys.zeros() }.map_err(|e| from_model(model, e))?;
+    let ts = sys.ts();
+    if json {
+        let v: Vec<_> = r
+            .iter()
+            .map(|p| {
+                let (f, z) = pole_info(*p, ts);
+                json!({"re": p.re, "im": p.im, "freq_hz": f, "damping": z})
+            })
+            .collect();
+        emit(&serde_json::Value::Array(v).to_string(), None)
+    } else {
+        let mut s = format!("{:>24} {:>24} {:>14} {:>10}\n", "re", "im", "freq_hz", "damping");
+        for p in &r {
+            let (f, z) = pole_info(*p, ts);
+            s += &format!("{:>24.16e} {:>24.16e} {:>14.6} {:>10.6}\n", p.re, p.im, f, z);
+        }
+        emit(s.trim_end(), None)
+    }
+}

@@ -1,0 +1,69 @@
+//! File input and atomic output for sdctl.
+
+use sd_model::{ModelError, StateSpace};
+use std::io::Read;
+use std::path::Path;
+
+/// A failure with its exit code (2: the input's fault, 1: numerical).
+#[derive(Debug)]
+pub struct CliError {
+    pub code: u8,
+    pub message: String,
+}
+
+impl CliError {
+    pub fn input(msg: impl Into<String>) -> Self {
+        CliError { code: 2, message: msg.into() }
+    }
+}
+
+/// Maps a library error to an exit code: convergence failures are numerical (1), everything
+/// else is the input's fault (2).
+pub fn from_model(context: &str, e: ModelError) -> CliError {
+    let code = match e {
+        ModelError::NotConverged { .. } => 1,
+        _ => 2,
+    };
+    CliError { code, message: format!("{context}: {e}") }
+}
+
+/// Reads a file (or stdin for "-") to a string.
+pub fn read_text(path: &str) -> Result<String, CliError> {
+    let mut s = String::new();
+    if path == "-" {
+        std::io::stdin().read_to_string(&mut s).map_err(|e| CliError::input(format!("cannot read stdin: {e}")))?;
+    } else {
+        s = std::fs::read_to_string(path).map_err(|e| CliError::input(format!("cannot read {path}: {e}")))?;
+    }
+    Ok(s)
+}
+
+/// Reads a model file.
+pub fn read_model(path: &str) -> Result<StateSpace, CliError> {
+    let text = read_text(path)?;
+    sd_model::model_from_json_str(&text).map_err(|e| from_model(path, e))
+}
+
+/// Writes `text` to `out` atomically, or to stdout when `out` is None.
+pub fn emit(text: &str, out: Option<&str>) -> Result<(), CliError> {
+    match out {
+        None => {
+            use std::io::Write;
+            let mut so = std::io::stdout().lock();
+            so.write_all(text.as_bytes())
+                .and_then(|_| so.write_all(b"\n"))
+                .map_err(|e| CliError { code: 1, message: format!("cannot write stdout: {e}") })
+        }
+        Some(path) => {
+            let p = Path::new(path);
+            let dir = p.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+            let name = p.file_name().ok_or_else(|| CliError::input(format!("invalid output path {path}")))?;
+            let tmp = dir.join(format!(".{}.tmp{}", name.to_string_lossy(), std::process::id()));
+            std::fs::write(&tmp, format!("{text}\n")).map_err(|e| CliError::input(format!("cannot write {}: {e}", tmp.display())))?;
+            std::fs::rename(&tmp, p).map_err(|e| {
+                let _ = std::fs::remove_file(&tmp);
+                CliError::input(format!("cannot write {path}: {e}"))
+            })
+        }
+    }
+}
