@@ -34,12 +34,12 @@ enum Cmd {
         /// Model JSON file ("-" for stdin).
         model: String,
         /// Sampling period in seconds.
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         ts: f64,
         #[arg(long, value_enum, default_value = "zoh")]
         method: Method,
         /// Tustin prewarp frequency in Hz.
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         prewarp_hz: Option<f64>,
         /// Output file (default stdout).
         #[arg(short, long)]
@@ -49,19 +49,19 @@ enum Cmd {
     D2c {
         model: String,
         /// Highest candidate frequency listed per mode (Hz; default 3 × the sample rate).
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         max_hz: Option<f64>,
         #[arg(short, long)]
         output: Option<String>,
     },
     /// Where a continuous frequency appears after sampling, and what folds onto it.
     Alias {
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         freq_hz: f64,
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         rate_hz: f64,
         /// Highest folding frequency listed (Hz; default 5 × the rate).
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         max_hz: Option<f64>,
         #[arg(long)]
         json: bool,
@@ -118,7 +118,9 @@ fn finite_pos(v: f64, what: &str) -> Result<f64, CliError> {
     if v.is_finite() && v > 0.0 {
         Ok(v)
     } else {
-        Err(CliError::input(format!("{what} = {v} must be finite and > 0")))
+        Err(CliError::input(format!(
+            "{what} = {v} must be finite and > 0"
+        )))
     }
 }
 
@@ -133,14 +135,22 @@ fn pole_info(p: num_complex::Complex64, ts: Option<f64>) -> (f64, f64) {
         Some(h) => p.ln() / h,
     };
     let f = s.norm() / (2.0 * std::f64::consts::PI);
-    let z = if s.norm() == 0.0 { 1.0 } else { -s.re / s.norm() };
+    let z = if s.norm() == 0.0 {
+        1.0
+    } else {
+        -s.re / s.norm()
+    };
     (f, z)
 }
 
 /// Parses FMIN:FMAX:N[:log].
 fn parse_grid(g: &str) -> Result<Vec<f64>, CliError> {
     let parts: Vec<&str> = g.split(':').collect();
-    let bad = || CliError::input(format!("--grid {g}: expected FMIN:FMAX:N[:log], e.g. 1:500:1000:log"));
+    let bad = || {
+        CliError::input(format!(
+            "--grid {g}: expected FMIN:FMAX:N[:log], e.g. 1:500:1000:log"
+        ))
+    };
     if parts.len() < 3 || parts.len() > 4 {
         return Err(bad());
     }
@@ -157,11 +167,19 @@ fn parse_grid(g: &str) -> Result<Vec<f64>, CliError> {
 
 pub fn run(cli: Cli) -> Result<(), CliError> {
     match cli.cmd {
-        Cmd::C2d { model, ts, method, prewarp_hz, output } => {
+        Cmd::C2d {
+            model,
+            ts,
+            method,
+            prewarp_hz,
+            output,
+        } => {
             let sys = read_model(&model)?;
             finite_pos(ts, "--ts")?;
             if prewarp_hz.is_some() && !matches!(method, Method::Tustin) {
-                return Err(CliError::input("--prewarp-hz only applies to --method tustin"));
+                return Err(CliError::input(
+                    "--prewarp-hz only applies to --method tustin",
+                ));
             }
             let m = match method {
                 Method::Zoh => Discretization::Zoh,
@@ -171,7 +189,11 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
             let d = c2d(&sys, ts, m).map_err(|e| from_model(&model, e))?;
             emit(&model_json(&d)?, output.as_deref())
         }
-        Cmd::D2c { model, max_hz, output } => {
+        Cmd::D2c {
+            model,
+            max_hz,
+            output,
+        } => {
             let sys = read_model(&model)?;
             let ts = sys.ts().unwrap_or(1.0);
             let max_hz = finite_pos(max_hz.unwrap_or(3.0 / ts), "--max-hz")?;
@@ -179,15 +201,32 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
             emit(&model_json(&c)?, output.as_deref())?;
             eprintln!("mode alias candidates (Hz, damping) up to {max_hz} Hz:");
             for m in modes {
-                let list: Vec<String> = m.candidates.iter().map(|(f, z)| format!("{f:.4} (ζ={z:.4})")).collect();
-                eprintln!("  z = {:.6}{:+.6}i  principal {:.4} Hz ζ={:.5}: {}", m.z.re, m.z.im, m.freq_hz, m.damping, list.join(", "));
+                let list: Vec<String> = m
+                    .candidates
+                    .iter()
+                    .map(|(f, z)| format!("{f:.4} (ζ={z:.4})"))
+                    .collect();
+                eprintln!(
+                    "  z = {:.6}{:+.6}i  principal {:.4} Hz ζ={:.5}: {}",
+                    m.z.re,
+                    m.z.im,
+                    m.freq_hz,
+                    m.damping,
+                    list.join(", ")
+                );
             }
             Ok(())
         }
-        Cmd::Alias { freq_hz, rate_hz, max_hz, json } => {
+        Cmd::Alias {
+            freq_hz,
+            rate_hz,
+            max_hz,
+            json,
+        } => {
             let a = sd_model::alias(freq_hz, rate_hz).map_err(|e| from_model("alias", e))?;
             let max_hz = max_hz.unwrap_or(5.0 * rate_hz);
-            let folds = sd_model::folding_frequencies(a.alias_hz, rate_hz, max_hz).map_err(|e| from_model("alias", e))?;
+            let folds = sd_model::folding_frequencies(a.alias_hz, rate_hz, max_hz)
+                .map_err(|e| from_model("alias", e))?;
             if json {
                 let v = json!({
                     "freq_hz": a.freq_hz, "rate_hz": a.rate_hz, "alias_hz": a.alias_hz,
@@ -207,7 +246,11 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
                 )
             }
         }
-        Cmd::Freqresp { model, grid, output } => {
+        Cmd::Freqresp {
+            model,
+            grid,
+            output,
+        } => {
             let sys = read_model(&model)?;
             let f = parse_grid(&grid)?;
             if let Some(ny) = sys.time().nyquist_hz() {
@@ -243,16 +286,26 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
                         hinf.value,
                         20.0 * hinf.value.log10(),
                         hinf.peak_hz,
-                        if hinf.stable { "" } else { " (unstable model: L-infinity norm)" },
+                        if hinf.stable {
+                            ""
+                        } else {
+                            " (unstable model: L-infinity norm)"
+                        },
                         h2.map(|v| v.to_string()).unwrap_or_else(|| "inf".into())
                     ),
                     None,
                 )
             }
         }
-        Cmd::Reduce { model, order, output } => {
+        Cmd::Reduce {
+            model,
+            order,
+            output,
+        } => {
             let sys = read_model(&model)?;
-            let r = sys.balanced_truncation(order).map_err(|e| from_model(&model, e))?;
+            let r = sys
+                .balanced_truncation(order)
+                .map_err(|e| from_model(&model, e))?;
             emit(&model_json(&r.model)?, output.as_deref())?;
             eprintln!(
                 "balanced truncation {} -> {} states ({} unstable/marginal kept); error bound ‖G−Gr‖∞ ≤ {:.6e}",
@@ -261,11 +314,22 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
                 r.n_unstable,
                 r.error_bound
             );
-            let hs: Vec<String> = r.hankel_sv.iter().take(20).map(|v| format!("{v:.4e}")).collect();
+            let hs: Vec<String> = r
+                .hankel_sv
+                .iter()
+                .take(20)
+                .map(|v| format!("{v:.4e}"))
+                .collect();
             eprintln!("Hankel singular values (stable part): {}", hs.join(" "));
             Ok(())
         }
-        Cmd::Connect { kind, a, b, sign, output } => {
+        Cmd::Connect {
+            kind,
+            a,
+            b,
+            sign,
+            output,
+        } => {
             let ga = read_model(&a)?;
             let gb = read_model(&b)?;
             let r = match kind {
@@ -293,10 +357,16 @@ fn roots(model: &str, json: bool, poles: bool) -> Result<(), CliError> {
             .collect();
         emit(&serde_json::Value::Array(v).to_string(), None)
     } else {
-        let mut s = format!("{:>24} {:>24} {:>14} {:>10}\n", "re", "im", "freq_hz", "damping");
+        let mut s = format!(
+            "{:>24} {:>24} {:>14} {:>10}\n",
+            "re", "im", "freq_hz", "damping"
+        );
         for p in &r {
             let (f, z) = pole_info(*p, ts);
-            s += &format!("{:>24.16e} {:>24.16e} {:>14.6} {:>10.6}\n", p.re, p.im, f, z);
+            s += &format!(
+                "{:>24.16e} {:>24.16e} {:>14.6} {:>10.6}\n",
+                p.re, p.im, f, z
+            );
         }
         emit(s.trim_end(), None)
     }

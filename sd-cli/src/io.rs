@@ -13,7 +13,10 @@ pub struct CliError {
 
 impl CliError {
     pub fn input(msg: impl Into<String>) -> Self {
-        CliError { code: 2, message: msg.into() }
+        CliError {
+            code: 2,
+            message: msg.into(),
+        }
     }
 }
 
@@ -24,16 +27,22 @@ pub fn from_model(context: &str, e: ModelError) -> CliError {
         ModelError::NotConverged { .. } => 1,
         _ => 2,
     };
-    CliError { code, message: format!("{context}: {e}") }
+    CliError {
+        code,
+        message: format!("{context}: {e}"),
+    }
 }
 
 /// Reads a file (or stdin for "-") to a string.
 pub fn read_text(path: &str) -> Result<String, CliError> {
     let mut s = String::new();
     if path == "-" {
-        std::io::stdin().read_to_string(&mut s).map_err(|e| CliError::input(format!("cannot read stdin: {e}")))?;
+        std::io::stdin()
+            .read_to_string(&mut s)
+            .map_err(|e| CliError::input(format!("cannot read stdin: {e}")))?;
     } else {
-        s = std::fs::read_to_string(path).map_err(|e| CliError::input(format!("cannot read {path}: {e}")))?;
+        s = std::fs::read_to_string(path)
+            .map_err(|e| CliError::input(format!("cannot read {path}: {e}")))?;
     }
     Ok(s)
 }
@@ -52,14 +61,27 @@ pub fn emit(text: &str, out: Option<&str>) -> Result<(), CliError> {
             let mut so = std::io::stdout().lock();
             so.write_all(text.as_bytes())
                 .and_then(|_| so.write_all(b"\n"))
-                .map_err(|e| CliError { code: 1, message: format!("cannot write stdout: {e}") })
+                .map_err(|e| CliError {
+                    code: 1,
+                    message: format!("cannot write stdout: {e}"),
+                })
         }
         Some(path) => {
             let p = Path::new(path);
-            let dir = p.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-            let name = p.file_name().ok_or_else(|| CliError::input(format!("invalid output path {path}")))?;
-            let tmp = dir.join(format!(".{}.tmp{}", name.to_string_lossy(), std::process::id()));
-            std::fs::write(&tmp, format!("{text}\n")).map_err(|e| CliError::input(format!("cannot write {}: {e}", tmp.display())))?;
+            let dir = p
+                .parent()
+                .filter(|d| !d.as_os_str().is_empty())
+                .unwrap_or(Path::new("."));
+            let name = p
+                .file_name()
+                .ok_or_else(|| CliError::input(format!("invalid output path {path}")))?;
+            let tmp = dir.join(format!(
+                ".{}.tmp{}",
+                name.to_string_lossy(),
+                std::process::id()
+            ));
+            std::fs::write(&tmp, format!("{text}\n"))
+                .map_err(|e| CliError::input(format!("cannot write {}: {e}", tmp.display())))?;
             std::fs::rename(&tmp, p).map_err(|e| {
                 let _ = std::fs::remove_file(&tmp);
                 CliError::input(format!("cannot write {path}: {e}"))

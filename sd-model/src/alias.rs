@@ -23,7 +23,10 @@ pub struct Alias {
 
 fn check(v: f64, what: &str, allow_zero: bool) -> Result<()> {
     if !v.is_finite() || v < 0.0 || (!allow_zero && v == 0.0) {
-        return Err(ModelError::InvalidArgument(format!("{what} = {v} must be finite and {}", if allow_zero { ">= 0" } else { "> 0" })));
+        return Err(ModelError::InvalidArgument(format!(
+            "{what} = {v} must be finite and {}",
+            if allow_zero { ">= 0" } else { "> 0" }
+        )));
     }
     Ok(())
 }
@@ -34,7 +37,13 @@ pub fn alias(freq_hz: f64, rate_hz: f64) -> Result<Alias> {
     check(rate_hz, "sample rate", false)?;
     let k = (freq_hz / rate_hz).round();
     let d = freq_hz - k * rate_hz;
-    Ok(Alias { freq_hz, rate_hz, alias_hz: d.abs(), fold_index: k as i64, mirrored: d < 0.0 })
+    Ok(Alias {
+        freq_hz,
+        rate_hz,
+        alias_hz: d.abs(),
+        fold_index: k as i64,
+        mirrored: d < 0.0,
+    })
 }
 
 /// Every continuous frequency up to `max_hz` that appears at `alias_hz` after sampling at
@@ -48,7 +57,10 @@ pub fn folding_frequencies(alias_hz: f64, rate_hz: f64, max_hz: f64) -> Result<V
     let kmax = (max_hz / rate_hz).ceil() as i64 + 1;
     for k in 0..=kmax {
         for f in [k as f64 * rate_hz - a, k as f64 * rate_hz + a] {
-            if f >= -1e-12 && f <= max_hz * (1.0 + 1e-12) && !out.iter().any(|g: &f64| (g - f).abs() < 1e-9 * rate_hz) {
+            if f >= -1e-12
+                && f <= max_hz * (1.0 + 1e-12)
+                && !out.iter().any(|g: &f64| (g - f).abs() < 1e-9 * rate_hz)
+            {
                 out.push(f.max(0.0));
             }
         }
@@ -66,7 +78,11 @@ mod tests {
         assert!((a.alias_hz - 347.0).abs() < 1e-12 && a.fold_index == 1 && a.mirrored);
         let f = folding_frequencies(347.0, 1000.0, 2500.0).unwrap();
         assert_eq!(f.len(), 5);
-        assert!((f[0] - 347.0).abs() < 1e-9 && (f[1] - 653.0).abs() < 1e-9 && (f[2] - 1347.0).abs() < 1e-9);
+        assert!(
+            (f[0] - 347.0).abs() < 1e-9
+                && (f[1] - 653.0).abs() < 1e-9
+                && (f[2] - 1347.0).abs() < 1e-9
+        );
         assert!(alias(1.0, 0.0).is_err() && alias(f64::NAN, 1.0).is_err());
     }
 }

@@ -89,7 +89,9 @@ pub fn c2d(sys: &StateSpace, ts: f64, method: Discretization) -> Result<StateSpa
             let m = &ident - sys.a() / k;
             let lu = m.lu();
             let minv = lu.try_inverse().ok_or_else(|| ModelError::Singular {
-                what: format!("I − A/k in the Tustin map (a pole at s = {k}); choose another ts or prewarp"),
+                what: format!(
+                    "I − A/k in the Tustin map (a pole at s = {k}); choose another ts or prewarp"
+                ),
             })?;
             let ad = &minv * (&ident + sys.a() / k);
             let mb = &minv * sys.b();
@@ -102,11 +104,18 @@ pub fn c2d(sys: &StateSpace, ts: f64, method: Discretization) -> Result<StateSpa
 }
 
 /// `(A_d, B_d)` of the exact ZOH discretisation (Lemma 5) by one block exponential.
-pub fn zoh_blocks(a: &DMatrix<f64>, b: &DMatrix<f64>, h: f64) -> Result<(DMatrix<f64>, DMatrix<f64>)> {
+pub fn zoh_blocks(
+    a: &DMatrix<f64>,
+    b: &DMatrix<f64>,
+    h: f64,
+) -> Result<(DMatrix<f64>, DMatrix<f64>)> {
     let (n, nu) = (a.nrows(), b.ncols());
     let mut blk = DMatrix::zeros(n + nu, n + nu);
     blk.view_mut((0, 0), (n, n)).copy_from(&(a * h));
     blk.view_mut((0, n), (n, nu)).copy_from(&(b * h));
     let e = expm(&blk)?;
-    Ok((e.view((0, 0), (n, n)).into_owned(), e.view((0, n), (n, nu)).into_owned()))
+    Ok((
+        e.view((0, 0), (n, n)).into_owned(),
+        e.view((0, n), (n, nu)).into_owned(),
+    ))
 }

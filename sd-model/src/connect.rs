@@ -32,12 +32,17 @@ fn hstack(a: &DMatrix<f64>, b: &DMatrix<f64>) -> DMatrix<f64> {
 pub fn series(first: &StateSpace, second: &StateSpace) -> Result<StateSpace> {
     first.time().check_same(&second.time(), "series")?;
     if first.ny() != second.nu() {
-        return Err(ModelError::dim("series (outputs of the first = inputs of the second)", first.ny(), second.nu()));
+        return Err(ModelError::dim(
+            "series (outputs of the first = inputs of the second)",
+            first.ny(),
+            second.nu(),
+        ));
     }
     let (a1, b1, c1, d1) = (first.a(), first.b(), first.c(), first.d());
     let (a2, b2, c2, d2) = (second.a(), second.b(), second.c(), second.d());
     let mut a = blockdiag(a1, a2);
-    a.view_mut((a1.nrows(), 0), (a2.nrows(), a1.ncols())).copy_from(&(b2 * c1));
+    a.view_mut((a1.nrows(), 0), (a2.nrows(), a1.ncols()))
+        .copy_from(&(b2 * c1));
     let b = vstack(b1, &(b2 * d1));
     let c = hstack(&(d2 * c1), c2);
     StateSpace::new(a, b, c, d2 * d1, first.time())
@@ -47,7 +52,11 @@ pub fn series(first: &StateSpace, second: &StateSpace) -> Result<StateSpace> {
 pub fn parallel(g1: &StateSpace, g2: &StateSpace) -> Result<StateSpace> {
     g1.time().check_same(&g2.time(), "parallel")?;
     if g1.d().shape() != g2.d().shape() {
-        return Err(ModelError::dim("parallel (equal input/output counts)", format!("{}x{}", g1.ny(), g1.nu()), format!("{}x{}", g2.ny(), g2.nu())));
+        return Err(ModelError::dim(
+            "parallel (equal input/output counts)",
+            format!("{}x{}", g1.ny(), g1.nu()),
+            format!("{}x{}", g2.ny(), g2.nu()),
+        ));
     }
     StateSpace::new(
         blockdiag(g1.a(), g2.a()),
@@ -61,7 +70,13 @@ pub fn parallel(g1: &StateSpace, g2: &StateSpace) -> Result<StateSpace> {
 /// Block-diagonal stacking: inputs `[u₁; u₂]`, outputs `[y₁; y₂]`.
 pub fn append(g1: &StateSpace, g2: &StateSpace) -> Result<StateSpace> {
     g1.time().check_same(&g2.time(), "append")?;
-    StateSpace::new(blockdiag(g1.a(), g2.a()), blockdiag(g1.b(), g2.b()), blockdiag(g1.c(), g2.c()), blockdiag(g1.d(), g2.d()), g1.time())
+    StateSpace::new(
+        blockdiag(g1.a(), g2.a()),
+        blockdiag(g1.b(), g2.b()),
+        blockdiag(g1.c(), g2.c()),
+        blockdiag(g1.d(), g2.d()),
+        g1.time(),
+    )
 }
 
 /// Closed loop `y = G (r + σ K y)` from r to y, σ = −1 (negative feedback, the default meaning
@@ -69,10 +84,16 @@ pub fn append(g1: &StateSpace, g2: &StateSpace) -> Result<StateSpace> {
 pub fn feedback(g: &StateSpace, k: &StateSpace, sign: f64) -> Result<StateSpace> {
     g.time().check_same(&k.time(), "feedback")?;
     if sign != 1.0 && sign != -1.0 {
-        return Err(ModelError::InvalidArgument(format!("feedback sign must be +1 or -1, got {sign}")));
+        return Err(ModelError::InvalidArgument(format!(
+            "feedback sign must be +1 or -1, got {sign}"
+        )));
     }
     if k.nu() != g.ny() || k.ny() != g.nu() {
-        return Err(ModelError::dim("feedback (K must be nu(G) x ny(G))", format!("{}x{}", g.nu(), g.ny()), format!("{}x{}", k.ny(), k.nu())));
+        return Err(ModelError::dim(
+            "feedback (K must be nu(G) x ny(G))",
+            format!("{}x{}", g.nu(), g.ny()),
+            format!("{}x{}", k.ny(), k.nu()),
+        ));
     }
     let (a1, b1, c1, d1) = (g.a(), g.b(), g.c(), g.d());
     let (a2, b2, c2, d2) = (k.a(), k.b(), k.c(), k.d());

@@ -65,7 +65,13 @@ pub fn d2c(sys: &StateSpace) -> Result<StateSpace> {
     let l = logm(&blk)?;
     let a = l.view((0, 0), (n, n)) / h;
     let b = l.view((0, n), (n, nu)) / h;
-    StateSpace::new(a, b, sys.c().clone(), sys.d().clone(), SampleTime::Continuous)
+    StateSpace::new(
+        a,
+        b,
+        sys.c().clone(),
+        sys.d().clone(),
+        SampleTime::Continuous,
+    )
 }
 
 /// [`d2c`] plus the alias candidates of every mode up to `max_hz`.
@@ -86,7 +92,13 @@ pub fn d2c_with_aliases(sys: &StateSpace, max_hz: f64) -> Result<(StateSpace, Ve
 /// Alias candidates of a single discrete pole `z` at period `h`.
 pub fn mode_aliases(z: C, h: f64, max_hz: f64) -> ModeAliases {
     let s = z.ln() / h;
-    let damp = |s: C| if s.norm() == 0.0 { 1.0 } else { -s.re / s.norm() };
+    let damp = |s: C| {
+        if s.norm() == 0.0 {
+            1.0
+        } else {
+            -s.re / s.norm()
+        }
+    };
     let fs = 1.0 / h;
     let f0 = s.im.abs() / (2.0 * PI);
     let mut cands = Vec::new();
@@ -96,13 +108,22 @@ pub fn mode_aliases(z: C, h: f64, max_hz: f64) -> ModeAliases {
         let f = w.abs() / (2.0 * PI);
         if f <= max_hz * (1.0 + 1e-12) {
             let sk = C::new(s.re, w);
-            if !cands.iter().any(|(g, _): &(f64, f64)| (g - f).abs() <= 1e-9 * fs) {
+            if !cands
+                .iter()
+                .any(|(g, _): &(f64, f64)| (g - f).abs() <= 1e-9 * fs)
+            {
                 cands.push((f, damp(sk)));
             }
         }
     }
     cands.sort_by(|a, b| a.0.total_cmp(&b.0));
-    ModeAliases { z, s, freq_hz: f0, damping: damp(s), candidates: cands }
+    ModeAliases {
+        z,
+        s,
+        freq_hz: f0,
+        damping: damp(s),
+        candidates: cands,
+    }
 }
 
 fn check_real_log(a: &DMatrix<f64>) -> Result<()> {
@@ -147,7 +168,19 @@ fn gauss_legendre01(m: usize) -> Vec<(f64, f64)> {
 fn tri_norm1_minus_identity(t: &DMatrix<C>) -> f64 {
     let n = t.nrows();
     (0..n)
-        .map(|j| (0..=j).map(|i| (t[(i, j)] - if i == j { C::new(1.0, 0.0) } else { C::new(0.0, 0.0) }).norm()).sum::<f64>())
+        .map(|j| {
+            (0..=j)
+                .map(|i| {
+                    (t[(i, j)]
+                        - if i == j {
+                            C::new(1.0, 0.0)
+                        } else {
+                            C::new(0.0, 0.0)
+                        })
+                    .norm()
+                })
+                .sum::<f64>()
+        })
         .fold(0.0, f64::max)
 }
 
@@ -164,7 +197,9 @@ fn sqrt_triangular(t: &DMatrix<C>) -> Result<DMatrix<C>> {
             }
             let d = r[(i, i)] + r[(j, j)];
             if d.norm() == 0.0 {
-                return Err(ModelError::Singular { what: "the triangular square root (eigenvalue at zero)".into() });
+                return Err(ModelError::Singular {
+                    what: "the triangular square root (eigenvalue at zero)".into(),
+                });
             }
             r[(i, j)] = s / d;
         }
@@ -183,7 +218,9 @@ pub fn logm(m: &DMatrix<f64>) -> Result<DMatrix<f64>> {
     let mut k = 0;
     while tri_norm1_minus_identity(&t) > 0.25 {
         if k >= 100 {
-            return Err(ModelError::NotConverged { what: "the inverse scaling and squaring of logm".into() });
+            return Err(ModelError::NotConverged {
+                what: "the inverse scaling and squaring of logm".into(),
+            });
         }
         t = sqrt_triangular(&t)?;
         k += 1;

@@ -95,7 +95,11 @@ pub enum ModelError {
 }
 
 impl ModelError {
-    pub(crate) fn dim(what: impl Into<String>, expected: impl ToString, found: impl ToString) -> Self {
+    pub(crate) fn dim(
+        what: impl Into<String>,
+        expected: impl ToString,
+        found: impl ToString,
+    ) -> Self {
         ModelError::DimensionMismatch {
             what: what.into(),
             expected: expected.to_string(),
@@ -103,7 +107,11 @@ impl ModelError {
         }
     }
     pub(crate) fn no_log(p: Complex64, why: &str) -> Self {
-        ModelError::NoRealLogarithm { re: p.re, im: p.im, why: why.to_string() }
+        ModelError::NoRealLogarithm {
+            re: p.re,
+            im: p.im,
+            why: why.to_string(),
+        }
     }
 }
 

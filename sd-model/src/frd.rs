@@ -27,37 +27,72 @@ impl Frd {
         time: SampleTime,
     ) -> Result<Self> {
         if freq_hz.len() != response.len() {
-            return Err(ModelError::dim("FRD responses (one per frequency)", freq_hz.len(), response.len()));
+            return Err(ModelError::dim(
+                "FRD responses (one per frequency)",
+                freq_hz.len(),
+                response.len(),
+            ));
         }
-        if let Some((i, f)) = freq_hz.iter().enumerate().find(|(_, f)| !(f.is_finite() && **f >= 0.0)) {
-            return Err(ModelError::InvalidArgument(format!("FRD frequency #{i} = {f} must be finite and >= 0")));
+        if let Some((i, f)) = freq_hz
+            .iter()
+            .enumerate()
+            .find(|(_, f)| !(f.is_finite() && **f >= 0.0))
+        {
+            return Err(ModelError::InvalidArgument(format!(
+                "FRD frequency #{i} = {f} must be finite and >= 0"
+            )));
         }
         let shape = response.first().map(|r| r.shape()).unwrap_or((1, 1));
         for (i, r) in response.iter().enumerate() {
             if r.shape() != shape {
-                return Err(ModelError::dim(format!("FRD response #{i}"), format!("{}x{}", shape.0, shape.1), format!("{}x{}", r.nrows(), r.ncols())));
+                return Err(ModelError::dim(
+                    format!("FRD response #{i}"),
+                    format!("{}x{}", shape.0, shape.1),
+                    format!("{}x{}", r.nrows(), r.ncols()),
+                ));
             }
             if r.iter().any(|v| !(v.re.is_finite() && v.im.is_finite())) {
-                return Err(ModelError::NonFinite { what: format!("FRD response at {} Hz (a pole on the frequency axis?)", freq_hz[i]) });
+                return Err(ModelError::NonFinite {
+                    what: format!(
+                        "FRD response at {} Hz (a pole on the frequency axis?)",
+                        freq_hz[i]
+                    ),
+                });
             }
         }
         if let Some(var) = &variance {
             if var.len() != freq_hz.len() {
-                return Err(ModelError::dim("FRD variances (one per frequency)", freq_hz.len(), var.len()));
+                return Err(ModelError::dim(
+                    "FRD variances (one per frequency)",
+                    freq_hz.len(),
+                    var.len(),
+                ));
             }
             for (i, v) in var.iter().enumerate() {
                 if v.shape() != shape {
-                    return Err(ModelError::dim(format!("FRD variance #{i}"), format!("{}x{}", shape.0, shape.1), format!("{}x{}", v.nrows(), v.ncols())));
+                    return Err(ModelError::dim(
+                        format!("FRD variance #{i}"),
+                        format!("{}x{}", shape.0, shape.1),
+                        format!("{}x{}", v.nrows(), v.ncols()),
+                    ));
                 }
                 if v.iter().any(|x| !(x.is_finite() && *x >= 0.0)) {
-                    return Err(ModelError::InvalidArgument(format!("FRD variance at {} Hz must be finite and >= 0", freq_hz[i])));
+                    return Err(ModelError::InvalidArgument(format!(
+                        "FRD variance at {} Hz must be finite and >= 0",
+                        freq_hz[i]
+                    )));
                 }
             }
         }
         if let SampleTime::Discrete { ts } = time {
             SampleTime::discrete(ts)?;
         }
-        Ok(Frd { freq_hz, response, variance, time })
+        Ok(Frd {
+            freq_hz,
+            response,
+            variance,
+            time,
+        })
     }
     /// Frequencies in Hz.
     pub fn freq_hz(&self) -> &[f64] {
@@ -91,7 +126,9 @@ impl Frd {
     pub fn siso(&self, out: usize, inp: usize) -> Result<Vec<C>> {
         let (ny, nu) = self.shape();
         if out >= ny || inp >= nu {
-            return Err(ModelError::InvalidArgument(format!("channel ({out}, {inp}) outside {ny}x{nu}")));
+            return Err(ModelError::InvalidArgument(format!(
+                "channel ({out}, {inp}) outside {ny}x{nu}"
+            )));
         }
         Ok(self.response.iter().map(|r| r[(out, inp)]).collect())
     }

@@ -12,7 +12,9 @@
 
 use crate::error::{ModelError, Result};
 use crate::frd::Frd;
-use crate::linalg::schur::{block_diagonalize, shifted_triangular_solve, to_complex, BlockDiagonal, SPLIT_BOUND};
+use crate::linalg::schur::{
+    block_diagonalize, shifted_triangular_solve, to_complex, BlockDiagonal, SPLIT_BOUND,
+};
 use crate::ss::StateSpace;
 use crate::time::SampleTime;
 use nalgebra::DMatrix;
@@ -31,8 +33,17 @@ pub struct FreqRespEvaluator {
 impl FreqRespEvaluator {
     /// Reduces the model once (O(n³)).
     pub fn new(sys: &StateSpace) -> Result<Self> {
-        let bd = block_diagonalize(&to_complex(sys.a()), &to_complex(sys.b()), &to_complex(sys.c()), SPLIT_BOUND)?;
-        Ok(FreqRespEvaluator { bd, d: to_complex(sys.d()), time: sys.time() })
+        let bd = block_diagonalize(
+            &to_complex(sys.a()),
+            &to_complex(sys.b()),
+            &to_complex(sys.c()),
+            SPLIT_BOUND,
+        )?;
+        Ok(FreqRespEvaluator {
+            bd,
+            d: to_complex(sys.d()),
+            time: sys.time(),
+        })
     }
 
     /// `G(s)` at a point of the complex plane (s for CT, z for DT).
@@ -73,7 +84,11 @@ impl FreqRespEvaluator {
 
     /// `G` at many frequencies (parallel).
     pub fn eval_many(&self, freq_hz: &[f64]) -> Vec<DMatrix<C>> {
-        freq_hz.par_iter().with_min_len(256).map(|&f| self.eval_hz(f)).collect()
+        freq_hz
+            .par_iter()
+            .with_min_len(256)
+            .map(|&f| self.eval_hz(f))
+            .collect()
     }
 
     /// Block sizes of the reduced form (1 for each simple pole).
@@ -84,7 +99,9 @@ impl FreqRespEvaluator {
 
 fn check_freqs(freq_hz: &[f64]) -> Result<()> {
     if let Some(f) = freq_hz.iter().find(|f| !f.is_finite()) {
-        return Err(ModelError::InvalidArgument(format!("frequency {f} is not finite")));
+        return Err(ModelError::InvalidArgument(format!(
+            "frequency {f} is not finite"
+        )));
     }
     Ok(())
 }
@@ -103,9 +120,12 @@ impl StateSpace {
     pub fn eval_direct(&self, s: C) -> Result<DMatrix<C>> {
         let n = self.n();
         let m = DMatrix::<C>::identity(n, n) * s - to_complex(self.a());
-        let x = m.lu().solve(&to_complex(self.b())).ok_or_else(|| ModelError::Singular {
-            what: format!("sI − A at s = {s} (a pole)"),
-        })?;
+        let x = m
+            .lu()
+            .solve(&to_complex(self.b()))
+            .ok_or_else(|| ModelError::Singular {
+                what: format!("sI − A at s = {s} (a pole)"),
+            })?;
         Ok(to_complex(self.c()) * x + to_complex(self.d()))
     }
 }
@@ -118,7 +138,9 @@ pub fn grid(fmin: f64, fmax: f64, n: usize, log: bool) -> Result<Vec<f64>> {
         )));
     }
     if log && fmin <= 0.0 {
-        return Err(ModelError::InvalidArgument("a logarithmic grid needs FMIN > 0".into()));
+        return Err(ModelError::InvalidArgument(
+            "a logarithmic grid needs FMIN > 0".into(),
+        ));
     }
     if n == 1 {
         return Ok(vec![fmin]);

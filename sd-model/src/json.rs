@@ -53,36 +53,56 @@ struct FrdJson {
 }
 
 fn parse_err(what: &str, e: impl std::fmt::Display) -> ModelError {
-    ModelError::Parse { what: what.into(), detail: e.to_string() }
+    ModelError::Parse {
+        what: what.into(),
+        detail: e.to_string(),
+    }
 }
 
-fn rows_to_matrix(rows: &[Vec<f64>], nrows: usize, ncols: usize, what: &str) -> Result<DMatrix<f64>> {
+fn rows_to_matrix(
+    rows: &[Vec<f64>],
+    nrows: usize,
+    ncols: usize,
+    what: &str,
+) -> Result<DMatrix<f64>> {
     // A matrix with zero columns may be written as [] or as nrows empty rows.
     if ncols == 0 && rows.is_empty() {
         return Ok(DMatrix::zeros(nrows, 0));
     }
     if rows.len() != nrows {
-        return Err(ModelError::dim(format!("\"{what}\" (rows)"), nrows, rows.len()));
+        return Err(ModelError::dim(
+            format!("\"{what}\" (rows)"),
+            nrows,
+            rows.len(),
+        ));
     }
     for (i, r) in rows.iter().enumerate() {
         if r.len() != ncols {
-            return Err(ModelError::dim(format!("\"{what}\" row {i} (ragged or wrong width)"), ncols, r.len()));
+            return Err(ModelError::dim(
+                format!("\"{what}\" row {i} (ragged or wrong width)"),
+                ncols,
+                r.len(),
+            ));
         }
     }
     Ok(DMatrix::from_fn(nrows, ncols, |i, j| rows[i][j]))
 }
 
 fn matrix_to_rows(m: &DMatrix<f64>) -> Vec<Vec<f64>> {
-    (0..m.nrows()).map(|i| m.row(i).iter().cloned().collect()).collect()
+    (0..m.nrows())
+        .map(|i| m.row(i).iter().cloned().collect())
+        .collect()
 }
 
 /// Reads a model (state space, or SISO transfer function) from JSON text.
 pub fn model_from_json_str(text: &str) -> Result<StateSpace> {
-    let v: serde_json::Value = serde_json::from_str(text).map_err(|e| parse_err("model JSON", e))?;
+    let v: serde_json::Value =
+        serde_json::from_str(text).map_err(|e| parse_err("model JSON", e))?;
     let kind = v.get("type").and_then(|t| t.as_str()).unwrap_or("ss");
     match kind {
         "ss" => {
-            let s: SsJson = serde_json::from_value(v).map_err(|e| parse_err("state-space model JSON", e))?;
+            let s: SsJson =
+                serde_json::from_value(v).map_err(|e| parse_err("state-space model JSON", e))?;
             let ny = s.d.len();
             let nu = s.d.first().map(|r| r.len()).unwrap_or(0);
             let n = s.a.len();
@@ -98,17 +118,22 @@ pub fn model_from_json_str(text: &str) -> Result<StateSpace> {
             sys.with_signal_names(s.inputs, s.outputs)
         }
         "tf" => {
-            let t: TfJson = serde_json::from_value(v).map_err(|e| parse_err("transfer-function JSON", e))?;
+            let t: TfJson =
+                serde_json::from_value(v).map_err(|e| parse_err("transfer-function JSON", e))?;
             TransferFunction::new(t.num, t.den, SampleTime::from_option(t.ts)?)?.to_ss()
         }
-        other => Err(parse_err("model JSON", format!("unknown \"type\": \"{other}\" (expected \"ss\" or \"tf\")"))),
+        other => Err(parse_err(
+            "model JSON",
+            format!("unknown \"type\": \"{other}\" (expected \"ss\" or \"tf\")"),
+        )),
     }
 }
 
 /// Reads a model from a reader.
 pub fn read_model<R: Read>(mut r: R) -> Result<StateSpace> {
     let mut s = String::new();
-    r.read_to_string(&mut s).map_err(|e| parse_err("model JSON", e))?;
+    r.read_to_string(&mut s)
+        .map_err(|e| parse_err("model JSON", e))?;
     model_from_json_str(&s)
 }
 
@@ -131,34 +156,57 @@ pub fn model_to_json_string(sys: &StateSpace) -> Result<String> {
 /// Writes a model as JSON.
 pub fn write_model<W: Write>(sys: &StateSpace, mut w: W) -> Result<()> {
     let s = model_to_json_string(sys)?;
-    w.write_all(s.as_bytes()).map_err(|e| parse_err("model output", e))
+    w.write_all(s.as_bytes())
+        .map_err(|e| parse_err("model output", e))
 }
 
 /// Reads an FRD from JSON text.
 pub fn frd_from_json_str(text: &str) -> Result<Frd> {
     let f: FrdJson = serde_json::from_str(text).map_err(|e| parse_err("FRD JSON", e))?;
     if f.kind != "frd" {
-        return Err(parse_err("FRD JSON", format!("\"type\" is \"{}\", expected \"frd\"", f.kind)));
+        return Err(parse_err(
+            "FRD JSON",
+            format!("\"type\" is \"{}\", expected \"frd\"", f.kind),
+        ));
     }
     let nf = f.freq_hz.len();
     if f.re.len() != nf || f.im.len() != nf {
-        return Err(ModelError::dim("FRD \"re\"/\"im\" (one matrix per frequency)", nf, format!("{}/{}", f.re.len(), f.im.len())));
+        return Err(ModelError::dim(
+            "FRD \"re\"/\"im\" (one matrix per frequency)",
+            nf,
+            format!("{}/{}", f.re.len(), f.im.len()),
+        ));
     }
     let ny = f.re.first().map(|m| m.len()).unwrap_or(1);
-    let nu = f.re.first().and_then(|m| m.first()).map(|r| r.len()).unwrap_or(1);
+    let nu =
+        f.re.first()
+            .and_then(|m| m.first())
+            .map(|r| r.len())
+            .unwrap_or(1);
     let mut resp = Vec::with_capacity(nf);
     for k in 0..nf {
         let re = rows_to_matrix(&f.re[k], ny, nu, &format!("re[{k}]"))?;
         let im = rows_to_matrix(&f.im[k], ny, nu, &format!("im[{k}]"))?;
-        resp.push(DMatrix::from_fn(ny, nu, |i, j| C::new(re[(i, j)], im[(i, j)])));
+        resp.push(DMatrix::from_fn(ny, nu, |i, j| {
+            C::new(re[(i, j)], im[(i, j)])
+        }));
     }
     let var = match &f.var {
         None => None,
         Some(v) => {
             if v.len() != nf {
-                return Err(ModelError::dim("FRD \"var\" (one matrix per frequency)", nf, v.len()));
+                return Err(ModelError::dim(
+                    "FRD \"var\" (one matrix per frequency)",
+                    nf,
+                    v.len(),
+                ));
             }
-            Some(v.iter().enumerate().map(|(k, m)| rows_to_matrix(m, ny, nu, &format!("var[{k}]"))).collect::<Result<Vec<_>>>()?)
+            Some(
+                v.iter()
+                    .enumerate()
+                    .map(|(k, m)| rows_to_matrix(m, ny, nu, &format!("var[{k}]")))
+                    .collect::<Result<Vec<_>>>()?,
+            )
         }
     };
     Frd::new(f.freq_hz, resp, var, SampleTime::from_option(f.ts)?)
@@ -167,7 +215,10 @@ pub fn frd_from_json_str(text: &str) -> Result<Frd> {
 /// Serialises an FRD to a JSON string.
 pub fn frd_to_json_string(frd: &Frd) -> Result<String> {
     let split = |g: fn(&C) -> f64| -> Vec<Vec<Vec<f64>>> {
-        frd.response().iter().map(|m| matrix_to_rows(&m.map(|v| g(&v)))).collect()
+        frd.response()
+            .iter()
+            .map(|m| matrix_to_rows(&m.map(|v| g(&v))))
+            .collect()
     };
     let f = FrdJson {
         kind: "frd".into(),
@@ -175,7 +226,9 @@ pub fn frd_to_json_string(frd: &Frd) -> Result<String> {
         freq_hz: frd.freq_hz().to_vec(),
         re: split(|v| v.re),
         im: split(|v| v.im),
-        var: frd.variance().map(|v| v.iter().map(matrix_to_rows).collect()),
+        var: frd
+            .variance()
+            .map(|v| v.iter().map(matrix_to_rows).collect()),
     };
     serde_json::to_string(&f).map_err(|e| parse_err("FRD", e))
 }
@@ -190,7 +243,10 @@ mod tests {
         let m = model_from_json_str(txt).unwrap();
         let back = model_from_json_str(&model_to_json_string(&m).unwrap()).unwrap();
         assert_eq!(m, back);
-        let g = model_from_json_str(r#"{"type":"ss","ts":null,"a":[],"b":[],"c":[[],[]],"d":[[1,2],[3,4]]}"#).unwrap();
+        let g = model_from_json_str(
+            r#"{"type":"ss","ts":null,"a":[],"b":[],"c":[[],[]],"d":[[1,2],[3,4]]}"#,
+        )
+        .unwrap();
         assert_eq!((g.n(), g.ny(), g.nu()), (0, 2, 2));
         let tf = model_from_json_str(r#"{"type":"tf","ts":null,"num":[1],"den":[1,2,1]}"#).unwrap();
         assert_eq!(tf.n(), 2);

@@ -41,11 +41,14 @@ pub use d2c::{d2c, d2c_with_aliases, ModeAliases};
 pub use error::{ModelError, Result};
 pub use frd::Frd;
 pub use freqresp::{grid, FreqRespEvaluator};
-pub use json::{frd_from_json_str, frd_to_json_string, model_from_json_str, model_to_json_string, read_model, write_model};
+pub use json::{
+    frd_from_json_str, frd_to_json_string, model_from_json_str, model_to_json_string, read_model,
+    write_model,
+};
 pub use norms::HinfNorm;
+pub use num_complex::Complex64;
 pub use reduce::BalancedTruncation;
 pub use sim::Simulation;
 pub use ss::StateSpace;
 pub use tf::TransferFunction;
 pub use time::SampleTime;
-pub use num_complex::Complex64;

@@ -39,21 +39,38 @@ fn sigma_max(g: &DMatrix<C>) -> f64 {
     if g.nrows() == 1 && g.ncols() == 1 {
         return g[(0, 0)].norm();
     }
-    g.clone().singular_values().iter().cloned().fold(0.0, f64::max)
+    g.clone()
+        .singular_values()
+        .iter()
+        .cloned()
+        .fold(0.0, f64::max)
 }
 
 impl StateSpace {
     /// H2 norm (stable models; a continuous model needs D = 0).
     pub fn h2_norm(&self) -> Result<f64> {
-        let kind = if self.time().is_continuous() { LyapKind::Continuous } else { LyapKind::Discrete };
+        let kind = if self.time().is_continuous() {
+            LyapKind::Continuous
+        } else {
+            LyapKind::Discrete
+        };
         for p in self.poles()? {
-            let bad = if kind == LyapKind::Continuous { p.re >= 0.0 } else { p.norm() >= 1.0 };
+            let bad = if kind == LyapKind::Continuous {
+                p.re >= 0.0
+            } else {
+                p.norm() >= 1.0
+            };
             if bad {
-                return Err(ModelError::Unstable { operation: "the H2 norm".into(), detail: format!("pole {p} (the norm is infinite)") });
+                return Err(ModelError::Unstable {
+                    operation: "the H2 norm".into(),
+                    detail: format!("pole {p} (the norm is infinite)"),
+                });
             }
         }
         if kind == LyapKind::Continuous && self.d().iter().any(|v| *v != 0.0) {
-            return Err(ModelError::InvalidArgument("the H2 norm of a continuous model with D ≠ 0 is infinite".into()));
+            return Err(ModelError::InvalidArgument(
+                "the H2 norm of a continuous model with D ≠ 0 is infinite".into(),
+            ));
         }
         let p = lyap(self.a(), &(self.b() * self.b().transpose()), kind)?;
         let mut m = self.c() * p * self.c().transpose();
@@ -84,7 +101,11 @@ impl StateSpace {
                 None => p.im.abs() / (2.0 * PI),
                 Some(ts) => p.arg().abs() / (2.0 * PI * ts),
             };
-            return Ok(HinfNorm { value: f64::INFINITY, peak_hz: f, stable: false });
+            return Ok(HinfNorm {
+                value: f64::INFINITY,
+                peak_hz: f,
+                stable: false,
+            });
         }
         let ct = match h {
             None => self.clone(),
@@ -95,7 +116,11 @@ impl StateSpace {
             None => w / (2.0 * PI),
             Some(ts) => 2.0 * w.atan() / (2.0 * PI * ts),
         };
-        Ok(HinfNorm { value: val, peak_hz, stable })
+        Ok(HinfNorm {
+            value: val,
+            peak_hz,
+            stable,
+        })
     }
 }
 
@@ -125,14 +150,30 @@ fn hinf_ct(sys: &StateSpace) -> Result<(f64, f64)> {
     }
     // Initial lower bound: ω = 0, the poles' natural frequencies, and a log grid.
     let mut best = (sig(0.0), 0.0);
-    let mut cands: Vec<f64> = eigenvalues(sys.a())?.iter().map(|p| p.norm()).filter(|w| *w > 0.0).collect();
-    cands.extend(eigenvalues(sys.a())?.iter().map(|p| p.im.abs()).filter(|w| *w > 0.0));
-    let (wlo, whi) = cands.iter().fold((f64::INFINITY, 0.0f64), |(a, b), &w| (a.min(w), b.max(w)));
+    let mut cands: Vec<f64> = eigenvalues(sys.a())?
+        .iter()
+        .map(|p| p.norm())
+        .filter(|w| *w > 0.0)
+        .collect();
+    cands.extend(
+        eigenvalues(sys.a())?
+            .iter()
+            .map(|p| p.im.abs())
+            .filter(|w| *w > 0.0),
+    );
+    let (wlo, whi) = cands
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(a, b), &w| (a.min(w), b.max(w)));
     if wlo.is_finite() {
         let m = 400;
         for i in 0..m {
             let t = i as f64 / (m - 1) as f64;
-            cands.push((wlo * 0.01).ln().mul_add(1.0 - t, (whi * 100.0).ln() * t).exp());
+            cands.push(
+                (wlo * 0.01)
+                    .ln()
+                    .mul_add(1.0 - t, (whi * 100.0).ln() * t)
+                    .exp(),
+            );
         }
     }
     for &w in &cands {
@@ -193,7 +234,11 @@ fn hinf_ct(sys: &StateSpace) -> Result<(f64, f64)> {
             }
         }
     }
-    let w = if best.1.is_finite() { best.1 } else { f64::INFINITY };
+    let w = if best.1.is_finite() {
+        best.1
+    } else {
+        f64::INFINITY
+    };
     Ok((best.0, w))
 }
 
@@ -204,8 +249,12 @@ fn imaginary_crossings(sys: &StateSpace, gamma: f64) -> Result<Vec<f64>> {
     let (ny, nu) = (sys.ny(), sys.nu());
     let r = d.transpose() * d - DMatrix::<f64>::identity(nu, nu) * gamma * gamma;
     let s = d * d.transpose() - DMatrix::<f64>::identity(ny, ny) * gamma * gamma;
-    let ri = r.try_inverse().ok_or_else(|| ModelError::Singular { what: "DᵀD − γ²I in the H∞ Hamiltonian".into() })?;
-    let si = s.try_inverse().ok_or_else(|| ModelError::Singular { what: "DDᵀ − γ²I in the H∞ Hamiltonian".into() })?;
+    let ri = r.try_inverse().ok_or_else(|| ModelError::Singular {
+        what: "DᵀD − γ²I in the H∞ Hamiltonian".into(),
+    })?;
+    let si = s.try_inverse().ok_or_else(|| ModelError::Singular {
+        what: "DDᵀ − γ²I in the H∞ Hamiltonian".into(),
+    })?;
     let a11 = a - b * &ri * d.transpose() * c;
     let a12 = -(b * &ri * b.transpose()) * gamma;
     let a21 = c.transpose() * &si * c * gamma;

@@ -19,7 +19,11 @@ impl StateSpace {
     /// Poles (eigenvalues of A), sorted by modulus then argument.
     pub fn poles(&self) -> Result<Vec<C>> {
         let mut p = eigenvalues(self.a())?;
-        p.sort_by(|a, b| a.norm().total_cmp(&b.norm()).then(a.arg().total_cmp(&b.arg())));
+        p.sort_by(|a, b| {
+            a.norm()
+                .total_cmp(&b.norm())
+                .then(a.arg().total_cmp(&b.arg()))
+        });
         Ok(p)
     }
 
@@ -36,14 +40,23 @@ impl StateSpace {
             let z = if ny > nu {
                 square_zeros(self.a(), self.b(), &(&w * self.c()), &(&w * self.d()))?
             } else {
-                square_zeros(self.a(), &(self.b() * w.transpose()), self.c(), &(self.d() * w.transpose()))?
+                square_zeros(
+                    self.a(),
+                    &(self.b() * w.transpose()),
+                    self.c(),
+                    &(self.d() * w.transpose()),
+                )?
             };
             sets.push(z);
         }
         let scale = norm1(self.a()).max(1.0);
         let mut common: Vec<C> = sets[0]
             .iter()
-            .filter(|z| sets[1].iter().any(|y| (*y - **z).norm() <= 1e-6 * scale.max(z.norm())))
+            .filter(|z| {
+                sets[1]
+                    .iter()
+                    .any(|y| (*y - **z).norm() <= 1e-6 * scale.max(z.norm()))
+            })
             .cloned()
             .collect();
         common.sort_by(|a, b| a.norm().total_cmp(&b.norm()));
@@ -61,7 +74,12 @@ fn pseudo_random(r: usize, c: usize, seed: u64) -> DMatrix<f64> {
     })
 }
 
-fn square_zeros(a: &DMatrix<f64>, b: &DMatrix<f64>, c: &DMatrix<f64>, d: &DMatrix<f64>) -> Result<Vec<C>> {
+fn square_zeros(
+    a: &DMatrix<f64>,
+    b: &DMatrix<f64>,
+    c: &DMatrix<f64>,
+    d: &DMatrix<f64>,
+) -> Result<Vec<C>> {
     let n = a.nrows();
     let m = b.ncols();
     let mut p = DMatrix::zeros(n + m, n + m);

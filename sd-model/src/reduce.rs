@@ -95,7 +95,13 @@ fn controllable_staircase(sys: &StateSpace, tol: f64) -> Result<(StateSpace, usi
 }
 
 fn dual(sys: &StateSpace) -> Result<StateSpace> {
-    StateSpace::new(sys.a().transpose(), sys.c().transpose(), sys.b().transpose(), sys.d().transpose(), sys.time())
+    StateSpace::new(
+        sys.a().transpose(),
+        sys.c().transpose(),
+        sys.b().transpose(),
+        sys.d().transpose(),
+        sys.time(),
+    )
 }
 
 impl StateSpace {
@@ -105,8 +111,20 @@ impl StateSpace {
         let n = self.n();
         let t = match tol {
             Some(t) if t.is_finite() && t >= 0.0 => t,
-            Some(t) => return Err(ModelError::InvalidArgument(format!("minreal tolerance {t} must be finite and >= 0"))),
-            None => (n.max(1) as f64) * f64::EPSILON * norm1(self.a()).max(norm1(self.b())).max(norm1(&self.c().transpose())).max(1.0) * 10.0,
+            Some(t) => {
+                return Err(ModelError::InvalidArgument(format!(
+                    "minreal tolerance {t} must be finite and >= 0"
+                )))
+            }
+            None => {
+                (n.max(1) as f64)
+                    * f64::EPSILON
+                    * norm1(self.a())
+                        .max(norm1(self.b()))
+                        .max(norm1(&self.c().transpose()))
+                        .max(1.0)
+                    * 10.0
+            }
         };
         let (s1, k1) = controllable_staircase(self, t)?;
         let s1 = keep_leading(&s1, k1)?;
@@ -138,25 +156,48 @@ impl StateSpace {
         let q = qh.adjoint();
         let zero_d = DMatrix::zeros(self.ny(), self.nu());
         if k == 0 {
-            let empty = StateSpace::new(DMatrix::zeros(0, 0), DMatrix::zeros(0, self.nu()), DMatrix::zeros(self.ny(), 0), zero_d, self.time())?;
+            let empty = StateSpace::new(
+                DMatrix::zeros(0, 0),
+                DMatrix::zeros(0, self.nu()),
+                DMatrix::zeros(self.ny(), 0),
+                zero_d,
+                self.time(),
+            )?;
             return Ok((empty, self.clone()));
         }
         if k == n {
-            let s = StateSpace::new(DMatrix::zeros(0, 0), DMatrix::zeros(0, self.nu()), DMatrix::zeros(self.ny(), 0), self.d().clone(), self.time())?;
-            return Ok((StateSpace::new(self.a().clone(), self.b().clone(), self.c().clone(), zero_d, self.time())?, s));
+            let s = StateSpace::new(
+                DMatrix::zeros(0, 0),
+                DMatrix::zeros(0, self.nu()),
+                DMatrix::zeros(self.ny(), 0),
+                self.d().clone(),
+                self.time(),
+            )?;
+            return Ok((
+                StateSpace::new(
+                    self.a().clone(),
+                    self.b().clone(),
+                    self.c().clone(),
+                    zero_d,
+                    self.time(),
+                )?,
+                s,
+            ));
         }
         let t11 = t.view((0, 0), (k, k)).into_owned();
         let t22 = t.view((k, k), (n - k, n - k)).into_owned();
         let r = -t.view((0, k), (k, n - k)).into_owned();
         let x = triangular_sylvester(&t11, &t22, &r).ok_or_else(|| ModelError::Singular {
-            what: "the stable/unstable Sylvester equation (a pole on the boundary in both groups)".into(),
+            what: "the stable/unstable Sylvester equation (a pole on the boundary in both groups)"
+                .into(),
         })?;
         let vu = q.columns(0, k).into_owned();
         let vs = q.columns(k, n - k) + q.columns(0, k) * &x;
         let real_basis = |v: &DMatrix<C>, dim: usize| -> Result<DMatrix<f64>> {
             let mut m = DMatrix::zeros(n, 2 * v.ncols());
             m.columns_mut(0, v.ncols()).copy_from(&v.map(|z| z.re));
-            m.columns_mut(v.ncols(), v.ncols()).copy_from(&v.map(|z| z.im));
+            m.columns_mut(v.ncols(), v.ncols())
+                .copy_from(&v.map(|z| z.im));
             let (u, _s, _) = svd(&m)?;
             Ok(u.columns(0, dim).into_owned())
         };
@@ -193,7 +234,10 @@ impl StateSpace {
     /// at least their number.
     pub fn balanced_truncation(&self, order: usize) -> Result<BalancedTruncation> {
         if order > self.n() {
-            return Err(ModelError::InvalidArgument(format!("order {order} exceeds the model order {}", self.n())));
+            return Err(ModelError::InvalidArgument(format!(
+                "order {order} exceeds the model order {}",
+                self.n()
+            )));
         }
         let margin = match self.time() {
             SampleTime::Continuous => 1e-9 * norm1(self.a()).max(1.0),
@@ -208,8 +252,17 @@ impl StateSpace {
         }
         let (gr, hsv) = balanced_truncation_stable(&gs, order - nu_states)?;
         let bound = 2.0 * hsv.iter().skip(order - nu_states).sum::<f64>();
-        let model = if nu_states == 0 { gr } else { crate::connect::parallel(&gu, &gr)? };
-        Ok(BalancedTruncation { model, hankel_sv: hsv, error_bound: bound, n_unstable: nu_states })
+        let model = if nu_states == 0 {
+            gr
+        } else {
+            crate::connect::parallel(&gu, &gr)?
+        };
+        Ok(BalancedTruncation {
+            model,
+            hankel_sv: hsv,
+            error_bound: bound,
+            n_unstable: nu_states,
+        })
     }
 
     /// Hankel singular values of a stable model (descending).
@@ -221,7 +274,9 @@ impl StateSpace {
 fn psd_factor(p: &DMatrix<f64>) -> Result<DMatrix<f64>> {
     let n = p.nrows();
     let eig = nalgebra::SymmetricEigen::try_new(p.clone(), f64::EPSILON, 100 * n.max(10))
-        .ok_or_else(|| ModelError::NotConverged { what: "the symmetric eigensolver for a Gramian".into() })?;
+        .ok_or_else(|| ModelError::NotConverged {
+            what: "the symmetric eigensolver for a Gramian".into(),
+        })?;
     let mut r = eig.eigenvectors.clone();
     for j in 0..n {
         let l = eig.eigenvalues[j].max(0.0).sqrt();
@@ -232,15 +287,30 @@ fn psd_factor(p: &DMatrix<f64>) -> Result<DMatrix<f64>> {
 
 /// (R, L, σ, U, V) with P = RRᵀ, Q = LLᵀ, LᵀR = UΣVᵀ.
 #[allow(clippy::type_complexity)]
-fn gramian_factors(sys: &StateSpace) -> Result<(DMatrix<f64>, DMatrix<f64>, Vec<f64>, DMatrix<f64>, DMatrix<f64>)> {
-    let kind = if sys.time().is_continuous() { LyapKind::Continuous } else { LyapKind::Discrete };
+fn gramian_factors(
+    sys: &StateSpace,
+) -> Result<(
+    DMatrix<f64>,
+    DMatrix<f64>,
+    Vec<f64>,
+    DMatrix<f64>,
+    DMatrix<f64>,
+)> {
+    let kind = if sys.time().is_continuous() {
+        LyapKind::Continuous
+    } else {
+        LyapKind::Discrete
+    };
     for p in sys.poles()? {
         let bad = match kind {
             LyapKind::Continuous => p.re >= 0.0,
             LyapKind::Discrete => p.norm() >= 1.0,
         };
         if bad {
-            return Err(ModelError::Unstable { operation: "Gramians".into(), detail: format!("pole {p}") });
+            return Err(ModelError::Unstable {
+                operation: "Gramians".into(),
+                detail: format!("pole {p}"),
+            });
         }
     }
     let p = lyap(sys.a(), &(sys.b() * sys.b().transpose()), kind)?;
@@ -264,6 +334,12 @@ fn balanced_truncation_stable(sys: &StateSpace, order: usize) -> Result<(StateSp
         tl.row_mut(i).scale_mut(w);
         tr.column_mut(i).scale_mut(w);
     }
-    let red = StateSpace::new(&tl * sys.a() * &tr, &tl * sys.b(), sys.c() * &tr, sys.d().clone(), sys.time())?;
+    let red = StateSpace::new(
+        &tl * sys.a() * &tr,
+        &tl * sys.b(),
+        sys.c() * &tr,
+        sys.d().clone(),
+        sys.time(),
+    )?;
     Ok((red, s))
 }

@@ -29,7 +29,11 @@ impl StateSpace {
             });
         }
         if u.ncols() != self.nu() {
-            return Err(ModelError::dim("input signal columns (one per model input)", self.nu(), u.ncols()));
+            return Err(ModelError::dim(
+                "input signal columns (one per model input)",
+                self.nu(),
+                u.ncols(),
+            ));
         }
         crate::ss::check_finite(u, "input signal")?;
         let n = self.n();
@@ -54,7 +58,12 @@ impl StateSpace {
     }
 
     /// Simulates a continuous model driven through a zero-order hold with period `ts`.
-    pub fn simulate_zoh(&self, u: &DMatrix<f64>, ts: f64, x0: Option<&DVector<f64>>) -> Result<Simulation> {
+    pub fn simulate_zoh(
+        &self,
+        u: &DMatrix<f64>,
+        ts: f64,
+        x0: Option<&DVector<f64>>,
+    ) -> Result<Simulation> {
         c2d(self, ts, Discretization::Zoh)?.simulate(u, x0)
     }
 }

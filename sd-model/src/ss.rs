@@ -25,7 +25,9 @@ pub(crate) fn check_finite(m: &DMatrix<f64>, what: &str) -> Result<()> {
     if m.iter().all(|v| v.is_finite()) {
         Ok(())
     } else {
-        Err(ModelError::NonFinite { what: what.to_string() })
+        Err(ModelError::NonFinite {
+            what: what.to_string(),
+        })
     }
 }
 
@@ -44,14 +46,26 @@ impl StateSpace {
     ) -> Result<Self> {
         let n = a.nrows();
         if a.ncols() != n {
-            return Err(ModelError::dim("A (must be square)", format!("{n}x{n}"), format!("{}x{}", n, a.ncols())));
+            return Err(ModelError::dim(
+                "A (must be square)",
+                format!("{n}x{n}"),
+                format!("{}x{}", n, a.ncols()),
+            ));
         }
         let (ny, nu) = d.shape();
         if b.shape() != (n, nu) {
-            return Err(ModelError::dim("B", format!("{n}x{nu}"), format!("{}x{}", b.nrows(), b.ncols())));
+            return Err(ModelError::dim(
+                "B",
+                format!("{n}x{nu}"),
+                format!("{}x{}", b.nrows(), b.ncols()),
+            ));
         }
         if c.shape() != (ny, n) {
-            return Err(ModelError::dim("C", format!("{ny}x{n}"), format!("{}x{}", c.nrows(), c.ncols())));
+            return Err(ModelError::dim(
+                "C",
+                format!("{ny}x{n}"),
+                format!("{}x{}", c.nrows(), c.ncols()),
+            ));
         }
         check_finite(&a, "A")?;
         check_finite(&b, "B")?;
@@ -60,13 +74,28 @@ impl StateSpace {
         if let SampleTime::Discrete { ts } = time {
             SampleTime::discrete(ts)?;
         }
-        Ok(StateSpace { a, b, c, d, time, name: None, inputs: None, outputs: None })
+        Ok(StateSpace {
+            a,
+            b,
+            c,
+            d,
+            time,
+            name: None,
+            inputs: None,
+            outputs: None,
+        })
     }
 
     /// A static gain `y = D u` (no states).
     pub fn gain(d: DMatrix<f64>, time: SampleTime) -> Result<Self> {
         let (ny, nu) = d.shape();
-        Self::new(DMatrix::zeros(0, 0), DMatrix::zeros(0, nu), DMatrix::zeros(ny, 0), d, time)
+        Self::new(
+            DMatrix::zeros(0, 0),
+            DMatrix::zeros(0, nu),
+            DMatrix::zeros(ny, 0),
+            d,
+            time,
+        )
     }
 
     /// State matrix A (n×n).
@@ -123,7 +152,11 @@ impl StateSpace {
         self
     }
     /// Sets input and output names; their counts must equal nu and ny.
-    pub fn with_signal_names(mut self, inputs: Option<Vec<String>>, outputs: Option<Vec<String>>) -> Result<Self> {
+    pub fn with_signal_names(
+        mut self,
+        inputs: Option<Vec<String>>,
+        outputs: Option<Vec<String>>,
+    ) -> Result<Self> {
         if let Some(i) = &inputs {
             if i.len() != self.nu() {
                 return Err(ModelError::dim("input names", self.nu(), i.len()));
@@ -139,28 +172,55 @@ impl StateSpace {
         Ok(self)
     }
     /// Consumes the model and returns `(A, B, C, D, time)`.
-    pub fn into_parts(self) -> (DMatrix<f64>, DMatrix<f64>, DMatrix<f64>, DMatrix<f64>, SampleTime) {
+    pub fn into_parts(
+        self,
+    ) -> (
+        DMatrix<f64>,
+        DMatrix<f64>,
+        DMatrix<f64>,
+        DMatrix<f64>,
+        SampleTime,
+    ) {
         (self.a, self.b, self.c, self.d, self.time)
     }
     /// Similarity transform `(T⁻¹ A T, T⁻¹ B, C T, D)` with `tinv = T⁻¹` given.
     pub fn similarity(&self, t: &DMatrix<f64>, tinv: &DMatrix<f64>) -> Result<Self> {
         let n = self.n();
         if t.shape() != (n, n) || tinv.shape() != (n, n) {
-            return Err(ModelError::dim("similarity transform", format!("{n}x{n}"), format!("{}x{}", t.nrows(), t.ncols())));
+            return Err(ModelError::dim(
+                "similarity transform",
+                format!("{n}x{n}"),
+                format!("{}x{}", t.nrows(), t.ncols()),
+            ));
         }
-        Self::new(tinv * &self.a * t, tinv * &self.b, &self.c * t, self.d.clone(), self.time)
+        Self::new(
+            tinv * &self.a * t,
+            tinv * &self.b,
+            &self.c * t,
+            self.d.clone(),
+            self.time,
+        )
     }
     /// Sub-model with the given input and output indices.
     pub fn select(&self, inputs: &[usize], outputs: &[usize]) -> Result<Self> {
         if let Some(&i) = inputs.iter().find(|&&i| i >= self.nu()) {
-            return Err(ModelError::InvalidArgument(format!("input index {i} out of range (nu = {})", self.nu())));
+            return Err(ModelError::InvalidArgument(format!(
+                "input index {i} out of range (nu = {})",
+                self.nu()
+            )));
         }
         if let Some(&o) = outputs.iter().find(|&&o| o >= self.ny()) {
-            return Err(ModelError::InvalidArgument(format!("output index {o} out of range (ny = {})", self.ny())));
+            return Err(ModelError::InvalidArgument(format!(
+                "output index {o} out of range (ny = {})",
+                self.ny()
+            )));
         }
         let b = self.b.select_columns(inputs.iter());
         let c = self.c.select_rows(outputs.iter());
-        let d = self.d.select_rows(outputs.iter()).select_columns(inputs.iter());
+        let d = self
+            .d
+            .select_rows(outputs.iter())
+            .select_columns(inputs.iter());
         Self::new(self.a.clone(), b, c, d, self.time)
     }
 }

@@ -25,11 +25,20 @@ pub struct Mode {
 /// Builds the continuous stage model with mass `mass` (kg), optional rigid body, and modes.
 pub fn stage_model(mass: f64, rigid_body: bool, modes: &[Mode]) -> Result<StateSpace> {
     if !(mass.is_finite() && mass > 0.0) {
-        return Err(ModelError::InvalidArgument(format!("mass {mass} must be finite and > 0")));
+        return Err(ModelError::InvalidArgument(format!(
+            "mass {mass} must be finite and > 0"
+        )));
     }
     for m in modes {
-        if !(m.freq_hz.is_finite() && m.freq_hz > 0.0 && m.zeta.is_finite() && m.zeta >= 0.0 && m.residue.is_finite()) {
-            return Err(ModelError::InvalidArgument(format!("invalid mode {m:?}: frequency > 0, damping >= 0, finite residue")));
+        if !(m.freq_hz.is_finite()
+            && m.freq_hz > 0.0
+            && m.zeta.is_finite()
+            && m.zeta >= 0.0
+            && m.residue.is_finite())
+        {
+            return Err(ModelError::InvalidArgument(format!(
+                "invalid mode {m:?}: frequency > 0, damping >= 0, finite residue"
+            )));
         }
     }
     let n = 2 * modes.len() + if rigid_body { 2 } else { 0 };
@@ -66,7 +75,11 @@ pub fn stage60_modes() -> Vec<Mode> {
             let u = ((i * 7) % 29) as f64 / 28.0;
             let zeta = 0.002 * (15f64).powf(u);
             let r = if i % 2 == 0 { 1.0 } else { -0.6 } * (1.0 - 0.8 * t) * 2.0;
-            Mode { freq_hz: f, zeta, residue: r }
+            Mode {
+                freq_hz: f,
+                zeta,
+                residue: r,
+            }
         })
         .collect()
 }
@@ -78,5 +91,13 @@ pub fn stage60() -> Result<StateSpace> {
 
 /// The paper's stage (DESIGN §6): m = 20 kg, rigid body, 653 Hz mode with ζ and r = 2.
 pub fn paper_stage(zeta: f64) -> Result<StateSpace> {
-    stage_model(20.0, true, &[Mode { freq_hz: 653.0, zeta, residue: 2.0 }])
+    stage_model(
+        20.0,
+        true,
+        &[Mode {
+            freq_hz: 653.0,
+            zeta,
+            residue: 2.0,
+        }],
+    )
 }

@@ -26,12 +26,16 @@ impl TransferFunction {
     /// Builds a transfer function from descending-power coefficients.
     pub fn new(num: Vec<f64>, den: Vec<f64>, time: SampleTime) -> Result<Self> {
         if num.iter().chain(den.iter()).any(|v| !v.is_finite()) {
-            return Err(ModelError::NonFinite { what: "transfer-function coefficients".into() });
+            return Err(ModelError::NonFinite {
+                what: "transfer-function coefficients".into(),
+            });
         }
         let num = trim(num);
         let den = trim(den);
         if den.is_empty() || den[0] == 0.0 {
-            return Err(ModelError::InvalidArgument("the denominator is zero".into()));
+            return Err(ModelError::InvalidArgument(
+                "the denominator is zero".into(),
+            ));
         }
         if num.is_empty() {
             return Err(ModelError::InvalidArgument("the numerator is empty".into()));

@@ -5,13 +5,17 @@ use std::path::PathBuf;
 
 /// Path of a file in the repository's `test_data/` folder.
 pub fn test_data(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..").join("test_data").join(name)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join("test_data")
+        .join(name)
 }
 
 /// Reads a JSON file of `test_data/`.
 pub fn read_json(name: &str) -> serde_json::Value {
     let p = test_data(name);
-    let text = std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("cannot read {}: {e}", p.display()));
+    let text =
+        std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("cannot read {}: {e}", p.display()));
     serde_json::from_str(&text).unwrap_or_else(|e| panic!("bad JSON in {}: {e}", p.display()))
 }
 
@@ -33,3 +37,5 @@ pub fn rel_err(x: &DMatrix<f64>, y: &DMatrix<f64>) -> f64 {
         d / s
     }
 }
+
+pub mod gen;

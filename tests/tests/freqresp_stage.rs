@@ -19,8 +19,17 @@ fn check(step: usize) -> f64 {
         assert_eq!(g, ev.eval_hz(f[i])[(0, 0)]);
         worst = worst.max((g - r).norm() / r.norm());
     }
-    println!("stage60 @ 5 kHz: block sizes {:?}", ev.block_sizes().iter().filter(|&&s| s > 1).collect::<Vec<_>>());
-    println!("max relative error vs LU over {} of 200000 frequencies: {worst:.3e}", f.len().div_ceil(step));
+    println!(
+        "stage60 @ 5 kHz: block sizes {:?}",
+        ev.block_sizes()
+            .iter()
+            .filter(|&&s| s > 1)
+            .collect::<Vec<_>>()
+    );
+    println!(
+        "max relative error vs LU over {} of 200000 frequencies: {worst:.3e}",
+        f.len().div_ceil(step)
+    );
     worst
 }
 

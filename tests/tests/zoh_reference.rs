@@ -3,9 +3,20 @@
 use sd_model::{c2d, Discretization, SampleTime, StateSpace};
 use sd_tests::{mat, read_json, rel_err};
 
-fn zoh(a: &nalgebra::DMatrix<f64>, b: &nalgebra::DMatrix<f64>, h: f64) -> (nalgebra::DMatrix<f64>, nalgebra::DMatrix<f64>) {
+fn zoh(
+    a: &nalgebra::DMatrix<f64>,
+    b: &nalgebra::DMatrix<f64>,
+    h: f64,
+) -> (nalgebra::DMatrix<f64>, nalgebra::DMatrix<f64>) {
     let n = a.nrows();
-    let sys = StateSpace::new(a.clone(), b.clone(), nalgebra::DMatrix::zeros(1, n), nalgebra::DMatrix::zeros(1, b.ncols()), SampleTime::Continuous).unwrap();
+    let sys = StateSpace::new(
+        a.clone(),
+        b.clone(),
+        nalgebra::DMatrix::zeros(1, n),
+        nalgebra::DMatrix::zeros(1, b.ncols()),
+        SampleTime::Continuous,
+    )
+    .unwrap();
     let d = c2d(&sys, h, Discretization::Zoh).unwrap();
     (d.a().clone(), d.b().clone())
 }
@@ -22,9 +33,15 @@ fn issue2_zoh_published_cases() {
             // printed to 4 decimals: every entry within half a unit of the 4th decimal
             let da = (&ad - mat(&c["Ad"])).abs().max();
             let db = (&bd - mat(&c["Bd"])).abs().max();
-            assert!(da <= 0.5e-4 + 1e-12 && db <= 0.5e-4 + 1e-12, "{src}: {da} {db}");
+            assert!(
+                da <= 0.5e-4 + 1e-12 && db <= 0.5e-4 + 1e-12,
+                "{src}: {da} {db}"
+            );
         } else {
-            assert!(ea <= 1e-13 && eb <= 1e-13, "{src}: rel err A {ea:e}, B {eb:e}");
+            assert!(
+                ea <= 1e-13 && eb <= 1e-13,
+                "{src}: rel err A {ea:e}, B {eb:e}"
+            );
             worst = worst.max(ea).max(eb);
         }
     }
@@ -40,8 +57,15 @@ fn issue2_zoh_random_and_stage_against_mpmath() {
         let (a, b) = (mat(&c["A"]), mat(&c["B"]));
         let (ad, bd) = zoh(&a, &b, c["h"].as_f64().unwrap());
         let (ea, eb) = (rel_err(&ad, &mat(&c["Ad"])), rel_err(&bd, &mat(&c["Bd"])));
-        println!("{name:>22}: n = {:2}, ‖A h‖₁ = {:9.3e}, rel err A_d {ea:.2e}, B_d {eb:.2e}", a.nrows(), sd_model::linalg::expm::norm1(&a) * c["h"].as_f64().unwrap());
-        assert!(ea <= 1e-12 && eb <= 1e-12, "{name}: rel err A {ea:e}, B {eb:e}");
+        println!(
+            "{name:>22}: n = {:2}, ‖A h‖₁ = {:9.3e}, rel err A_d {ea:.2e}, B_d {eb:.2e}",
+            a.nrows(),
+            sd_model::linalg::expm::norm1(&a) * c["h"].as_f64().unwrap()
+        );
+        assert!(
+            ea <= 1e-12 && eb <= 1e-12,
+            "{name}: rel err A {ea:e}, B {eb:e}"
+        );
         worst = worst.max(ea).max(eb);
     }
     println!("worst relative error over the random set: {worst:e}");
@@ -50,7 +74,12 @@ fn issue2_zoh_random_and_stage_against_mpmath() {
 #[test]
 fn issue2_stage60_matches_the_reference_realisation() {
     let data = read_json("zoh_random.json");
-    let c = data["cases"].as_array().unwrap().iter().find(|c| c["name"] == "stage60_h0.2ms").unwrap();
+    let c = data["cases"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["name"] == "stage60_h0.2ms")
+        .unwrap();
     let s = sd_model::stage::stage60().unwrap();
     assert!(rel_err(s.a(), &mat(&c["A"])) < 1e-15);
     assert!(rel_err(s.b(), &mat(&c["B"])) < 1e-15);

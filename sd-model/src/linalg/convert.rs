@@ -20,9 +20,9 @@ pub fn eigenvalues(a: &DMatrix<f64>) -> Result<Vec<C>> {
         return Ok(Vec::new());
     }
     let m = to_faer(a);
-    let ev = m
-        .eigenvalues()
-        .map_err(|e| ModelError::NotConverged { what: format!("the eigenvalue iteration ({e:?})") })?;
+    let ev = m.eigenvalues().map_err(|e| ModelError::NotConverged {
+        what: format!("the eigenvalue iteration ({e:?})"),
+    })?;
     Ok(ev.into_iter().map(|z| C::new(z.re, z.im)).collect())
 }
 
@@ -35,7 +35,9 @@ pub fn generalized_eigenvalues(a: &DMatrix<f64>, e: &DMatrix<f64>) -> Result<Vec
     let fe = to_faer(e);
     let g = fa
         .generalized_eigen(&fe)
-        .map_err(|e| ModelError::NotConverged { what: format!("the QZ iteration ({e:?})") })?;
+        .map_err(|e| ModelError::NotConverged {
+            what: format!("the QZ iteration ({e:?})"),
+        })?;
     let sa = g.S_a();
     let sb = g.S_b();
     Ok((0..a.nrows())
@@ -54,7 +56,9 @@ pub fn svd(a: &DMatrix<f64>) -> Result<(DMatrix<f64>, Vec<f64>, DMatrix<f64>)> {
         return Ok((DMatrix::zeros(m, 0), Vec::new(), DMatrix::zeros(n, 0)));
     }
     let fa = to_faer(a);
-    let s = fa.thin_svd().map_err(|e| ModelError::NotConverged { what: format!("the SVD ({e:?})") })?;
+    let s = fa.thin_svd().map_err(|e| ModelError::NotConverged {
+        what: format!("the SVD ({e:?})"),
+    })?;
     let u = from_faer(s.U());
     let v = from_faer(s.V());
     let sv = s.S().column_vector().iter().cloned().collect();

@@ -29,7 +29,9 @@ fn pade_coeffs(m: usize) -> &'static [f64] {
     match m {
         3 => &[120.0, 60.0, 12.0, 1.0],
         5 => &[30240.0, 15120.0, 3360.0, 420.0, 30.0, 1.0],
-        7 => &[17297280.0, 8648640.0, 1995840.0, 277200.0, 25200.0, 1512.0, 56.0, 1.0],
+        7 => &[
+            17297280.0, 8648640.0, 1995840.0, 277200.0, 25200.0, 1512.0, 56.0, 1.0,
+        ],
         9 => &[
             17643225600.0,
             8821612800.0,
@@ -63,7 +65,9 @@ fn pade_coeffs(m: usize) -> &'static [f64] {
 
 /// Matrix 1-norm (maximum absolute column sum).
 pub fn norm1(a: &DMatrix<f64>) -> f64 {
-    a.column_iter().map(|c| c.iter().map(|v| v.abs()).sum::<f64>()).fold(0.0, f64::max)
+    a.column_iter()
+        .map(|c| c.iter().map(|v| v.abs()).sum::<f64>())
+        .fold(0.0, f64::max)
 }
 
 /// `ℓ(A, m)` of Al-Mohy & Higham (2009), eq. (3.11)–(3.13): extra squarings needed so that the
@@ -158,7 +162,11 @@ pub(crate) fn balance_diag(a: &DMatrix<f64>) -> (DMatrix<f64>, Vec<f64>) {
 /// for the chosen degrees, reported rather than trusted).
 pub fn expm(a: &DMatrix<f64>) -> Result<DMatrix<f64>> {
     if !a.is_square() {
-        return Err(ModelError::dim("expm argument", "square", format!("{}x{}", a.nrows(), a.ncols())));
+        return Err(ModelError::dim(
+            "expm argument",
+            "square",
+            format!("{}x{}", a.nrows(), a.ncols()),
+        ));
     }
     crate::ss::check_finite(a, "expm argument")?;
     let n = a.nrows();
@@ -167,7 +175,11 @@ pub fn expm(a: &DMatrix<f64>) -> Result<DMatrix<f64>> {
     }
     let (bal, d) = balance_diag(a);
     let use_bal = norm1(&bal) * 8.0 < norm1(a);
-    let e = if use_bal { expm_core(&bal)? } else { expm_core(a)? };
+    let e = if use_bal {
+        expm_core(&bal)?
+    } else {
+        expm_core(a)?
+    };
     if !use_bal {
         return Ok(e);
     }
@@ -209,7 +221,11 @@ fn expm_core(a: &DMatrix<f64>) -> Result<DMatrix<f64>> {
     let d10 = norm1(&a10).powf(0.1);
     let eta4 = d8.max(d10);
     let eta5 = eta3.min(eta4);
-    let mut s = if eta5 > 0.0 { (eta5 / THETA[4].1).log2().ceil().max(0.0) as i32 } else { 0 };
+    let mut s = if eta5 > 0.0 {
+        (eta5 / THETA[4].1).log2().ceil().max(0.0) as i32
+    } else {
+        0
+    };
     let scale = |k: i32| 2f64.powi(-k);
     s += ell(&(a * scale(s)), 13);
     let sc = scale(s);
@@ -231,9 +247,17 @@ fn pade_solve(
 ) -> Result<DMatrix<f64>> {
     let b = pade_coeffs(m);
     let (u, v) = if m == 13 {
-        let u_in = a6 * (a6 * b[13] + a4 * b[11] + a2 * b[9]) + a6 * b[7] + a4 * b[5] + a2 * b[3] + ident * b[1];
+        let u_in = a6 * (a6 * b[13] + a4 * b[11] + a2 * b[9])
+            + a6 * b[7]
+            + a4 * b[5]
+            + a2 * b[3]
+            + ident * b[1];
         let u = a * u_in;
-        let v = a6 * (a6 * b[12] + a4 * b[10] + a2 * b[8]) + a6 * b[6] + a4 * b[4] + a2 * b[2] + ident * b[0];
+        let v = a6 * (a6 * b[12] + a4 * b[10] + a2 * b[8])
+            + a6 * b[6]
+            + a4 * b[4]
+            + a2 * b[2]
+            + ident * b[0];
         (u, v)
     } else {
         let pows = [ident, a2, a4, a6];

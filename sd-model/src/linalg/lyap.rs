@@ -29,7 +29,11 @@ pub enum LyapKind {
 pub fn lyap(a: &DMatrix<f64>, q: &DMatrix<f64>, kind: LyapKind) -> Result<DMatrix<f64>> {
     let n = a.nrows();
     if !a.is_square() || q.shape() != (n, n) {
-        return Err(ModelError::dim("Lyapunov equation (A, Q)", format!("{n}x{n}"), format!("{}x{}", q.nrows(), q.ncols())));
+        return Err(ModelError::dim(
+            "Lyapunov equation (A, Q)",
+            format!("{n}x{n}"),
+            format!("{}x{}", q.nrows(), q.ncols()),
+        ));
     }
     if n == 0 {
         return Ok(DMatrix::zeros(0, 0));

@@ -23,16 +23,26 @@ pub fn complex_schur(a: &DMatrix<C>) -> Result<(DMatrix<C>, DMatrix<C>)> {
     if n == 0 {
         return Ok((DMatrix::zeros(0, 0), DMatrix::zeros(0, 0)));
     }
-    let schur = nalgebra::Schur::try_new(a.clone(), f64::EPSILON, 200 * n.max(10))
-        .ok_or_else(|| ModelError::NotConverged { what: "the QR iteration of the Schur decomposition".into() })?;
+    let schur =
+        nalgebra::Schur::try_new(a.clone(), f64::EPSILON, 200 * n.max(10)).ok_or_else(|| {
+            ModelError::NotConverged {
+                what: "the QR iteration of the Schur decomposition".into(),
+            }
+        })?;
     let (q, mut t) = schur.unpack();
     // nalgebra returns an upper-triangular T for complex input; clear rounding below the diagonal
     // and refuse anything that is not triangular.
-    let scale = t.iter().map(|v| v.norm()).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
+    let scale = t
+        .iter()
+        .map(|v| v.norm())
+        .fold(0.0, f64::max)
+        .max(f64::MIN_POSITIVE);
     for j in 0..n {
         for i in (j + 1)..n {
             if t[(i, j)].norm() > 1e-10 * scale {
-                return Err(ModelError::NotConverged { what: "the complex Schur form (subdiagonal not zero)".into() });
+                return Err(ModelError::NotConverged {
+                    what: "the complex Schur form (subdiagonal not zero)".into(),
+                });
             }
             t[(i, j)] = C::new(0.0, 0.0);
         }
@@ -48,7 +58,12 @@ pub fn to_complex(a: &DMatrix<f64>) -> DMatrix<C> {
 /// Swaps the diagonal entries k and k+1 of the upper-triangular `t`, updating `q` (A = Q T Qᴴ
 /// stays true) and any extra row-basis `rows` (transformed like Qᴴ·M) and column-basis `cols`
 /// (transformed like M·Q).
-pub fn swap_adjacent(t: &mut DMatrix<C>, k: usize, rows: &mut [&mut DMatrix<C>], cols: &mut [&mut DMatrix<C>]) {
+pub fn swap_adjacent(
+    t: &mut DMatrix<C>,
+    k: usize,
+    rows: &mut [&mut DMatrix<C>],
+    cols: &mut [&mut DMatrix<C>],
+) {
     let t11 = t[(k, k)];
     let t22 = t[(k + 1, k + 1)];
     let v0 = t[(k, k + 1)];
@@ -96,7 +111,11 @@ pub fn swap_adjacent(t: &mut DMatrix<C>, k: usize, rows: &mut [&mut DMatrix<C>],
 /// column: `(T₁₁ − t₂₂[j,j] I) x_j = r_j + Σ_{l<j} x_l t₂₂[l,j]`.
 /// Returns `None` when a diagonal of the shifted triangular system is exactly zero (common
 /// eigenvalue).
-pub fn triangular_sylvester(t11: &DMatrix<C>, t22: &DMatrix<C>, r: &DMatrix<C>) -> Option<DMatrix<C>> {
+pub fn triangular_sylvester(
+    t11: &DMatrix<C>,
+    t22: &DMatrix<C>,
+    r: &DMatrix<C>,
+) -> Option<DMatrix<C>> {
     let m = t11.nrows();
     let k = t22.nrows();
     let mut x = DMatrix::<C>::zeros(m, k);
@@ -143,7 +162,12 @@ pub struct BlockDiagonal {
 pub const SPLIT_BOUND: f64 = 1.0e4;
 
 /// Block diagonalisation of a complex matrix with the input and output maps carried along.
-pub fn block_diagonalize(a: &DMatrix<C>, b: &DMatrix<C>, c: &DMatrix<C>, bound: f64) -> Result<BlockDiagonal> {
+pub fn block_diagonalize(
+    a: &DMatrix<C>,
+    b: &DMatrix<C>,
+    c: &DMatrix<C>,
+    bound: f64,
+) -> Result<BlockDiagonal> {
     let n = a.nrows();
     let (q, mut t) = complex_schur(a)?;
     let mut bt = q.adjoint() * b;
@@ -162,7 +186,10 @@ pub fn block_diagonalize(a: &DMatrix<C>, b: &DMatrix<C>, c: &DMatrix<C>, bound: 
             let t22 = t.view((end, end), (n - end, n - end)).into_owned();
             let r = -t.view((start, end), (size, n - end)).into_owned();
             let x = triangular_sylvester(&t11, &t22, &r);
-            let ok = x.as_ref().map(|x| x.iter().all(|v| v.norm() <= bound)).unwrap_or(false);
+            let ok = x
+                .as_ref()
+                .map(|x| x.iter().all(|v| v.norm() <= bound))
+                .unwrap_or(false);
             if let (true, Some(x)) = (ok, x) {
                 // B̃[block] -= X B̃[rest];  C̃[:, rest] += C̃[:, block] X;  T12 = 0
                 let brest = bt.rows(end, n - end).into_owned();
@@ -173,7 +200,8 @@ pub fn block_diagonalize(a: &DMatrix<C>, b: &DMatrix<C>, c: &DMatrix<C>, bound: 
                 let upd = cblk * &x;
                 let mut cr = ct.columns_mut(end, n - end);
                 cr += upd;
-                t.view_mut((start, end), (size, n - end)).fill(C::new(0.0, 0.0));
+                t.view_mut((start, end), (size, n - end))
+                    .fill(C::new(0.0, 0.0));
                 blocks.push((start, size));
                 break;
             }
@@ -181,7 +209,9 @@ pub fn block_diagonalize(a: &DMatrix<C>, b: &DMatrix<C>, c: &DMatrix<C>, bound: 
             let mut best = end;
             let mut best_d = f64::INFINITY;
             for j in end..n {
-                let d = (start..end).map(|i| (t[(j, j)] - t[(i, i)]).norm()).fold(f64::INFINITY, f64::min);
+                let d = (start..end)
+                    .map(|i| (t[(j, j)] - t[(i, i)]).norm())
+                    .fold(f64::INFINITY, f64::min);
                 if d < best_d {
                     best_d = d;
                     best = j;
@@ -220,7 +250,9 @@ mod tests {
     fn rand_mat(n: usize, seed: u64) -> DMatrix<f64> {
         let mut s = seed;
         DMatrix::from_fn(n, n, |_, _| {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5
         })
     }
@@ -254,7 +286,13 @@ mod tests {
         }
         let b = rand_mat(5, 1).columns(0, 2).into_owned();
         let c = rand_mat(5, 2).rows(0, 2).into_owned();
-        let bd = block_diagonalize(&to_complex(&a), &to_complex(&b), &to_complex(&c), SPLIT_BOUND).unwrap();
+        let bd = block_diagonalize(
+            &to_complex(&a),
+            &to_complex(&b),
+            &to_complex(&c),
+            SPLIT_BOUND,
+        )
+        .unwrap();
         let s = C::new(0.3, 0.7);
         let mut g = DMatrix::<C>::zeros(2, 2);
         for &(st, sz) in &bd.blocks {
@@ -265,6 +303,9 @@ mod tests {
         let m = DMatrix::<C>::identity(5, 5) * s - to_complex(&a);
         let direct = to_complex(&c) * m.lu().solve(&to_complex(&b)).unwrap();
         let err = (g - &direct).iter().map(|v| v.norm()).fold(0.0, f64::max);
-        assert!(err < 1e-12 * direct.iter().map(|v| v.norm()).fold(0.0, f64::max), "err {err}");
+        assert!(
+            err < 1e-12 * direct.iter().map(|v| v.norm()).fold(0.0, f64::max),
+            "err {err}"
+        );
     }
 }

@@ -1,0 +1,178 @@
+//! sdctl contract tests (issue #2): outputs, exit codes, one-line errors, atomic files.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn sdctl(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_sdctl"))
+        .args(args)
+        .output()
+        .expect("run sdctl")
+}
+
+fn tmpdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("sdctl-test-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn write(dir: &PathBuf, name: &str, text: &str) -> String {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p.to_string_lossy().into_owned()
+}
+
+/// Exit code 2, exactly one line on stderr, no panic trace.
+fn assert_input_error(o: &Output, needle: &str) {
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "stderr: {err}");
+    assert_eq!(
+        err.trim_end().lines().count(),
+        1,
+        "one line expected: {err}"
+    );
+    assert!(
+        !err.contains("panicked") && !err.contains("RUST_BACKTRACE"),
+        "{err}"
+    );
+    assert!(
+        err.to_lowercase().contains(&needle.to_lowercase()),
+        "expected '{needle}' in: {err}"
+    );
+}
+
+const CT: &str =
+    r#"{"type":"ss","ts":null,"a":[[0,1],[-100,-2]],"b":[[0],[100]],"c":[[1,0]],"d":[[0]]}"#;
+const DT: &str = r#"{"type":"ss","ts":0.001,"a":[[0.5]],"b":[[1]],"c":[[1]],"d":[[0]]}"#;
+
+#[test]
+fn issue2_alias_json() {
+    let o = sdctl(&["alias", "--freq-hz", "653", "--rate-hz", "1000", "--json"]);
+    assert!(o.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!((v["alias_hz"].as_f64().unwrap() - 347.0).abs() < 1e-9);
+    assert_eq!(v["fold_index"], 1);
+    let folds: Vec<f64> = serde_json::from_value(v["folding_frequencies_hz"].clone()).unwrap();
+    assert!(
+        folds.iter().any(|f| (f - 653.0).abs() < 1e-9)
+            && folds.iter().any(|f| (f - 1347.0).abs() < 1e-9)
+    );
+}
+
+#[test]
+fn issue2_c2d_d2c_freqresp_poles_norm_reduce_connect() {
+    let d = tmpdir("ok");
+    let ct = write(&d, "ct.json", CT);
+    let out = d.join("dt.json").to_string_lossy().into_owned();
+    let o = sdctl(&["c2d", &ct, "--ts", "0.01", "-o", &out]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let dt = std::fs::read_to_string(&out).unwrap();
+    assert!(dt.contains("\"ts\":0.01"));
+    let o = sdctl(&["d2c", &out]);
+    assert!(o.status.success());
+    let back = sd_model::model_from_json_str(&String::from_utf8_lossy(&o.stdout)).unwrap();
+    assert!((back.a()[(1, 0)] + 100.0).abs() < 1e-9);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("candidates"));
+    let o = sdctl(&["freqresp", &out, "--grid", "1:50:20:log"]);
+    assert!(o.status.success());
+    let frd = sd_model::frd_from_json_str(&String::from_utf8_lossy(&o.stdout)).unwrap();
+    assert_eq!(frd.len(), 20);
+    for args in [
+        vec!["poles", &ct, "--json"],
+        vec!["zeros", &ct],
+        vec!["norm", &ct, "--json"],
+    ] {
+        let o = sdctl(&args);
+        assert!(
+            o.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+    let o = sdctl(&["norm", &ct, "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!((v["hinf"].as_f64().unwrap() - 5.02519).abs() < 1e-4, "{v}");
+    let o = sdctl(&["reduce", &ct, "--order", "1"]);
+    assert!(o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("Hankel"));
+    let o = sdctl(&["connect", "feedback", &ct, &ct]);
+    assert!(o.status.success());
+    let fb = sd_model::model_from_json_str(&String::from_utf8_lossy(&o.stdout)).unwrap();
+    assert_eq!(fb.n(), 4);
+}
+
+#[test]
+fn issue2_bad_inputs_exit_2_with_one_line() {
+    let d = tmpdir("bad");
+    let shapes = write(
+        &d,
+        "shape.json",
+        r#"{"type":"ss","ts":null,"a":[[0,1],[0,0]],"b":[[1]],"c":[[1,0]],"d":[[0]]}"#,
+    );
+    assert_input_error(&sdctl(&["poles", &shapes]), "\"b\"");
+    let ragged = write(
+        &d,
+        "ragged.json",
+        r#"{"type":"ss","ts":null,"a":[[0,1],[0]],"b":[[0],[1]],"c":[[1,0]],"d":[[0]]}"#,
+    );
+    assert_input_error(&sdctl(&["poles", &ragged]), "row 1");
+    let nan = write(
+        &d,
+        "nan.json",
+        r#"{"type":"ss","ts":null,"a":[[NaN]],"b":[[1]],"c":[[1]],"d":[[0]]}"#,
+    );
+    assert_input_error(&sdctl(&["poles", &nan]), "cannot read");
+    let inf = write(
+        &d,
+        "inf.json",
+        r#"{"type":"ss","ts":null,"a":[[1e999]],"b":[[1]],"c":[[1]],"d":[[0]]}"#,
+    );
+    assert_input_error(&sdctl(&["poles", &inf]), inf.as_str());
+    let ts0 = write(
+        &d,
+        "ts0.json",
+        r#"{"type":"ss","ts":0,"a":[[0.5]],"b":[[1]],"c":[[1]],"d":[[0]]}"#,
+    );
+    assert_input_error(&sdctl(&["poles", &ts0]), "sampling period");
+    let ct = write(&d, "ct.json", CT);
+    assert_input_error(&sdctl(&["c2d", &ct, "--ts", "-1"]), "--ts");
+    let dt = write(&d, "dt.json", DT);
+    assert_input_error(&sdctl(&["c2d", &dt, "--ts", "0.01"]), "continuous-time");
+    assert_input_error(
+        &sdctl(&["connect", "series", &ct, &dt]),
+        "sample time mismatch",
+    );
+    let junk = write(&d, "junk.json", "{not json");
+    assert_input_error(&sdctl(&["poles", &junk]), "cannot read");
+    assert_input_error(&sdctl(&["freqresp", &dt, "--grid", "1:600:10"]), "nyquist");
+    assert_input_error(
+        &sdctl(&["freqresp", &dt, "--grid", "1:x:10"]),
+        "FMIN:FMAX:N",
+    );
+    assert_input_error(&sdctl(&["poles", "/nonexistent/model.json"]), "cannot read");
+    assert_input_error(&sdctl(&["alias", "--freq-hz", "653"]), "rate-hz");
+    let neg = write(
+        &d,
+        "neg.json",
+        r#"{"type":"ss","ts":0.01,"a":[[-0.5]],"b":[[1]],"c":[[1]],"d":[[0]]}"#,
+    );
+    assert_input_error(&sdctl(&["d2c", &neg]), "negative real axis");
+    // no half-written output: a failing command leaves no file
+    let out = d.join("never.json");
+    let o = sdctl(&["c2d", &dt, "--ts", "0.01", "-o", &out.to_string_lossy()]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(!out.exists());
+    assert_eq!(
+        std::fs::read_dir(&d)
+            .unwrap()
+            .filter(|e| e
+                .as_ref()
+                .unwrap()
+                .file_name()
+                .to_string_lossy()
+                .contains(".tmp"))
+            .count(),
+        0
+    );
+}
