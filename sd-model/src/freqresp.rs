@@ -22,10 +22,23 @@ use num_complex::Complex64 as C;
 use rayon::prelude::*;
 use std::f64::consts::PI;
 
+/// One diagonal block of the reduced form with its input and output maps.
+#[derive(Debug, Clone)]
+enum Block {
+    /// A simple pole `t` with `B̃` row `b` (nu) and `C̃` column `c` (ny).
+    Simple { t: C, b: Vec<C>, c: Vec<C> },
+    /// A cluster: upper-triangular `t` (m×m), `b` (m×nu), `c` (ny×m).
+    Cluster {
+        t: DMatrix<C>,
+        b: DMatrix<C>,
+        c: DMatrix<C>,
+    },
+}
+
 /// A model prepared for fast evaluation at many points.
 #[derive(Debug, Clone)]
 pub struct FreqRespEvaluator {
-    bd: BlockDiagonal,
+    blocks: Vec<Block>,
     d: DMatrix<C>,
     time: SampleTime,
 }
@@ -33,39 +46,69 @@ pub struct FreqRespEvaluator {
 impl FreqRespEvaluator {
     /// Reduces the model once (O(n³)).
     pub fn new(sys: &StateSpace) -> Result<Self> {
-        let bd = block_diagonalize(
+        let bd: BlockDiagonal = block_diagonalize(
             &to_complex(sys.a()),
             &to_complex(sys.b()),
             &to_complex(sys.c()),
             SPLIT_BOUND,
         )?;
+        let blocks = bd
+            .blocks
+            .iter()
+            .map(|&(st, sz)| {
+                if sz == 1 {
+                    Block::Simple {
+                        t: bd.t[(st, st)],
+                        b: bd.bt.row(st).iter().cloned().collect(),
+                        c: bd.ct.column(st).iter().cloned().collect(),
+                    }
+                } else {
+                    Block::Cluster {
+                        t: bd.t.view((st, st), (sz, sz)).into_owned(),
+                        b: bd.bt.rows(st, sz).into_owned(),
+                        c: bd.ct.columns(st, sz).into_owned(),
+                    }
+                }
+            })
+            .collect();
         Ok(FreqRespEvaluator {
-            bd,
+            blocks,
             d: to_complex(sys.d()),
             time: sys.time(),
         })
     }
 
+    /// Adds `Σ_b C̃_b (sI − T_b)⁻¹ B̃_b` to `g` (column-major ny×nu), without allocating for
+    /// simple poles.
+    fn accumulate(&self, s: C, g: &mut [C], ny: usize) {
+        for blk in &self.blocks {
+            match blk {
+                Block::Simple { t, b, c } => {
+                    let inv = C::new(1.0, 0.0) / (s - t);
+                    for (j, bj) in b.iter().enumerate() {
+                        let w = bj * inv;
+                        let col = &mut g[j * ny..(j + 1) * ny];
+                        for (gi, ci) in col.iter_mut().zip(c.iter()) {
+                            *gi += ci * w;
+                        }
+                    }
+                }
+                Block::Cluster { t, b, c } => {
+                    let x = shifted_triangular_solve(t, s, b);
+                    let cx = c * x;
+                    for (gi, v) in g.iter_mut().zip(cx.iter()) {
+                        *gi += v;
+                    }
+                }
+            }
+        }
+    }
+
     /// `G(s)` at a point of the complex plane (s for CT, z for DT).
     pub fn eval_at(&self, s: C) -> DMatrix<C> {
         let mut g = self.d.clone();
-        for &(st, sz) in &self.bd.blocks {
-            if sz == 1 {
-                let den = s - self.bd.t[(st, st)];
-                let cc = self.bd.ct.column(st);
-                let bb = self.bd.bt.row(st);
-                for j in 0..g.ncols() {
-                    let bj = bb[j] / den;
-                    for i in 0..g.nrows() {
-                        g[(i, j)] += cc[i] * bj;
-                    }
-                }
-            } else {
-                let tb = self.bd.t.view((st, st), (sz, sz)).into_owned();
-                let x = shifted_triangular_solve(&tb, s, &self.bd.bt.rows(st, sz).into_owned());
-                g += self.bd.ct.columns(st, sz) * x;
-            }
-        }
+        let ny = g.nrows();
+        self.accumulate(s, g.as_mut_slice(), ny);
         g
     }
 
@@ -86,14 +129,40 @@ impl FreqRespEvaluator {
     pub fn eval_many(&self, freq_hz: &[f64]) -> Vec<DMatrix<C>> {
         freq_hz
             .par_iter()
-            .with_min_len(256)
+            .with_min_len(1024)
             .map(|&f| self.eval_hz(f))
+            .collect()
+    }
+
+    /// SISO channel (0, 0) at many frequencies into a flat vector (parallel, no per-point
+    /// matrix allocation).
+    pub fn eval_many_siso(&self, freq_hz: &[f64]) -> Vec<C> {
+        let d = self.d.get((0, 0)).cloned().unwrap_or_default();
+        let single = self.d.nrows() == 1 && self.d.ncols() == 1;
+        freq_hz
+            .par_iter()
+            .with_min_len(1024)
+            .map(|&f| {
+                if single {
+                    let mut g = [d];
+                    self.accumulate(self.point(f), &mut g, 1);
+                    g[0]
+                } else {
+                    self.eval_hz(f)[(0, 0)]
+                }
+            })
             .collect()
     }
 
     /// Block sizes of the reduced form (1 for each simple pole).
     pub fn block_sizes(&self) -> Vec<usize> {
-        self.bd.blocks.iter().map(|b| b.1).collect()
+        self.blocks
+            .iter()
+            .map(|b| match b {
+                Block::Simple { .. } => 1,
+                Block::Cluster { t, .. } => t.nrows(),
+            })
+            .collect()
     }
 }
 

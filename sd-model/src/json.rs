@@ -40,7 +40,7 @@ struct TfJson {
     den: Vec<f64>,
 }
 
-#[derive(Serialize, Deserialize)]
+#[derive(Deserialize)]
 struct FrdJson {
     #[serde(rename = "type")]
     kind: String,
@@ -48,7 +48,6 @@ struct FrdJson {
     freq_hz: Vec<f64>,
     re: Vec<Vec<Vec<f64>>>,
     im: Vec<Vec<Vec<f64>>>,
-    #[serde(skip_serializing_if = "Option::is_none")]
     var: Option<Vec<Vec<Vec<f64>>>>,
 }
 
@@ -212,25 +211,78 @@ pub fn frd_from_json_str(text: &str) -> Result<Frd> {
     Frd::new(f.freq_hz, resp, var, SampleTime::from_option(f.ts)?)
 }
 
-/// Serialises an FRD to a JSON string.
+/// Streams `[f][o][i]` arrays of a per-frequency matrix list without building nested vectors.
+struct Cube<'a, T, F: Fn(&T) -> f64> {
+    mats: &'a [DMatrix<T>],
+    f: F,
+}
+
+struct Rows<'a, T, F: Fn(&T) -> f64> {
+    m: &'a DMatrix<T>,
+    f: &'a F,
+}
+
+struct Row<'a, T, F: Fn(&T) -> f64> {
+    m: &'a DMatrix<T>,
+    i: usize,
+    f: &'a F,
+}
+
+impl<T: nalgebra::Scalar, F: Fn(&T) -> f64> Serialize for Cube<'_, T, F> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        s.collect_seq(self.mats.iter().map(|m| Rows { m, f: &self.f }))
+    }
+}
+
+impl<T: nalgebra::Scalar, F: Fn(&T) -> f64> Serialize for Rows<'_, T, F> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        s.collect_seq((0..self.m.nrows()).map(|i| Row {
+            m: self.m,
+            i,
+            f: self.f,
+        }))
+    }
+}
+
+impl<T: nalgebra::Scalar, F: Fn(&T) -> f64> Serialize for Row<'_, T, F> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        s.collect_seq((0..self.m.ncols()).map(|j| (self.f)(&self.m[(self.i, j)])))
+    }
+}
+
+#[derive(Serialize)]
+#[serde(bound = "")]
+struct FrdOut<'a, FR: Fn(&C) -> f64, FI: Fn(&C) -> f64, FV: Fn(&f64) -> f64> {
+    #[serde(rename = "type")]
+    kind: &'static str,
+    ts: Option<f64>,
+    freq_hz: &'a [f64],
+    re: Cube<'a, C, FR>,
+    im: Cube<'a, C, FI>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    var: Option<Cube<'a, f64, FV>>,
+}
+
+/// Serialises an FRD to a JSON string (streamed: no intermediate nested vectors).
 pub fn frd_to_json_string(frd: &Frd) -> Result<String> {
-    let split = |g: fn(&C) -> f64| -> Vec<Vec<Vec<f64>>> {
-        frd.response()
-            .iter()
-            .map(|m| matrix_to_rows(&m.map(|v| g(&v))))
-            .collect()
-    };
-    let f = FrdJson {
-        kind: "frd".into(),
+    let out = FrdOut {
+        kind: "frd",
         ts: frd.time().ts(),
-        freq_hz: frd.freq_hz().to_vec(),
-        re: split(|v| v.re),
-        im: split(|v| v.im),
-        var: frd
-            .variance()
-            .map(|v| v.iter().map(matrix_to_rows).collect()),
+        freq_hz: frd.freq_hz(),
+        re: Cube {
+            mats: frd.response(),
+            f: |v: &C| v.re,
+        },
+        im: Cube {
+            mats: frd.response(),
+            f: |v: &C| v.im,
+        },
+        var: frd.variance().map(|v| Cube {
+            mats: v,
+            f: |x: &f64| *x,
+        }),
     };
-    serde_json::to_string(&f).map_err(|e| parse_err("FRD", e))
+    serde_json::to_string(&out).map_err(|e| parse_err("FRD", e))
 }
 
 #[cfg(test)]
@@ -250,5 +302,21 @@ mod tests {
         assert_eq!((g.n(), g.ny(), g.nu()), (0, 2, 2));
         let tf = model_from_json_str(r#"{"type":"tf","ts":null,"num":[1],"den":[1,2,1]}"#).unwrap();
         assert_eq!(tf.n(), 2);
+    }
+
+    #[test]
+    fn frd_roundtrip_with_variance() {
+        let r = vec![DMatrix::from_row_slice(1, 2, &[C::new(1.0, -2.0), C::new(0.5, 0.25)]); 3];
+        let v = Some(vec![DMatrix::from_row_slice(1, 2, &[0.1, 0.2]); 3]);
+        let f = Frd::new(
+            vec![1.0, 2.0, 3.0],
+            r,
+            v,
+            SampleTime::discrete(0.001).unwrap(),
+        )
+        .unwrap();
+        let txt = frd_to_json_string(&f).unwrap();
+        assert!(txt.contains("\"re\":[[[1.0,0.5]],"), "{txt}");
+        assert_eq!(frd_from_json_str(&txt).unwrap(), f);
     }
 }

@@ -9,11 +9,12 @@
 //!
 //! ```
 //! use sd_model::{c2d, alias, Discretization, stage::paper_stage};
-//! let p = paper_stage(0.01).unwrap();                       // 653 Hz mode, m = 20 kg
-//! let pd = c2d(&p, 1e-3, Discretization::Zoh).unwrap();      // exact ZOH at 1 kHz
-//! assert!((alias(653.0, 1000.0).unwrap().alias_hz - 347.0).abs() < 1e-9);
-//! let g = pd.freqresp(&[347.0]).unwrap();
+//! let p = paper_stage(0.01)?;                       // 653 Hz mode, m = 20 kg
+//! let pd = c2d(&p, 1e-3, Discretization::Zoh)?;      // exact ZOH at 1 kHz
+//! assert!((alias(653.0, 1000.0)?.alias_hz - 347.0).abs() < 1e-9);
+//! let g = pd.freqresp(&[347.0])?;
 //! assert!(g.response()[0][(0, 0)].norm() > 0.0);
+//! # Ok::<(), sd_model::ModelError>(())
 //! ```
 
 pub mod alias;

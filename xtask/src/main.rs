@@ -1,1 +1,40 @@
-fn main() {}
+//! Project automation.
+//!
+//! - `cargo xtask paper [--out DIR] [--quick]`: the paper's chain on the embedded virtual stage
+//!   (figures, `report.md`, `report.json`; default `target/paper/`).
+//! - `cargo xtask bench [--quick]`: medians of our operations and, where python-control and
+//!   slycot import, of the same operations on the same inputs in python-control/scipy, with the
+//!   ratio; written to `target/bench/results.json`.
+
+mod bench;
+mod paper;
+mod plot;
+
+use std::process::ExitCode;
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let quick = args.iter().any(|a| a == "--quick");
+    let out = args
+        .iter()
+        .position(|a| a == "--out")
+        .and_then(|i| args.get(i + 1))
+        .cloned();
+    let r = match args.first().map(String::as_str) {
+        Some("paper") => paper::run(out.as_deref().unwrap_or("target/paper"), quick),
+        Some("bench") => bench::run(quick),
+        _ => {
+            eprintln!(
+                "usage: cargo xtask paper [--out DIR] [--quick] | cargo xtask bench [--quick]"
+            );
+            return ExitCode::from(2);
+        }
+    };
+    match r {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("xtask: {e}");
+            ExitCode::from(1)
+        }
+    }
+}

@@ -1,0 +1,50 @@
+"""Peer timings for `cargo xtask bench`: the same operations on the same inputs in
+python-control / scipy. Usage: python3 tools/bench_python.py CASES.json  (prints JSON).
+
+CASES.json: {"c2d": {"model": path, "ts": h, "repeats": k},
+             "freqresp": {"model": path, "fmin": .., "fmax": .., "n": .., "log": bool, "repeats": k}}
+"""
+import json, sys, time
+import numpy as np
+import control
+import scipy.signal
+
+
+def load(path):
+    m = json.load(open(path))
+    return [np.array(m[k], dtype=float).reshape(len(m[k]), -1) if len(m[k]) else np.zeros((0, 0)) for k in "abcd"], m["ts"]
+
+
+def median_time(fn, repeats):
+    ts = []
+    out = None
+    for _ in range(repeats):
+        t0 = time.perf_counter(); out = fn(); ts.append(time.perf_counter() - t0)
+    return float(np.median(ts)), out
+
+
+cases = json.load(open(sys.argv[1]))
+res = {"versions": {"control": control.__version__, "scipy": scipy.__version__, "numpy": np.__version__}}
+try:
+    import slycot
+    res["versions"]["slycot"] = slycot.__version__
+except Exception:
+    pass
+
+c = cases["c2d"]
+(a, b, cc, d), _ = load(c["model"])
+sys_c = control.ss(a, b, cc, d)
+t, sd = median_time(lambda: control.sample_system(sys_c, c["ts"], method="zoh"), c["repeats"])
+res["c2d_python_control"] = {"median_s": t, "ad": np.asarray(sd.A).tolist(), "bd": np.asarray(sd.B).tolist()}
+t, _ = median_time(lambda: scipy.signal.cont2discrete((a, b, cc, d), c["ts"], method="zoh"), c["repeats"])
+res["c2d_scipy"] = {"median_s": t}
+
+f = cases["freqresp"]
+(a, b, cc, d), ts = load(f["model"])
+sys_d = control.ss(a, b, cc, d, ts)
+hz = np.geomspace(f["fmin"], f["fmax"], f["n"]) if f["log"] else np.linspace(f["fmin"], f["fmax"], f["n"])
+w = 2 * np.pi * hz
+t, r = median_time(lambda: control.frequency_response(sys_d, w), f["repeats"])
+resp = np.asarray(r.response).reshape(-1)
+res["freqresp_python_control"] = {"median_s": t, "re_sample": resp[:: max(1, len(resp) // 1000)].real.tolist(), "im_sample": resp[:: max(1, len(resp) // 1000)].imag.tolist(), "stride": max(1, len(resp) // 1000)}
+print(json.dumps(res))

@@ -1,0 +1,189 @@
+//! `cargo xtask bench`: our operations against python-control/scipy on the same inputs.
+
+use sd_model::{c2d, grid, Discretization, StateSpace};
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn time_it<T>(repeats: usize, mut f: impl FnMut() -> T) -> (f64, T) {
+    let mut ts = Vec::with_capacity(repeats);
+    let mut out = None;
+    for _ in 0..repeats.max(1) {
+        let t0 = Instant::now();
+        out = Some(f());
+        ts.push(t0.elapsed().as_secs_f64());
+    }
+    (median(ts), out.expect("at least one repeat"))
+}
+
+fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn python_peers_available() -> bool {
+    Command::new("python3")
+        .args(["-c", "import control, slycot, scipy"])
+        .output()
+        .map(|o| o.status.success())
+        .unwrap_or(false)
+}
+
+pub fn run(quick: bool) -> Result<(), String> {
+    let root = workspace_root();
+    let dir = root.join("target/bench");
+    std::fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
+    let reps = if quick { 3 } else { 15 };
+    let nfreq = if quick { 20_000 } else { 200_000 };
+    let e = |x: sd_model::ModelError| x.to_string();
+
+    eprintln!("[bench] building sdctl (release)...");
+    let st = Command::new(env!("CARGO"))
+        .args(["build", "--quiet", "--release", "-p", "sd-cli"])
+        .current_dir(&root)
+        .status()
+        .map_err(|x| x.to_string())?;
+    if !st.success() {
+        return Err("cargo build -p sd-cli failed".into());
+    }
+    let sdctl = root.join("target/release/sdctl");
+
+    let stage = sd_model::stage::stage60().map_err(e)?;
+    let ct_path = dir.join("stage60_ct.json");
+    std::fs::write(&ct_path, sd_model::model_to_json_string(&stage).map_err(e)?)
+        .map_err(|x| x.to_string())?;
+    let mut entries: Vec<Value> = Vec::new();
+
+    // c2d: exact ZOH of the 60-state stage at 5 kHz
+    eprintln!("[bench] c2d (ZOH) of the 60-state stage at 5 kHz, {reps} repeats...");
+    let (t_c2d, pd) = time_it(reps * 10, || c2d(&stage, 2e-4, Discretization::Zoh));
+    let pd: StateSpace = pd.map_err(e)?;
+    let dt_path = dir.join("stage60_5khz.json");
+    std::fs::write(&dt_path, sd_model::model_to_json_string(&pd).map_err(e)?)
+        .map_err(|x| x.to_string())?;
+
+    // freqresp: library call and the whole sdctl process
+    let (fmin, fmax) = (0.1, 2500.0);
+    let f = grid(fmin, fmax, nfreq, true).map_err(e)?;
+    eprintln!("[bench] freqresp of the 5 kHz stage on {nfreq} frequencies...");
+    let (t_fr_lib, frd) = time_it(reps, || pd.freqresp(&f));
+    let frd = frd.map_err(e)?;
+    let grid_arg = format!("{fmin}:{fmax}:{nfreq}:log");
+    let out_path = dir.join("freqresp_out.json");
+    let (t_fr_proc, ok) = time_it(reps, || {
+        Command::new(&sdctl)
+            .args([
+                "freqresp",
+                &dt_path.to_string_lossy(),
+                "--grid",
+                &grid_arg,
+                "-o",
+                &out_path.to_string_lossy(),
+            ])
+            .status()
+            .map(|s| s.success())
+            .unwrap_or(false)
+    });
+    if !ok {
+        return Err("sdctl freqresp failed".into());
+    }
+
+    let mut c2d_entry =
+        json!({"name": "c2d_zoh", "size": "60 states, 1 input, h = 0.2 ms", "ours_s": t_c2d});
+    let mut fr_entry = json!({"name": "freqresp", "size": format!("60 states, {nfreq} frequencies"),
+                              "ours_library_s": t_fr_lib, "ours_sdctl_process_s": t_fr_proc});
+
+    if python_peers_available() {
+        eprintln!("[bench] python-control / scipy on the same inputs...");
+        let cases = json!({
+            "c2d": {"model": ct_path, "ts": 2e-4, "repeats": reps * 10},
+            "freqresp": {"model": dt_path, "fmin": fmin, "fmax": fmax, "n": nfreq, "log": true, "repeats": if quick { 1 } else { 3 }},
+        });
+        let cases_path = dir.join("python_cases.json");
+        std::fs::write(&cases_path, cases.to_string()).map_err(|x| x.to_string())?;
+        let o = Command::new("python3")
+            .arg(root.join("tools/bench_python.py"))
+            .arg(&cases_path)
+            .output()
+            .map_err(|x| x.to_string())?;
+        if !o.status.success() {
+            return Err(format!(
+                "python peer failed: {}",
+                String::from_utf8_lossy(&o.stderr)
+            ));
+        }
+        let py: Value = serde_json::from_slice(&o.stdout).map_err(|x| x.to_string())?;
+        let t_pc = py["c2d_python_control"]["median_s"]
+            .as_f64()
+            .unwrap_or(f64::NAN);
+        let t_sc = py["c2d_scipy"]["median_s"].as_f64().unwrap_or(f64::NAN);
+        // agreement of the results
+        let ad: Vec<Vec<f64>> =
+            serde_json::from_value(py["c2d_python_control"]["ad"].clone()).unwrap_or_default();
+        let mut dev: f64 = 0.0;
+        for (i, row) in ad.iter().enumerate() {
+            for (j, v) in row.iter().enumerate() {
+                dev = dev.max((v - pd.a()[(i, j)]).abs());
+            }
+        }
+        let rel_ad = dev / pd.a().abs().max();
+        c2d_entry["peer"] =
+            json!({"python_control_sample_system_s": t_pc, "scipy_cont2discrete_s": t_sc});
+        c2d_entry["ratio_python_control_over_ours"] = json!(t_pc / t_c2d);
+        c2d_entry["ratio_scipy_over_ours"] = json!(t_sc / t_c2d);
+        c2d_entry["max_rel_difference_ad"] = json!(rel_ad);
+        let t_pf = py["freqresp_python_control"]["median_s"]
+            .as_f64()
+            .unwrap_or(f64::NAN);
+        let stride = py["freqresp_python_control"]["stride"]
+            .as_u64()
+            .unwrap_or(1) as usize;
+        let re: Vec<f64> =
+            serde_json::from_value(py["freqresp_python_control"]["re_sample"].clone())
+                .unwrap_or_default();
+        let im: Vec<f64> =
+            serde_json::from_value(py["freqresp_python_control"]["im_sample"].clone())
+                .unwrap_or_default();
+        let mut worst: f64 = 0.0;
+        for (k, (r, i)) in re.iter().zip(im.iter()).enumerate() {
+            let ours = frd.response()[k * stride][(0, 0)];
+            let theirs = num_complex::Complex64::new(*r, *i);
+            worst = worst.max((ours - theirs).norm() / theirs.norm());
+        }
+        fr_entry["peer"] = json!({"python_control_frequency_response_s": t_pf});
+        fr_entry["ratio_python_control_over_sdctl_process"] = json!(t_pf / t_fr_proc);
+        fr_entry["ratio_python_control_over_library"] = json!(t_pf / t_fr_lib);
+        fr_entry["max_rel_difference_sampled"] = json!(worst);
+        entries.push(c2d_entry);
+        entries.push(fr_entry);
+        let res = json!({"quick": quick, "python": py["versions"], "entries": entries});
+        finish(&dir, res)
+    } else {
+        eprintln!("[bench] python-control/slycot not importable: peers skipped (pip install control slycot scipy)");
+        entries.push(c2d_entry);
+        entries.push(fr_entry);
+        finish(
+            &dir,
+            json!({"quick": quick, "python": null, "entries": entries}),
+        )
+    }
+}
+
+fn finish(dir: &Path, res: Value) -> Result<(), String> {
+    let p = dir.join("results.json");
+    std::fs::write(
+        &p,
+        serde_json::to_string_pretty(&res).map_err(|x| x.to_string())?,
+    )
+    .map_err(|x| x.to_string())?;
+    for e in res["entries"].as_array().into_iter().flatten() {
+        println!("{}", serde_json::to_string(e).unwrap_or_default());
+    }
+    println!("written {}", p.display());
+    Ok(())
+}
