@@ -1,4 +1,5 @@
 //! sdctl contract tests (issue #2): outputs, exit codes, one-line errors, atomic files.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::path::PathBuf;
 use std::process::{Command, Output};
@@ -17,7 +18,7 @@ fn tmpdir(name: &str) -> PathBuf {
     d
 }
 
-fn write(dir: &PathBuf, name: &str, text: &str) -> String {
+fn write(dir: &std::path::Path, name: &str, text: &str) -> String {
     let p = dir.join(name);
     std::fs::write(&p, text).unwrap();
     p.to_string_lossy().into_owned()

@@ -70,6 +70,7 @@ pub fn folding_frequencies(alias_hz: f64, rate_hz: f64, max_hz: f64) -> Result<V
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
 mod tests {
     use super::*;
     #[test]

@@ -259,6 +259,7 @@ pub fn logm(m: &DMatrix<f64>) -> Result<DMatrix<f64>> {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
 mod tests {
     use super::*;
 

@@ -286,6 +286,7 @@ pub fn frd_to_json_string(frd: &Frd) -> Result<String> {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
 mod tests {
     use super::*;
 

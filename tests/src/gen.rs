@@ -1,4 +1,5 @@
 //! Random model generators for property tests (deterministic from a seed).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use nalgebra::DMatrix;
 use sd_model::{SampleTime, StateSpace};

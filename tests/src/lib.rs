@@ -1,4 +1,5 @@
 //! Shared helpers of the cross-crate integration and property tests (package `sd-tests`).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use nalgebra::DMatrix;
 use std::path::PathBuf;

@@ -1,4 +1,5 @@
 //! Issue #2: bad input returns errors that say what to fix — one test per kind.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use nalgebra::DMatrix;
 use sd_model::{c2d, model_from_json_str, Discretization, ModelError, SampleTime, StateSpace};

@@ -1,4 +1,5 @@
 //! Issue #2: FOH and Tustin (with prewarping) against scipy / python-control references.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use num_complex::Complex64 as C;
 use sd_model::{c2d, Discretization, SampleTime, StateSpace};

@@ -1,4 +1,5 @@
 //! Issue #2 acceptance: d2c with alias candidates, balanced truncation bound, norms, zeros,
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 //! minimal realisation, simulation.
 
 use nalgebra::DMatrix;

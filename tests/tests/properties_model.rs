@@ -1,4 +1,5 @@
 //! Issue #2 property tests (proptest, 256 cases each by default).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use nalgebra::DMatrix;
 use num_complex::Complex64 as C;

@@ -1,4 +1,5 @@
 //! Issue #2 acceptance: exact ZOH (Lemma 5) against published and high-precision references.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use sd_model::{c2d, Discretization, SampleTime, StateSpace};
 use sd_tests::{mat, read_json, rel_err};

@@ -171,6 +171,7 @@ loopshaping (#4), closed-loop and multirate analysis (#6), the virtual test bed 
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
 mod tests {
     /// `cargo test -p xtask` runs a reduced version of the paper chain.
     #[test]

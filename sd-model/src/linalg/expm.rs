@@ -19,7 +19,7 @@ use nalgebra::DMatrix;
 
 const THETA: [(usize, f64); 5] = [
     (3, 1.495585217958292e-2),
-    (5, 2.539398330063230e-1),
+    (5, 2.539_398_330_063_23e-1),
     (7, 9.504178996162932e-1),
     (9, 2.097847961257068e0),
     (13, 5.371920351148152e0),
@@ -282,6 +282,7 @@ fn pade_solve(
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
 mod tests {
     use super::*;
 

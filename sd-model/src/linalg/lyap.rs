@@ -106,6 +106,7 @@ pub fn lyap(a: &DMatrix<f64>, q: &DMatrix<f64>, kind: LyapKind) -> Result<DMatri
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
 mod tests {
     use super::*;
 

@@ -244,6 +244,7 @@ pub fn shifted_triangular_solve(t: &DMatrix<C>, s: C, r: &DMatrix<C>) -> DMatrix
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
 mod tests {
     use super::*;
 
