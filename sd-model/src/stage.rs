@@ -101,3 +101,24 @@ pub fn paper_stage(zeta: f64) -> Result<StateSpace> {
         }],
     )
 }
+
+/// The paper's stage with DESIGN §6's optional second mode: rigid body, 653 Hz (ζ = 0.01,
+/// r = 2) and 1.65 kHz (ζ = 0.005, r = 0.3), m = 20 kg.
+pub fn paper_stage_two_modes() -> Result<StateSpace> {
+    stage_model(
+        20.0,
+        true,
+        &[
+            Mode {
+                freq_hz: 653.0,
+                zeta: 0.01,
+                residue: 2.0,
+            },
+            Mode {
+                freq_hz: 1650.0,
+                zeta: 0.005,
+                residue: 0.3,
+            },
+        ],
+    )
+}

@@ -20,23 +20,7 @@ fn ct(a: &[f64], b: &[f64], c: &[f64], d: &[f64], n: usize, nu: usize, ny: usize
 #[test]
 fn issue2_d2c_inverts_c2d_in_principal_strip() {
     // Stage with rigid body (Jordan block at z = 1) and modes below Nyquist at 5 kHz.
-    let p = sd_model::stage::stage_model(
-        20.0,
-        true,
-        &[
-            sd_model::stage::Mode {
-                freq_hz: 653.0,
-                zeta: 0.01,
-                residue: 2.0,
-            },
-            sd_model::stage::Mode {
-                freq_hz: 1650.0,
-                zeta: 0.005,
-                residue: 0.3,
-            },
-        ],
-    )
-    .unwrap();
+    let p = sd_model::stage::paper_stage_two_modes().unwrap();
     let pd = c2d(&p, 2e-4, Discretization::Zoh).unwrap();
     let back = d2c(&pd).unwrap();
     let ea = (back.a() - p.a()).norm() / p.a().norm();

@@ -45,19 +45,7 @@ pub fn run(out: &str, quick: bool) -> Result<(), String> {
     std::fs::create_dir_all(out).map_err(|x| format!("cannot create {out}: {x}"))?;
     let n = if quick { 2000 } else { 20000 };
     eprintln!("[paper 1/3] stage model (m = 20 kg, 653 Hz mode, ζ = 0.01, r = 2) and exact ZOH at 5 kHz and 1 kHz");
-    let modes = [
-        sd_model::stage::Mode {
-            freq_hz: 653.0,
-            zeta: 0.01,
-            residue: 2.0,
-        },
-        sd_model::stage::Mode {
-            freq_hz: 1650.0,
-            zeta: 0.005,
-            residue: 0.3,
-        },
-    ];
-    let p = sd_model::stage::stage_model(20.0, true, &modes).map_err(e)?;
+    let p = sd_model::stage::paper_stage_two_modes().map_err(e)?;
     let ph = c2d(&p, 2e-4, Discretization::Zoh).map_err(e)?;
     let pd = c2d(&p, 1e-3, Discretization::Zoh).map_err(e)?;
 
