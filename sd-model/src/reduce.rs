@@ -57,7 +57,6 @@ fn controllable_staircase(sys: &StateSpace, tol: f64) -> Result<(StateSpace, usi
     let mut b = sys.b().clone();
     let mut c = sys.c().clone();
     let mut k = 0; // dimension found so far
-    let mut prev = 0; // start column of the previous block
     let mut blk: DMatrix<f64> = b.clone(); // current block: rows k.., in "previous" columns
     loop {
         if k == n {
@@ -84,13 +83,12 @@ fn controllable_staircase(sys: &StateSpace, tol: f64) -> Result<(StateSpace, usi
         b.rows_mut(k, m).copy_from(&br);
         let cc = c.columns(k, m) * &uf;
         c.columns_mut(k, m).copy_from(&cc);
-        prev = k;
+        let prev = k; // start column of this block: the next block is A[k+r.., prev..prev+r]
         k += r;
         if k < n {
             blk = a.view((k, prev), (n - k, r)).into_owned();
         }
     }
-    let _ = prev;
     Ok((StateSpace::new(a, b, c, sys.d().clone(), sys.time())?, k))
 }
 
