@@ -106,36 +106,39 @@ fn issue2_c2d_d2c_freqresp_poles_norm_reduce_connect() {
 #[test]
 fn issue2_bad_inputs_exit_2_with_one_line() {
     let d = tmpdir("bad");
-    let shapes = write(
-        &d,
-        "shape.json",
-        r#"{"type":"ss","ts":null,"a":[[0,1],[0,0]],"b":[[1]],"c":[[1,0]],"d":[[0]]}"#,
-    );
-    assert_input_error(&sdctl(&["poles", &shapes]), "\"b\"");
-    let ragged = write(
-        &d,
-        "ragged.json",
-        r#"{"type":"ss","ts":null,"a":[[0,1],[0]],"b":[[0],[1]],"c":[[1,0]],"d":[[0]]}"#,
-    );
-    assert_input_error(&sdctl(&["poles", &ragged]), "row 1");
-    let nan = write(
-        &d,
-        "nan.json",
-        r#"{"type":"ss","ts":null,"a":[[NaN]],"b":[[1]],"c":[[1]],"d":[[0]]}"#,
-    );
-    assert_input_error(&sdctl(&["poles", &nan]), "cannot read");
-    let inf = write(
-        &d,
-        "inf.json",
-        r#"{"type":"ss","ts":null,"a":[[1e999]],"b":[[1]],"c":[[1]],"d":[[0]]}"#,
-    );
-    assert_input_error(&sdctl(&["poles", &inf]), inf.as_str());
-    let ts0 = write(
-        &d,
-        "ts0.json",
-        r#"{"type":"ss","ts":0,"a":[[0.5]],"b":[[1]],"c":[[1]],"d":[[0]]}"#,
-    );
-    assert_input_error(&sdctl(&["poles", &ts0]), "sampling period");
+    // (file, contents, what the one-line message must name); needle None = the file's path
+    let bad_models: [(&str, &str, Option<&str>); 6] = [
+        (
+            "shape.json",
+            r#"{"type":"ss","ts":null,"a":[[0,1],[0,0]],"b":[[1]],"c":[[1,0]],"d":[[0]]}"#,
+            Some("\"b\""),
+        ),
+        (
+            "ragged.json",
+            r#"{"type":"ss","ts":null,"a":[[0,1],[0]],"b":[[0],[1]],"c":[[1,0]],"d":[[0]]}"#,
+            Some("row 1"),
+        ),
+        (
+            "nan.json",
+            r#"{"type":"ss","ts":null,"a":[[NaN]],"b":[[1]],"c":[[1]],"d":[[0]]}"#,
+            Some("cannot read"),
+        ),
+        (
+            "inf.json",
+            r#"{"type":"ss","ts":null,"a":[[1e999]],"b":[[1]],"c":[[1]],"d":[[0]]}"#,
+            None,
+        ),
+        (
+            "ts0.json",
+            r#"{"type":"ss","ts":0,"a":[[0.5]],"b":[[1]],"c":[[1]],"d":[[0]]}"#,
+            Some("sampling period"),
+        ),
+        ("junk.json", "{not json", Some("cannot read")),
+    ];
+    for (name, text, needle) in bad_models {
+        let path = write(&d, name, text);
+        assert_input_error(&sdctl(&["poles", &path]), needle.unwrap_or(&path));
+    }
     let ct = write(&d, "ct.json", CT);
     assert_input_error(&sdctl(&["c2d", &ct, "--ts", "-1"]), "--ts");
     let dt = write(&d, "dt.json", DT);
@@ -144,8 +147,6 @@ fn issue2_bad_inputs_exit_2_with_one_line() {
         &sdctl(&["connect", "series", &ct, &dt]),
         "sample time mismatch",
     );
-    let junk = write(&d, "junk.json", "{not json");
-    assert_input_error(&sdctl(&["poles", &junk]), "cannot read");
     assert_input_error(&sdctl(&["freqresp", &dt, "--grid", "1:600:10"]), "nyquist");
     assert_input_error(
         &sdctl(&["freqresp", &dt, "--grid", "1:x:10"]),

@@ -134,26 +134,6 @@ impl FreqRespEvaluator {
             .collect()
     }
 
-    /// SISO channel (0, 0) at many frequencies into a flat vector (parallel, no per-point
-    /// matrix allocation).
-    pub fn eval_many_siso(&self, freq_hz: &[f64]) -> Vec<C> {
-        let d = self.d.get((0, 0)).cloned().unwrap_or_default();
-        let single = self.d.nrows() == 1 && self.d.ncols() == 1;
-        freq_hz
-            .par_iter()
-            .with_min_len(1024)
-            .map(|&f| {
-                if single {
-                    let mut g = [d];
-                    self.accumulate(self.point(f), &mut g, 1);
-                    g[0]
-                } else {
-                    self.eval_hz(f)[(0, 0)]
-                }
-            })
-            .collect()
-    }
-
     /// Block sizes of the reduced form (1 for each simple pole).
     pub fn block_sizes(&self) -> Vec<usize> {
         self.blocks

@@ -4,13 +4,13 @@
 //!   controllability Gramian; the model must be stable.
 //! - **H∞** (L∞ when there are no poles on the stability boundary): the level-set algorithm of
 //!   Boyd & Balakrishnan (1990) / Bruinsma & Steinbuch (Syst. Control Lett. 14, 1990). For a level
-//!   γ, the frequencies where σ_max(G(jω)) = γ are the imaginary eigenvalues of the Hamiltonian
-//!   `H(γ) = [[A + BR⁻¹DᵀC, γBR⁻¹Bᵀ], [−γCᵀS⁻¹C, −(A + BR⁻¹DᵀC)ᵀ]]`, R = γ²I − DᵀD... (scaled
-//!   form with R = DᵀD − γ²I as in Bruinsma–Steinbuch); the level rises to the largest σ_max at the
-//!   midpoints of those intervals until no crossing remains. The lower bound starts from the
-//!   poles' frequencies and a grid; the final peak is polished by golden-section search, giving
-//!   the norm to ≤ 1e-10 relative (it is always a value actually attained at the reported peak
-//!   frequency). Discrete models are mapped exactly to continuous ones by the bilinear map
+//!   γ (not a singular value of D), the frequencies where a singular value of G(jω) equals γ
+//!   are the imaginary eigenvalues of the Hamiltonian, with `R = DᵀD − γ²I`, `S = DDᵀ − γ²I`,
+//!   `F = A − BR⁻¹DᵀC`: `H(γ) = [[F, −γBR⁻¹Bᵀ], [γCᵀS⁻¹C, −Fᵀ]]`; the level rises to the largest
+//!   σ_max at the midpoints of those intervals until no crossing remains. The lower bound starts from the
+//!   poles' frequencies and a grid; the final peak is polished by golden-section search, and the
+//!   result is always a value actually attained at the reported peak frequency (tests: 5e-15
+//!   relative to the closed form of a resonance; DT within 1e-8 of a dense local search). Discrete models are mapped exactly to continuous ones by the bilinear map
 //!   `z = (1 + s)/(1 − s)` (H∞ norm invariant; ωh = 2 atan ν).
 
 use crate::error::{ModelError, Result};
