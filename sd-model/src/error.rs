@@ -95,11 +95,8 @@ pub enum ModelError {
 }
 
 impl ModelError {
-    pub(crate) fn dim(
-        what: impl Into<String>,
-        expected: impl ToString,
-        found: impl ToString,
-    ) -> Self {
+    /// A [`ModelError::DimensionMismatch`] from anything printable.
+    pub fn dim(what: impl Into<String>, expected: impl ToString, found: impl ToString) -> Self {
         ModelError::DimensionMismatch {
             what: what.into(),
             expected: expected.to_string(),

@@ -1,0 +1,234 @@
+//! Lemma 6 of Oomen, van de Wal & Bosgra (ACC 2007): a fast discrete model seen through a slow
+//! zero-order hold and a slow ideal sampler.
+//!
+//! With `P_h = (A, B, C, D)` at period `h` and the input held for `F` fast samples, the model at
+//! `T = F·h` is
+//!
+//! ```text
+//! [A B; 0 I]^F = [A^F  Σ_{i<F} A^i B; 0  I],   P_d = (A^F, Σ_{i<F} A^i B, C, D)
+//! ```
+//!
+//! in the **same state coordinates**, so `downsample(c2d(P_c, h), F)` equals `c2d(P_c, F·h)`
+//! matrix by matrix (Lemma 5 then Lemma 6 is Lemma 5 at the slow rate).
+//!
+//! **Method.** The block matrix is powered by binary exponentiation on the pair `(X, Y)` with
+//! `[X Y; 0 I]·[X' Y'; 0 I] = [XX'  XY' + Y; 0 I]` (the identity block is never formed, so it
+//! stays exact), at most `2⌈log₂F⌉` products, after an exact power-of-two diagonal balancing of
+//! `[A B]` (`D⁻¹AD`, `D⁻¹B`; LAPACK xGEBAL scaling) that removes the position/velocity scale
+//! disparity of physical coordinates. A companion form is never used: its powers lose all
+//! accuracy for lightly damped order-60 models. Forward error of the products: at most about
+//! `2⌈log₂F⌉·n·ε·‖ |Ã|^F ‖` in the balanced coordinates; measured on the project's tests
+//! (`tests/tests/properties_multirate.rs`, `tests/tests/multirate_stage.rs`): matrices within
+//! 1e-10 relative of `c2d(P_c, F·h)` for random models with n ≤ 20, the 60-state stage's
+//! frequency response within 1e-8 over 0–500 Hz.
+//!
+//! The non-ideal variants (a delayed slow hold, an averaging slow sampler) from a fast model are
+//! in [`crate::nonideal::downsample_nonideal`].
+
+use crate::error::{check_factor, require_discrete, MultirateError, Result};
+use nalgebra::DMatrix;
+use sd_model::linalg::expm::balance_diag;
+use sd_model::{SampleTime, StateSpace};
+
+/// Lemma 6: the model at `T = F·h` of a fast discrete model `p_h` whose input is held for
+/// `factor` fast samples and whose output is sampled every `factor` fast samples.
+///
+/// Names and signal names are kept. `factor = 1` returns the model unchanged.
+///
+/// # Errors
+/// A continuous-time model, `factor = 0` or above [`crate::tol::MAX_FACTOR`].
+pub fn downsample(p_h: &StateSpace, factor: usize) -> Result<StateSpace> {
+    let h = require_discrete(p_h, "downsample (Lemma 6)")?;
+    check_factor(factor)?;
+    let (x, y) = power_held(p_h.a(), p_h.b(), factor);
+    let sys = StateSpace::new(
+        x,
+        y,
+        p_h.c().clone(),
+        p_h.d().clone(),
+        SampleTime::discrete(h * factor as f64)?,
+    )?;
+    Ok(copy_names(p_h, sys))
+}
+
+pub(crate) fn copy_names(from: &StateSpace, to: StateSpace) -> StateSpace {
+    let to = match from.name() {
+        Some(n) => to.with_name(n),
+        None => to,
+    };
+    let inputs = from
+        .input_names()
+        .filter(|i| i.len() == to.nu())
+        .map(<[String]>::to_vec);
+    let outputs = from
+        .output_names()
+        .filter(|o| o.len() == to.ny())
+        .map(<[String]>::to_vec);
+    match to.clone().with_signal_names(inputs, outputs) {
+        Ok(named) => named,
+        Err(_) => to,
+    }
+}
+
+/// `(A^F, Σ_{i<F} A^i B)` by balanced binary powering of `[A B; 0 I]`.
+pub(crate) fn power_held(
+    a: &DMatrix<f64>,
+    b: &DMatrix<f64>,
+    factor: usize,
+) -> (DMatrix<f64>, DMatrix<f64>) {
+    let (n, nu) = (a.nrows(), b.ncols());
+    let (ab, d) = balance_block(a, b);
+    let at = ab.view((0, 0), (n, n)).into_owned();
+    let bt = ab.view((0, n), (n, nu)).into_owned();
+    // result R = (Xr, Yr) = identity; base = (Xb, Yb) = (Ã, B̃)
+    let mut xr = DMatrix::<f64>::identity(n, n);
+    let mut yr = DMatrix::<f64>::zeros(n, nu);
+    let mut xb = at;
+    let mut yb = bt;
+    let mut f = factor;
+    let mut first = true;
+    loop {
+        if f & 1 == 1 {
+            if first {
+                xr.copy_from(&xb);
+                yr.copy_from(&yb);
+                first = false;
+            } else {
+                // R ← R·base = [Xr Xb, Xr Yb + Yr]
+                let ny = &xr * &yb + &yr;
+                xr = &xr * &xb;
+                yr = ny;
+            }
+        }
+        f >>= 1;
+        if f == 0 {
+            break;
+        }
+        // base ← base² = [Xb², Xb Yb + Yb]
+        let ny = &xb * &yb + &yb;
+        xb = &xb * &xb;
+        yb = ny;
+    }
+    unbalance(&mut xr, &mut yr, &d);
+    (xr, yr)
+}
+
+/// Balances `[A B]` as the top rows of `[A B; 0 0]`: returns `[D⁻¹AD  D⁻¹B]` and `d`.
+pub(crate) fn balance_block(a: &DMatrix<f64>, b: &DMatrix<f64>) -> (DMatrix<f64>, Vec<f64>) {
+    let (n, nu) = (a.nrows(), b.ncols());
+    // Balance A alone when B would dominate the column sums of an all-zero input block; the
+    // input rows of [A B; 0 0] are zero, so xGEBAL leaves their scale at 1 anyway.
+    let (at, d) = balance_diag(a);
+    let mut out = DMatrix::zeros(n, n + nu);
+    out.view_mut((0, 0), (n, n)).copy_from(&at);
+    for i in 0..n {
+        for j in 0..nu {
+            out[(i, n + j)] = b[(i, j)] / d[i];
+        }
+    }
+    (out, d)
+}
+
+/// Undoes the balancing: `X ← D X D⁻¹`, `Y ← D Y` (exact, powers of two).
+pub(crate) fn unbalance(x: &mut DMatrix<f64>, y: &mut DMatrix<f64>, d: &[f64]) {
+    for i in 0..x.nrows() {
+        for j in 0..x.ncols() {
+            x[(i, j)] *= d[i] / d[j];
+        }
+        for j in 0..y.ncols() {
+            y[(i, j)] *= d[i];
+        }
+    }
+}
+
+/// Checks `T = F·h` between a slow and a fast discrete model and returns `(h, T)`.
+pub(crate) fn check_rates(
+    fast: &StateSpace,
+    slow: &StateSpace,
+    factor: usize,
+) -> Result<(f64, f64)> {
+    let h = require_discrete(fast, "multirate analysis (fast plant)")?;
+    let t = require_discrete(slow, "multirate analysis (slow controller)")?;
+    check_factor(factor)?;
+    let want = h * factor as f64;
+    if ((t - want) / want).abs() > crate::tol::RATE_MATCH_TOL {
+        return Err(MultirateError::RateMismatch {
+            detail: format!(
+                "the slow model has ts = {t} s but F·h = {factor}·{h} = {want} s; \
+                 resample one of them or change F"
+            ),
+        });
+    }
+    Ok((h, t))
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
+mod tests {
+    use super::*;
+    use sd_model::{c2d, Discretization};
+
+    fn rel(a: &DMatrix<f64>, b: &DMatrix<f64>) -> f64 {
+        (a - b).norm() / b.norm().max(1e-300)
+    }
+
+    #[test]
+    fn matches_naive_powers_on_a_small_model() {
+        let a = DMatrix::from_row_slice(2, 2, &[0.9, 0.2, -0.1, 0.7]);
+        let b = DMatrix::from_row_slice(2, 1, &[1.0, 0.5]);
+        for f in 1..=13 {
+            let (x, y) = power_held(&a, &b, f);
+            let mut xn = DMatrix::identity(2, 2);
+            let mut yn = DMatrix::zeros(2, 1);
+            for _ in 0..f {
+                yn = &xn * &b + yn;
+                xn = &xn * &a;
+            }
+            assert!(rel(&x, &xn) < 1e-14 && rel(&y, &yn) < 1e-14, "F = {f}");
+        }
+    }
+
+    #[test]
+    fn paper_mode_appears_at_347_hz_with_damping_scaled() {
+        // 653 Hz, ζ = 0.01 mode (with the rigid body) at 5 kHz, F = 5 → 1 kHz
+        let p = sd_model::stage::paper_stage(0.01).unwrap();
+        let ph = c2d(&p, 2e-4, Discretization::Zoh).unwrap();
+        let pd = downsample(&ph, 5).unwrap();
+        assert!((pd.ts().unwrap() - 1e-3).abs() < 1e-18);
+        let (_, modes) = sd_model::d2c_with_aliases(&pd, 3000.0).unwrap();
+        let m = modes
+            .iter()
+            .find(|m| m.freq_hz > 1.0)
+            .expect("the resonance survives downsampling");
+        // exact: the real part σ = ζω₁ is kept, the damped frequency folds to 1000 − f_d
+        let w1 = 2.0 * std::f64::consts::PI * 653.0;
+        let sigma = 0.01 * w1;
+        let fd = 653.0 * (1.0f64 - 1e-4).sqrt();
+        let wa = 2.0 * std::f64::consts::PI * (1000.0 - fd);
+        let zeta_exact = sigma / (sigma * sigma + wa * wa).sqrt();
+        assert!((m.freq_hz - 347.0).abs() < 0.1, "{}", m.freq_hz);
+        assert!(
+            (m.damping - zeta_exact).abs() < 1e-9 * zeta_exact,
+            "{} vs {zeta_exact}",
+            m.damping
+        );
+        let ratio = m.damping / 0.01;
+        assert!(
+            (ratio / (653.0 / 347.0) - 1.0).abs() < 1e-3,
+            "ratio {ratio}"
+        );
+        // 653 Hz is among the alias candidates of the 347 Hz mode
+        assert!(m.candidates.iter().any(|&(f, _)| (f - 653.0).abs() < 0.1));
+    }
+
+    #[test]
+    fn refuses_bad_input() {
+        let p = sd_model::stage::paper_stage(0.01).unwrap();
+        assert!(downsample(&p, 2).is_err());
+        let ph = c2d(&p, 2e-4, Discretization::Zoh).unwrap();
+        assert!(downsample(&ph, 0).is_err());
+        assert!(downsample(&ph, 1_000_000).is_err());
+        let same = downsample(&ph, 1).unwrap();
+        assert_eq!(same.a(), ph.a());
+    }
+}
