@@ -350,10 +350,66 @@ impl MultirateLoop {
     /// `Φ_v(f) = |P_h(f)|² Φ_d(f) + Φ_n(f)` at a frequency folded into [0, fast Nyquist].
     fn phi_v(&self, f_hz: f64, phi_d: &dyn Fn(f64) -> f64, phi_n: &dyn Fn(f64) -> f64) -> f64 {
         let fs = 1.0 / self.h;
-        let g = f_hz - fs * (f_hz / fs).round();
-        let fa = g.abs();
-        let p = self.ev_ph.point(fa).norm_sqr();
+        let fa = (f_hz - fs * (f_hz / fs).round()).abs();
+        let p = self.ev_ph.eval_hz(fa)[(0, 0)].norm_sqr();
         p * phi_d(fa) + phi_n(fa)
+    }
+
+    fn fast_at(
+        &self,
+        f: f64,
+        phi_d: &dyn Fn(f64) -> f64,
+        phi_n: &dyn Fn(f64) -> f64,
+    ) -> Result<f64> {
+        let tinv = 1.0 / self.t;
+        let g = self.g_over_f(f)?[(0, 0)];
+        let own = (C::new(1.0, 0.0) - g).norm_sqr() * self.phi_v(f, phi_d, phi_n);
+        let folded: f64 = (1..self.factor)
+            .map(|k| self.phi_v(f - k as f64 * tinv, phi_d, phi_n))
+            .sum();
+        Ok(own + g.norm_sqr() * folded)
+    }
+
+    fn slow_at(
+        &self,
+        f: f64,
+        phi_d: &dyn Fn(f64) -> f64,
+        phi_n: &dyn Fn(f64) -> f64,
+    ) -> Result<f64> {
+        let tinv = 1.0 / self.t;
+        let s = self.sensitivity_slow(f)?[(0, 0)].norm_sqr();
+        let sum: f64 = (0..self.factor)
+            .map(|k| self.phi_v(f - k as f64 * tinv, phi_d, phi_n))
+            .sum();
+        Ok(s * sum)
+    }
+
+    /// Evaluates a spectrum; where a folded frequency hits a pole of the plant on the unit
+    /// circle (the rigid body at f = k/T) the product `0·∞` is a removable singularity of the
+    /// loop, so the value is the mean at `f ± δ`, `δ = 1e-6/T`.
+    fn regularised(&self, f: f64, at: &dyn Fn(f64) -> Result<f64>) -> Result<f64> {
+        let first = match at(f) {
+            Ok(v) if v.is_finite() => return Ok(v),
+            other => other,
+        };
+        let delta = 1e-6 / self.t;
+        match (at(f + delta), at(f - delta)) {
+            (Ok(a), Ok(b)) if (a + b).is_finite() => Ok(0.5 * (a + b)),
+            _ => match first {
+                Err(e) => Err(e),
+                Ok(_) => Err(MultirateError::InvalidArgument(format!(
+                    "the error spectrum is unbounded at {f} Hz (an undamped closed-loop pole or \
+                     a disturbance density that is not finite there)"
+                ))),
+            },
+        }
+    }
+
+    fn require_siso(&self, what: &str) -> Result<()> {
+        if self.p_h.nu() != 1 || self.p_h.ny() != 1 {
+            return Err(not_siso(what, &self.p_h));
+        }
+        Ok(())
     }
 
     /// Spectrum of the fast-rate error at the given frequencies (SISO; module documentation).
@@ -363,20 +419,10 @@ impl MultirateLoop {
         phi_d: &dyn Fn(f64) -> f64,
         phi_n: &dyn Fn(f64) -> f64,
     ) -> Result<Vec<f64>> {
-        if self.p_h.nu() != 1 || self.p_h.ny() != 1 {
-            return Err(not_siso("error_spectrum_fast", &self.p_h));
-        }
-        let tinv = 1.0 / self.t;
+        self.require_siso("error_spectrum_fast")?;
         freq_hz
             .iter()
-            .map(|&f| {
-                let g = self.g_over_f(f)?[(0, 0)];
-                let own = (C::new(1.0, 0.0) - g).norm_sqr() * self.phi_v(f, phi_d, phi_n);
-                let folded: f64 = (1..self.factor)
-                    .map(|k| self.phi_v(f - k as f64 * tinv, phi_d, phi_n))
-                    .sum();
-                Ok(own + g.norm_sqr() * folded)
-            })
+            .map(|&f| self.regularised(f, &|x| self.fast_at(x, phi_d, phi_n)))
             .collect()
     }
 
@@ -387,9 +433,7 @@ impl MultirateLoop {
         phi_d: &dyn Fn(f64) -> f64,
         phi_n: &dyn Fn(f64) -> f64,
     ) -> Result<Vec<f64>> {
-        if self.p_h.nu() != 1 || self.p_h.ny() != 1 {
-            return Err(not_siso("error_spectrum_slow", &self.p_h));
-        }
+        self.require_siso("error_spectrum_slow")?;
         let tinv = 1.0 / self.t;
         freq_hz
             .iter()
@@ -400,11 +444,7 @@ impl MultirateLoop {
                         0.5 * tinv
                     )));
                 }
-                let s = self.sensitivity_slow(f)?[(0, 0)].norm_sqr();
-                let sum: f64 = (0..self.factor)
-                    .map(|k| self.phi_v(f - k as f64 * tinv, phi_d, phi_n))
-                    .sum();
-                Ok(s * sum)
+                self.regularised(f, &|x| self.slow_at(x, phi_d, phi_n))
             })
             .collect()
     }

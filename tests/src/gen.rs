@@ -38,9 +38,23 @@ impl Rng {
 /// A real block-diagonal A with the given real poles and complex pairs, hidden by a random
 /// well-conditioned similarity.
 pub fn with_poles(rng: &mut Rng, real: &[f64], pairs: &[(f64, f64)]) -> DMatrix<f64> {
-    let n = real.len() + 2 * pairs.len();
+    with_blocks(rng, 0, real, pairs)
+}
+
+/// Like [`with_poles`], with `rigid` double-integrator Jordan blocks `[0 1; 0 0]` first.
+pub fn with_blocks(
+    rng: &mut Rng,
+    rigid: usize,
+    real: &[f64],
+    pairs: &[(f64, f64)],
+) -> DMatrix<f64> {
+    let n = 2 * rigid + real.len() + 2 * pairs.len();
     let mut a = DMatrix::zeros(n, n);
     let mut k = 0;
+    for _ in 0..rigid {
+        a[(k, k + 1)] = 1.0;
+        k += 2;
+    }
     for &(s, w) in pairs {
         a[(k, k)] = s;
         a[(k, k + 1)] = w;
