@@ -1,6 +1,6 @@
 //! Command definitions and their implementations.
 
-use crate::io::{emit, from_model, read_model, CliError};
+use crate::io::{emit, from_model, from_multirate, read_model, CliError};
 use clap::{Parser, Subcommand, ValueEnum};
 use sd_model::{c2d, d2c_with_aliases, Discretization, StateSpace};
 use serde_json::json;
@@ -41,7 +41,29 @@ enum Cmd {
         /// Tustin prewarp frequency in Hz.
         #[arg(long, allow_negative_numbers = true)]
         prewarp_hz: Option<f64>,
+        /// ZOH that switches this fraction of the period late (0..1; adds nu states).
+        #[arg(long, allow_negative_numbers = true)]
+        hold_delay: Option<f64>,
+        /// Sampler averaging over the last fraction of the period (0..1; adds ny states).
+        #[arg(long, allow_negative_numbers = true)]
+        averaging: Option<f64>,
         /// Output file (default stdout).
+        #[arg(short, long)]
+        output: Option<String>,
+    },
+    /// Lemma 6: a fast discrete model seen through a hold and sampler F times slower.
+    Downsample {
+        /// Discrete model JSON file ("-" for stdin).
+        model: String,
+        /// Rate factor F = T/h (integer >= 1).
+        #[arg(long, allow_negative_numbers = true)]
+        factor: i64,
+        /// Slow hold switching this fraction of the slow period late (a multiple of 1/F).
+        #[arg(long, allow_negative_numbers = true)]
+        hold_delay: Option<f64>,
+        /// Slow sampler returning the mean of the last fraction of fast samples (a multiple of 1/F).
+        #[arg(long, allow_negative_numbers = true)]
+        averaging: Option<f64>,
         #[arg(short, long)]
         output: Option<String>,
     },
@@ -63,6 +85,10 @@ enum Cmd {
         /// Highest folding frequency listed (Hz; default 5 × the rate).
         #[arg(long, allow_negative_numbers = true)]
         max_hz: Option<f64>,
+        /// Also list the frequencies of a model F times faster that fold onto the alias, with
+        /// the slow hold's weights |H_F|/F (Lemma 6).
+        #[arg(long, allow_negative_numbers = true)]
+        factor: Option<i64>,
         #[arg(long)]
         json: bool,
     },
@@ -172,6 +198,8 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
             ts,
             method,
             prewarp_hz,
+            hold_delay,
+            averaging,
             output,
         } => {
             let sys = read_model(&model)?;
@@ -180,6 +208,20 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
                 return Err(CliError::input(
                     "--prewarp-hz only applies to --method tustin",
                 ));
+            }
+            if hold_delay.is_some() || averaging.is_some() {
+                if !matches!(method, Method::Zoh) {
+                    return Err(CliError::input(
+                        "--hold-delay and --averaging apply to --method zoh (the default)",
+                    ));
+                }
+                let ni = sd_multirate::NonIdeal {
+                    hold_delay: hold_delay.unwrap_or(0.0),
+                    averaging: averaging.unwrap_or(0.0),
+                };
+                let d = sd_multirate::c2d_nonideal(&sys, ts, ni)
+                    .map_err(|e| from_multirate(&model, e))?;
+                return emit(&model_json(&d)?, output.as_deref());
             }
             let m = match method {
                 Method::Zoh => Discretization::Zoh,
@@ -221,30 +263,75 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
             freq_hz,
             rate_hz,
             max_hz,
+            factor,
             json,
         } => {
             let a = sd_model::alias(freq_hz, rate_hz).map_err(|e| from_model("alias", e))?;
             let max_hz = max_hz.unwrap_or(5.0 * rate_hz);
             let folds = sd_model::folding_frequencies(a.alias_hz, rate_hz, max_hz)
                 .map_err(|e| from_model("alias", e))?;
+            let fast = match factor {
+                Some(f) => {
+                    let f = factor_arg(f)?;
+                    Some(
+                        sd_multirate::fold_map(a.alias_hz, rate_hz, f)
+                            .map_err(|e| from_multirate("alias", e))?,
+                    )
+                }
+                None => None,
+            };
             if json {
-                let v = json!({
+                let mut v = json!({
                     "freq_hz": a.freq_hz, "rate_hz": a.rate_hz, "alias_hz": a.alias_hz,
                     "fold_index": a.fold_index, "mirrored": a.mirrored,
                     "nyquist_hz": rate_hz / 2.0,
                     "folding_frequencies_hz": folds, "folding_max_hz": max_hz,
                 });
+                if let (Some(terms), Some(f)) = (&fast, factor) {
+                    v["factor"] = json!(f);
+                    v["fast_rate_hz"] = json!(rate_hz * f as f64);
+                    v["fast_folds"] = terms
+                        .iter()
+                        .map(|t| json!({"k": t.k, "fast_hz": t.fast_hz, "weight": t.weight}))
+                        .collect();
+                }
                 emit(&v.to_string(), None)
             } else {
                 let list: Vec<String> = folds.iter().map(|f| format!("{f}")).collect();
-                emit(
-                    &format!(
-                        "{} Hz sampled at {} Hz appears at {} Hz (fold index {}{}).\nContinuous frequencies up to {} Hz that appear there: {}",
-                        a.freq_hz, a.rate_hz, a.alias_hz, a.fold_index, if a.mirrored { ", mirrored" } else { "" }, max_hz, list.join(", ")
-                    ),
-                    None,
-                )
+                let mut text = format!(
+                    "{} Hz sampled at {} Hz appears at {} Hz (fold index {}{}).\nContinuous frequencies up to {} Hz that appear there: {}",
+                    a.freq_hz, a.rate_hz, a.alias_hz, a.fold_index, if a.mirrored { ", mirrored" } else { "" }, max_hz, list.join(", ")
+                );
+                if let (Some(terms), Some(f)) = (&fast, factor) {
+                    let l: Vec<String> = terms
+                        .iter()
+                        .map(|t| format!("{} Hz (weight {:.4})", t.fast_hz, t.weight))
+                        .collect();
+                    text.push_str(&format!(
+                        "\nAt {} Hz (F = {f}) through the slow hold, weights |H_F|/F: {}",
+                        rate_hz * f as f64,
+                        l.join(", ")
+                    ));
+                }
+                emit(&text, None)
             }
+        }
+        Cmd::Downsample {
+            model,
+            factor,
+            hold_delay,
+            averaging,
+            output,
+        } => {
+            let sys = read_model(&model)?;
+            let f = factor_arg(factor)?;
+            let ni = sd_multirate::NonIdeal {
+                hold_delay: hold_delay.unwrap_or(0.0),
+                averaging: averaging.unwrap_or(0.0),
+            };
+            let d = sd_multirate::downsample_nonideal(&sys, f, ni)
+                .map_err(|e| from_multirate(&model, e))?;
+            emit(&model_json(&d)?, output.as_deref())
         }
         Cmd::Freqresp {
             model,
@@ -370,4 +457,14 @@ fn roots(model: &str, json: bool, poles: bool) -> Result<(), CliError> {
         }
         emit(s.trim_end(), None)
     }
+}
+
+fn factor_arg(f: i64) -> Result<usize, CliError> {
+    if f < 1 || f > sd_multirate::tol::MAX_FACTOR as i64 {
+        return Err(CliError::input(format!(
+            "--factor {f}: the rate factor must be an integer in 1..={}",
+            sd_multirate::tol::MAX_FACTOR
+        )));
+    }
+    Ok(f as usize)
 }

@@ -33,6 +33,17 @@ pub fn from_model(context: &str, e: ModelError) -> CliError {
     }
 }
 
+/// Maps an `sd-multirate` error: numerical failures exit 1, everything else 2.
+pub fn from_multirate(context: &str, e: sd_multirate::MultirateError) -> CliError {
+    match e {
+        sd_multirate::MultirateError::Model(m) => from_model(context, m),
+        other => CliError {
+            code: 2,
+            message: format!("{context}: {other}"),
+        },
+    }
+}
+
 /// Reads a file (or stdin for "-") to a string.
 pub fn read_text(path: &str) -> Result<String, CliError> {
     let mut s = String::new();

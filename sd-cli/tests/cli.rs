@@ -178,3 +178,125 @@ fn issue2_bad_inputs_exit_2_with_one_line() {
         0
     );
 }
+
+fn model_of(o: &Output) -> sd_model::StateSpace {
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    sd_model::model_from_json_str(&String::from_utf8_lossy(&o.stdout)).unwrap()
+}
+
+#[test]
+fn issue3_downsample_c2d_nonideal_and_alias_factor() {
+    let dir = tmpdir("issue3");
+    let ct = write(&dir, "ct.json", CT);
+    // c2d at 1 ms, and at 0.2 ms then downsample by 5: the same model (Lemma 5 then Lemma 6)
+    let slow = model_of(&sdctl(&["c2d", &ct, "--ts", "0.001"]));
+    let fast_file = dir.join("fast.json").to_string_lossy().into_owned();
+    let o = sdctl(&["c2d", &ct, "--ts", "0.0002", "-o", &fast_file]);
+    assert!(o.status.success());
+    let down = model_of(&sdctl(&["downsample", &fast_file, "--factor", "5"]));
+    assert!((down.a() - slow.a()).norm() < 1e-12 * slow.a().norm());
+    assert!((down.b() - slow.b()).norm() < 1e-12 * slow.b().norm());
+    assert!((down.ts().unwrap() - 1e-3).abs() < 1e-15);
+    // delayed hold from CT at 1 kHz equals a delay of 2 fast samples at 5 kHz
+    let dct = model_of(&sdctl(&[
+        "c2d",
+        &ct,
+        "--ts",
+        "0.001",
+        "--hold-delay",
+        "0.4",
+    ]));
+    let ddt = model_of(&sdctl(&[
+        "downsample",
+        &fast_file,
+        "--factor",
+        "5",
+        "--hold-delay",
+        "0.4",
+    ]));
+    assert_eq!(dct.n(), 3);
+    let f = [7.0, 100.0, 333.0];
+    let (a, b) = (dct.freqresp(&f).unwrap(), ddt.freqresp(&f).unwrap());
+    for i in 0..3 {
+        let (x, y) = (a.response()[i][(0, 0)], b.response()[i][(0, 0)]);
+        assert!((x - y).norm() < 1e-9 * y.norm());
+    }
+    let avg = model_of(&sdctl(&["c2d", &ct, "--ts", "0.001", "--averaging", "1"]));
+    assert_eq!(avg.n(), 3);
+    // alias with the fast folding list
+    let o = sdctl(&[
+        "alias",
+        "--freq-hz",
+        "653",
+        "--rate-hz",
+        "1000",
+        "--factor",
+        "5",
+        "--json",
+    ]);
+    assert!(o.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let folds = v["fast_folds"].as_array().unwrap();
+    assert_eq!(folds.len(), 5);
+    assert!(folds
+        .iter()
+        .any(|t| (t["fast_hz"].as_f64().unwrap() - 653.0).abs() < 1e-9
+            && t["weight"].as_f64().unwrap() > 0.0
+            && t["weight"].as_f64().unwrap() < 1.0));
+    let o = sdctl(&[
+        "alias",
+        "--freq-hz",
+        "653",
+        "--rate-hz",
+        "1000",
+        "--factor",
+        "5",
+    ]);
+    assert!(String::from_utf8_lossy(&o.stdout).contains("weights"));
+    // bad input: exit 2, one line
+    assert_input_error(&sdctl(&["downsample", &ct, "--factor", "5"]), "discrete");
+    assert_input_error(
+        &sdctl(&["downsample", &fast_file, "--factor", "0"]),
+        "factor",
+    );
+    assert_input_error(
+        &sdctl(&[
+            "downsample",
+            &fast_file,
+            "--factor",
+            "5",
+            "--hold-delay",
+            "0.3",
+        ]),
+        "multiple of 1/F",
+    );
+    assert_input_error(
+        &sdctl(&["c2d", &ct, "--ts", "0.001", "--hold-delay", "1.5"]),
+        "hold delay",
+    );
+    assert_input_error(
+        &sdctl(&[
+            "c2d",
+            &ct,
+            "--ts",
+            "0.001",
+            "--method",
+            "tustin",
+            "--averaging",
+            "0.5",
+        ]),
+        "zoh",
+    );
+    assert_input_error(
+        &sdctl(&[
+            "alias",
+            "--freq-hz",
+            "653",
+            "--rate-hz",
+            "1000",
+            "--factor",
+            "-2",
+        ]),
+        "factor",
+    );
+}
