@@ -2,7 +2,8 @@
 python-control / scipy. Usage: python3 tools/bench_python.py CASES.json  (prints JSON).
 
 CASES.json: {"c2d": {"model": path, "ts": h, "repeats": k},
-             "freqresp": {"model": path, "fmin": .., "fmax": .., "n": .., "log": bool, "repeats": k}}
+             "freqresp": {"model": path, "fmin": .., "fmax": .., "n": .., "log": bool, "repeats": k},
+             "downsample": {"model": path (DT), "factor": F, "repeats": k}}   (optional)
 """
 import json, sys, time
 import numpy as np
@@ -47,4 +48,11 @@ w = 2 * np.pi * hz
 t, r = median_time(lambda: control.frequency_response(sys_d, w), f["repeats"])
 resp = np.asarray(r.response).reshape(-1)
 res["freqresp_python_control"] = {"median_s": t, "re_sample": resp[:: max(1, len(resp) // 1000)].real.tolist(), "im_sample": resp[:: max(1, len(resp) // 1000)].imag.tolist(), "stride": max(1, len(resp) // 1000)}
+ds = cases.get("downsample")
+if ds:
+    (a, b, cc, d), _ = load(ds["model"])
+    n, nu = a.shape[0], b.shape[1]
+    blk = np.zeros((n + nu, n + nu)); blk[:n, :n] = a; blk[:n, n:] = b; blk[n:, n:] = np.eye(nu)
+    t, pw = median_time(lambda: np.linalg.matrix_power(blk, ds["factor"]), ds["repeats"])
+    res["downsample_numpy_matrix_power"] = {"median_s": t, "ad": pw[:n, :n].tolist(), "bd": pw[:n, n:].tolist()}
 print(json.dumps(res))

@@ -2,7 +2,7 @@
 //! ACC 2007, Lemmas 6 and 7).
 //!
 //! - [`downsample`]: Lemma 6, a fast model seen through a slow hold and sampler, in the same
-//!   state coordinates (balanced binary powering of `[A B; 0 I]`, never a companion form).
+//!   state coordinates (binary powering of `[A B; 0 I]`, never a companion form).
 //! - [`c2d_nonideal`], [`downsample_nonideal`]: rate-tied non-idealities — a hold that switches a
 //!   fraction α of the period late, a sampler that averages over the last fraction β — exactly,
 //!   from a continuous model (block exponentials) or from a fast discrete one (lifted).

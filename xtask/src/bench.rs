@@ -94,6 +94,15 @@ pub fn run(quick: bool) -> Result<(), String> {
         return Err("sdctl freqresp failed".into());
     }
 
+    // downsample (Lemma 6) of the 5 kHz stage by F = 5, checked against ZOH at 1 kHz
+    eprintln!("[bench] downsample (Lemma 6) of the 5 kHz stage, F = 5...");
+    let (t_ds, slow) = time_it(reps * 10, || sd_multirate::downsample(&pd, 5));
+    let slow = slow.map_err(|x| x.to_string())?;
+    let direct = c2d(&stage, 1e-3, Discretization::Zoh).map_err(e)?;
+    let rel = |x: &nalgebra::DMatrix<f64>, y: &nalgebra::DMatrix<f64>| (x - y).norm() / y.norm();
+    let mut ds_entry = json!({"name": "downsample_lemma6", "size": "60 states, F = 5 (5 kHz -> 1 kHz)",
+        "ours_s": t_ds, "ours_rel_error_vs_zoh_1khz": {"a": rel(slow.a(), direct.a()), "b": rel(slow.b(), direct.b())}});
+
     let mut c2d_entry =
         json!({"name": "c2d_zoh", "size": "60 states, 1 input, h = 0.2 ms", "ours_s": t_c2d});
     let mut fr_entry = json!({"name": "freqresp", "size": format!("60 states, {nfreq} frequencies"),
@@ -104,6 +113,7 @@ pub fn run(quick: bool) -> Result<(), String> {
         let cases = json!({
             "c2d": {"model": ct_path, "ts": 2e-4, "repeats": reps * 10},
             "freqresp": {"model": dt_path, "fmin": fmin, "fmax": fmax, "n": nfreq, "log": true, "repeats": if quick { 1 } else { 3 }},
+            "downsample": {"model": dt_path, "factor": 5, "repeats": reps * 10},
         });
         let cases_path = dir.join("python_cases.json");
         std::fs::write(&cases_path, cases.to_string()).map_err(|x| x.to_string())?;
@@ -160,14 +170,28 @@ pub fn run(quick: bool) -> Result<(), String> {
         fr_entry["ratio_python_control_over_sdctl_process"] = json!(t_pf / t_fr_proc);
         fr_entry["ratio_python_control_over_library"] = json!(t_pf / t_fr_lib);
         fr_entry["max_rel_difference_sampled"] = json!(worst);
+        let np_ds = &py["downsample_numpy_matrix_power"];
+        let t_np = np_ds["median_s"].as_f64().unwrap_or(f64::NAN);
+        let to_mat = |v: &Value| -> Option<nalgebra::DMatrix<f64>> {
+            let rows: Vec<Vec<f64>> = serde_json::from_value(v.clone()).ok()?;
+            let (r, c) = (rows.len(), rows.first()?.len());
+            Some(nalgebra::DMatrix::from_fn(r, c, |i, j| rows[i][j]))
+        };
+        if let (Some(a), Some(b)) = (to_mat(&np_ds["ad"]), to_mat(&np_ds["bd"])) {
+            ds_entry["peer"] = json!({"numpy_matrix_power_s": t_np,
+                "numpy_rel_error_vs_zoh_1khz": {"a": rel(&a, direct.a()), "b": rel(&b, direct.b())}});
+            ds_entry["ratio_numpy_over_ours"] = json!(t_np / t_ds);
+        }
         entries.push(c2d_entry);
         entries.push(fr_entry);
+        entries.push(ds_entry);
         let res = json!({"quick": quick, "python": py["versions"], "entries": entries});
         finish(&dir, res)
     } else {
         eprintln!("[bench] python-control/slycot not importable: peers skipped (pip install control slycot scipy)");
         entries.push(c2d_entry);
         entries.push(fr_entry);
+        entries.push(ds_entry);
         finish(
             &dir,
             json!({"quick": quick, "python": null, "entries": entries}),
