@@ -1,3 +1,11 @@
-//! Riccati solvers (DARE, CARE) and discrete-time McFarlane-Glover loopshaping. Owned by issue #4.
+//! `sd-hinf`: Riccati solvers and discrete-time McFarlane–Glover H∞ loopshaping.
 //!
-//! This crate has no public API yet: nothing here pretends to work before its issue lands.
+//! - [`dare`], [`care`]: the stabilizing solution (cross term S allowed), its residual, closed
+//!   loop and condition estimate, or an error saying why there is none.
+
+pub mod error;
+pub mod riccati;
+pub mod tol;
+
+pub use error::{HinfError, Result};
+pub use riccati::{care, dare, RiccatiSolution};

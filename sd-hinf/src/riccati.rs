@@ -1,0 +1,723 @@
+//! Algebraic Riccati equations: the stabilizing solution, its residual, the closed loop and a
+//! condition estimate — or an error that says why there is none.
+//!
+//! **DARE** `AᵀXA − X − (AᵀXB + S)(R + BᵀXB)⁻¹(BᵀXA + Sᵀ) + Q = 0`, gain
+//! `K = (R + BᵀXB)⁻¹(BᵀXA + Sᵀ)`, closed loop `A − BK` with spectral radius < 1.
+//! **CARE** `AᵀX + XA − (XB + S)R⁻¹(BᵀX + Sᵀ) + Q = 0`, `K = R⁻¹(BᵀX + Sᵀ)`, `A − BK` Hurwitz.
+//!
+//! **Method, and why.**
+//! - DARE: the structure-preserving doubling algorithm (SDA; Chu, Fan, Lin & Wang, *Linear
+//!   Algebra Appl.* 396, 2005) on `(A_s, G, Q_s)` = `(A − BR⁻¹Sᵀ, BR⁻¹Bᵀ, Q − SR⁻¹Sᵀ)`:
+//!   `W = I + G_kH_k`, `A_{k+1} = A_kW⁻¹A_k`, `G_{k+1} = G_k + A_kW⁻¹G_kA_kᵀ`,
+//!   `H_{k+1} = H_k + A_kᵀH_kW⁻¹A_k`, `H_k → X` quadratically (error ~ ρ(A − BK)^{2^{k+1}}). It
+//!   needs no inverse of A (a delay or a weight state makes A singular), no eigenvalue
+//!   reordering (faer's is not public), and it stays accurate when the closed loop has poles very
+//!   close to the unit circle, as the lightly damped stage with its rigid body at z = 1 has —
+//!   where an ordered Schur method must separate eigenvalues 1e-5 apart and SLICOT SB02OD
+//!   reports "roundoff changed values of some complex eigenvalues". A singular or indefinite R
+//!   (DAREX 1.1, 1.4) is handled exactly by the shift `X = X̃ + ρI`: X̃ solves the DARE with
+//!   `(Q + ρ(AᵀA − I), R + ρBᵀB, S + ρAᵀB)`, whose R is positive definite when B has full
+//!   column rank, and whose gain and closed loop are the same.
+//! - CARE: the ordered complex Schur form of the Hamiltonian `[A_s −G; −Q_s −A_sᵀ]` (stable
+//!   eigenvalues moved to the top by ZTREXC-style swaps, `X = U₂₁U₁₁⁻¹`; Laub 1979).
+//! - Both: Newton refinement on the original data (Kleinman 1968 / Hewer 1971 as defect
+//!   correction: `A_cᵀΔ + ΔA_c = −𝓡(X)` resp. `A_cᵀΔA_c − Δ = −𝓡(X)`, Bartels–Stewart), a step
+//!   kept only when it lowers the residual. This is what recovers full accuracy on badly scaled
+//!   problems (CAREX 2.6) where the Schur step alone loses digits.
+//!
+//! **Reported.** Relative residual `‖𝓡(X)‖_F / (‖Q‖ + ‖AᵀXA‖ + ‖X‖ + ‖(AᵀXB + S)K‖)` (DARE;
+//! CARE: `‖Q‖ + 2‖AᵀX‖ + ‖(XB + S)K‖`); the closed-loop spectral radius (DARE) or abscissa
+//! (CARE); and a relative condition estimate `κ = ‖Ω⁻¹‖(‖Q‖ + 2‖A‖‖X‖ + ‖A‖²‖G‖‖X‖²)/‖X‖`
+//! (CT: `‖Q‖ + 2‖A‖‖X‖ + ‖G‖‖X‖²`; Byers 1985, Sun 1998) with `Ω` the closed-loop Lyapunov
+//! (Stein) operator, `‖Ω⁻¹‖ = ‖Ω⁻¹(I)‖₂` exactly for these operators. Expect a relative error
+//! of about `κ·ε` in X.
+
+use crate::error::{HinfError, Result};
+use crate::tol;
+use nalgebra::DMatrix;
+use num_complex::Complex64 as C;
+use faer::linalg::solvers::Solve;
+use faer::Mat;
+use sd_model::linalg::convert::{eigenvalues, from_faer, generalized_eigenvalues, to_faer};
+use sd_model::linalg::lyap::{lyap, LyapKind};
+use sd_model::linalg::schur::{complex_schur, swap_adjacent, to_complex};
+use sd_model::ModelError;
+
+/// The stabilizing solution of a Riccati equation with its diagnostics.
+#[derive(Debug, Clone)]
+pub struct RiccatiSolution {
+    /// The stabilizing solution X (symmetric).
+    pub x: DMatrix<f64>,
+    /// The gain K (control `u = −K x`).
+    pub gain: DMatrix<f64>,
+    /// Relative residual (module documentation).
+    pub residual: f64,
+    /// DARE: spectral radius of `A − BK` (< 1); CARE: spectral abscissa (< 0).
+    pub closed_loop: f64,
+    /// Relative condition estimate κ: expect a relative error of about κ·ε in X.
+    pub condition: f64,
+    /// Doubling (DARE) iterations used.
+    pub doubling_steps: usize,
+    /// Newton refinement steps kept.
+    pub refinement_steps: usize,
+}
+
+struct Data {
+    a: DMatrix<f64>,
+    b: DMatrix<f64>,
+    q: DMatrix<f64>,
+    r: DMatrix<f64>,
+    s: DMatrix<f64>,
+}
+
+fn symmetrize(m: &DMatrix<f64>) -> DMatrix<f64> {
+    (m + m.transpose()) * 0.5
+}
+
+fn check(
+    a: &DMatrix<f64>,
+    b: &DMatrix<f64>,
+    q: &DMatrix<f64>,
+    r: &DMatrix<f64>,
+    s: Option<&DMatrix<f64>>,
+) -> Result<Data> {
+    let n = a.nrows();
+    let m = b.ncols();
+    let shape = |what: &str, mat: &DMatrix<f64>, rr: usize, cc: usize| -> Result<()> {
+        if mat.shape() != (rr, cc) {
+            return Err(ModelError::dim(
+                what,
+                format!("{rr}x{cc}"),
+                format!("{}x{}", mat.nrows(), mat.ncols()),
+            )
+            .into());
+        }
+        if mat.iter().any(|v| !v.is_finite()) {
+            return Err(ModelError::NonFinite { what: what.into() }.into());
+        }
+        Ok(())
+    };
+    shape("A", a, n, n)?;
+    shape("B", b, n, m)?;
+    shape("Q", q, n, n)?;
+    shape("R", r, m, m)?;
+    let s = match s {
+        Some(s) => {
+            shape("S", s, n, m)?;
+            s.clone()
+        }
+        None => DMatrix::zeros(n, m),
+    };
+    for (what, mat) in [("Q", q), ("R", r)] {
+        let nm = mat.norm();
+        let asym = (mat - mat.transpose()).norm();
+        if asym > tol::SYMMETRY * nm.max(f64::MIN_POSITIVE) {
+            return Err(HinfError::NotSymmetric {
+                what,
+                asymmetry: asym / nm,
+            });
+        }
+    }
+    Ok(Data {
+        a: a.clone(),
+        b: b.clone(),
+        q: symmetrize(q),
+        r: symmetrize(r),
+        s,
+    })
+}
+
+/// `R⁻¹M` by Cholesky when R is positive definite (well conditioned enough), else `None`.
+fn spd_solve(r: &DMatrix<f64>, m: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+    let ch = r.clone().cholesky()?;
+    let l = ch.l();
+    let dmin = l.diagonal().iter().fold(f64::INFINITY, |acc, v| acc.min(v.abs()));
+    let dmax = l.diagonal().iter().fold(0.0f64, |acc, v| acc.max(v.abs()));
+    if dmin <= tol::SPD_PIVOT * dmax {
+        return None;
+    }
+    Some(ch.solve(m))
+}
+
+fn radius(m: &DMatrix<f64>) -> Result<f64> {
+    Ok(eigenvalues(m)?.iter().map(|z| z.norm()).fold(0.0, f64::max))
+}
+
+fn abscissa(m: &DMatrix<f64>) -> Result<f64> {
+    Ok(eigenvalues(m)?
+        .iter()
+        .map(|z| z.re)
+        .fold(f64::NEG_INFINITY, f64::max))
+}
+
+// ---------------------------------------------------------------------------------------------
+// DARE
+
+/// DARE residual, its normalisation and the gain at X.
+fn dare_residual(d: &Data, x: &DMatrix<f64>) -> Result<(DMatrix<f64>, f64, DMatrix<f64>)> {
+    let xb = x * &d.b;
+    let m = &d.r + d.b.transpose() * &xb;
+    let t = d.a.transpose() * &xb + &d.s; // AᵀXB + S
+    let lu = m.clone().lu();
+    let k = lu.solve(&t.transpose()).ok_or_else(|| {
+        HinfError::Numerical("R + BᵀXB is singular at the current solution".into())
+    })?;
+    let axa = d.a.transpose() * x * &d.a;
+    let tk = &t * &k;
+    let res = symmetrize(&(&axa - x - &tk + &d.q));
+    let scale = d.q.norm() + axa.norm() + x.norm() + tk.norm();
+    let rel = res.norm() / scale.max(f64::MIN_POSITIVE);
+    Ok((res, rel, k))
+}
+
+fn fsym(m: &mut Mat<f64>) {
+    let n = m.nrows();
+    for j in 0..n {
+        for i in (j + 1)..n {
+            let v = 0.5 * (m[(i, j)] + m[(j, i)]);
+            m[(i, j)] = v;
+            m[(j, i)] = v;
+        }
+    }
+}
+
+fn all_finite(m: &Mat<f64>) -> bool {
+    (0..m.ncols()).all(|j| (0..m.nrows()).all(|i| m[(i, j)].is_finite()))
+}
+
+/// SDA on `(A, G, H)` (faer products and LU); returns `(X, iterations)`.
+fn doubling(a: &DMatrix<f64>, g: &DMatrix<f64>, h: &DMatrix<f64>) -> Result<(DMatrix<f64>, usize)> {
+    let n = a.nrows();
+    let (mut ak, mut gk, mut hk) = (to_faer(a), to_faer(g), to_faer(h));
+    let singular = || HinfError::Numerical("I + G_k H_k is singular in the doubling".into());
+    for it in 0..tol::MAX_DOUBLING {
+        let mut w = &gk * &hk;
+        for i in 0..n {
+            w[(i, i)] += 1.0;
+        }
+        let lu = w.partial_piv_lu();
+        // one solve for [W⁻¹A_k, W⁻¹G_k]
+        let mut rhs = Mat::<f64>::zeros(n, 2 * n);
+        rhs.as_mut().submatrix_mut(0, 0, n, n).copy_from(&ak);
+        rhs.as_mut().submatrix_mut(0, n, n, n).copy_from(&gk);
+        lu.solve_in_place(rhs.as_mut());
+        if !all_finite(&rhs) {
+            return Err(singular());
+        }
+        let v1 = rhs.as_ref().submatrix(0, 0, n, n);
+        let v2 = rhs.as_ref().submatrix(0, n, n, n);
+        // the three updates are independent: run them side by side
+        let (mut h_next, (mut g_next, a_next)) = rayon::join(
+            || &hk + ak.transpose() * (&hk * v1),
+            || rayon::join(|| &gk + &ak * (v2 * ak.transpose()), || &ak * v1),
+        );
+        fsym(&mut h_next);
+        fsym(&mut g_next);
+        let dh = (&h_next - &hk).norm_l2();
+        let hn = h_next.norm_l2();
+        if !hn.is_finite() {
+            return Err(HinfError::Numerical("the doubling iteration diverged".into()));
+        }
+        hk = h_next;
+        gk = g_next;
+        ak = a_next;
+        if dh <= tol::DOUBLING_STOP * hn.max(f64::MIN_POSITIVE) {
+            return Ok((from_faer(hk.as_ref()), it + 1));
+        }
+    }
+    Err(HinfError::Numerical(format!(
+        "the doubling iteration did not converge in {} steps",
+        tol::MAX_DOUBLING
+    )))
+}
+
+/// `Σ_k (Mᵀ)^k M^k` (the Stein operator's inverse at I) by squaring, for ρ(M) < 1.
+fn stein_identity(m: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+    let n = m.nrows();
+    let mut p = Mat::<f64>::identity(n, n);
+    let mut mk = to_faer(m);
+    for _ in 0..tol::MAX_DOUBLING {
+        let inc = mk.transpose() * (&p * &mk);
+        let (ni, np) = (inc.norm_l2(), p.norm_l2());
+        p = &p + &inc;
+        if !np.is_finite() {
+            return None;
+        }
+        if ni <= f64::EPSILON * np {
+            return Some(from_faer(p.as_ref()));
+        }
+        mk = &mk * &mk;
+    }
+    None
+}
+
+/// Stabilizing solution of the DARE (module documentation).
+///
+/// `s` is the cross term (zero if `None`). R may be singular or indefinite as long as
+/// `R + BᵀXB` is invertible at the solution and B has full column rank.
+///
+/// # Errors
+/// Shapes, NaN, asymmetric Q or R; [`HinfError::NoStabilizingSolution`] saying whether the
+/// symplectic pencil has eigenvalues on the unit circle, (A, B) is not stabilizable or the
+/// problem is not detectable.
+pub fn dare(
+    a: &DMatrix<f64>,
+    b: &DMatrix<f64>,
+    q: &DMatrix<f64>,
+    r: &DMatrix<f64>,
+    s: Option<&DMatrix<f64>>,
+) -> Result<RiccatiSolution> {
+    let d = check(a, b, q, r, s)?;
+    let n = d.a.nrows();
+    if n == 0 {
+        return Ok(empty(d.b.ncols()));
+    }
+    let first = dare_initial(&d);
+    let (x0, steps) = match first {
+        Ok(v) => v,
+        Err(e) => return Err(diagnose(&d, Kind::Discrete).unwrap_or(e)),
+    };
+    finish(&d, x0, steps, Kind::Discrete)
+}
+
+fn dare_initial(d: &Data) -> Result<(DMatrix<f64>, usize)> {
+    let n = d.a.nrows();
+    let m = d.b.ncols();
+    let mut rho = 0.0;
+    let (r, s, q) = if spd_solve(&d.r, &DMatrix::identity(m, m)).is_some() {
+        (d.r.clone(), d.s.clone(), d.q.clone())
+    } else {
+        // shift X = X̃ + ρI so that R̃ = R + ρBᵀB is positive definite
+        let btb = d.b.transpose() * &d.b;
+        rho = (d.q.norm() + d.r.norm()).max(1.0) / btb.norm().max(f64::MIN_POSITIVE);
+        let ident = DMatrix::<f64>::identity(n, n);
+        (
+            &d.r + &btb * rho,
+            &d.s + d.a.transpose() * &d.b * rho,
+            symmetrize(&(&d.q + (d.a.transpose() * &d.a - ident) * rho)),
+        )
+    };
+    let rinv_st = spd_solve(&r, &s.transpose()).ok_or_else(|| {
+        HinfError::InvalidArgument(
+            "R (after the shift for a singular R) is not positive definite: B must have full \
+             column rank"
+                .into(),
+        )
+    })?;
+    let rinv_bt = spd_solve(&r, &d.b.transpose())
+        .ok_or_else(|| HinfError::Numerical("R is not positive definite".into()))?;
+    let a_s = &d.a - &d.b * &rinv_st;
+    let q_s = symmetrize(&(&q - &s * &rinv_st));
+    let g = symmetrize(&(&d.b * &rinv_bt));
+    let (x, it) = doubling(&a_s, &g, &q_s)?;
+    let x = if rho != 0.0 {
+        x + DMatrix::<f64>::identity(n, n) * rho
+    } else {
+        x
+    };
+    Ok((x, it))
+}
+
+// ---------------------------------------------------------------------------------------------
+// CARE
+
+fn care_residual(d: &Data, x: &DMatrix<f64>) -> Result<(DMatrix<f64>, f64, DMatrix<f64>)> {
+    let t = x * &d.b + &d.s; // XB + S
+    let k = spd_solve(&d.r, &t.transpose())
+        .ok_or_else(|| HinfError::InvalidArgument("R must be positive definite for the CARE".into()))?;
+    let ax = d.a.transpose() * x;
+    let tk = &t * &k;
+    let res = symmetrize(&(&ax + ax.transpose() - &tk + &d.q));
+    let scale = d.q.norm() + 2.0 * ax.norm() + tk.norm();
+    Ok((res.clone(), res.norm() / scale.max(f64::MIN_POSITIVE), k))
+}
+
+/// Stabilizing solution of the CARE (module documentation). R must be positive definite.
+///
+/// # Errors
+/// As [`dare`]: shapes, NaN, asymmetry, R not positive definite, and
+/// [`HinfError::NoStabilizingSolution`] saying why.
+pub fn care(
+    a: &DMatrix<f64>,
+    b: &DMatrix<f64>,
+    q: &DMatrix<f64>,
+    r: &DMatrix<f64>,
+    s: Option<&DMatrix<f64>>,
+) -> Result<RiccatiSolution> {
+    let d = check(a, b, q, r, s)?;
+    let n = d.a.nrows();
+    if n == 0 {
+        return Ok(empty(d.b.ncols()));
+    }
+    let x0 = match care_initial(&d) {
+        Ok(x) => x,
+        Err(e) => return Err(diagnose(&d, Kind::Continuous).unwrap_or(e)),
+    };
+    finish(&d, x0, 0, Kind::Continuous)
+}
+
+fn care_initial(d: &Data) -> Result<DMatrix<f64>> {
+    let n = d.a.nrows();
+    let rinv_st = spd_solve(&d.r, &d.s.transpose()).ok_or_else(|| {
+        HinfError::InvalidArgument("R must be positive definite for the CARE".into())
+    })?;
+    let rinv_bt = spd_solve(&d.r, &d.b.transpose())
+        .ok_or_else(|| HinfError::InvalidArgument("R must be positive definite".into()))?;
+    let a_s = &d.a - &d.b * &rinv_st;
+    let q_s = symmetrize(&(&d.q - &d.s * &rinv_st));
+    let g = symmetrize(&(&d.b * &rinv_bt));
+    let mut h = DMatrix::<f64>::zeros(2 * n, 2 * n);
+    h.view_mut((0, 0), (n, n)).copy_from(&a_s);
+    h.view_mut((0, n), (n, n)).copy_from(&(-&g));
+    h.view_mut((n, 0), (n, n)).copy_from(&(-&q_s));
+    h.view_mut((n, n), (n, n)).copy_from(&(-a_s.transpose()));
+    let (mut u, mut t) = complex_schur(&to_complex(&h))?;
+    let hn = h.norm();
+    let stable = |z: C| z.re < 0.0;
+    let on_axis = (0..2 * n).any(|i| t[(i, i)].re.abs() <= tol::AXIS * hn);
+    let count = (0..2 * n).filter(|&i| stable(t[(i, i)])).count();
+    if on_axis || count != n {
+        return Err(HinfError::NoStabilizingSolution {
+            equation: "CARE".into(),
+            reason: "the Hamiltonian has eigenvalues on (or numerically at) the imaginary axis"
+                .into(),
+        });
+    }
+    // bubble the stable eigenvalues to the top
+    reorder(&mut t, &mut u, stable);
+    let u11 = u.view((0, 0), (n, n)).into_owned();
+    let u21 = u.view((n, 0), (n, n)).into_owned();
+    // X U11 = U21  ⇔  U11ᵀ Xᵀ = U21ᵀ
+    let lu = u11.transpose().lu();
+    let xt = lu.solve(&u21.transpose()).ok_or_else(|| HinfError::NoStabilizingSolution {
+        equation: "CARE".into(),
+        reason: "the stable invariant subspace is not a graph (U11 singular): (A, B) is not \
+                 stabilizable"
+            .into(),
+    })?;
+    let x = xt.transpose().map(|z| z.re);
+    Ok(symmetrize(&x))
+}
+
+/// Moves the diagonal entries of the triangular `t` satisfying `pred` to the top (stable order
+/// otherwise), by adjacent swaps.
+fn reorder(t: &mut DMatrix<C>, u: &mut DMatrix<C>, pred: impl Fn(C) -> bool) {
+    let n = t.nrows();
+    let mut placed = 0;
+    for i in 0..n {
+        if pred(t[(i, i)]) {
+            let mut k = i;
+            while k > placed {
+                swap_adjacent(t, k - 1, &mut [], &mut [u]);
+                k -= 1;
+            }
+            placed += 1;
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// common
+
+#[derive(Clone, Copy, PartialEq)]
+enum Kind {
+    Continuous,
+    Discrete,
+}
+
+fn empty(m: usize) -> RiccatiSolution {
+    RiccatiSolution {
+        x: DMatrix::zeros(0, 0),
+        gain: DMatrix::zeros(m, 0),
+        residual: 0.0,
+        closed_loop: 0.0,
+        condition: 1.0,
+        doubling_steps: 0,
+        refinement_steps: 0,
+    }
+}
+
+fn residual(d: &Data, x: &DMatrix<f64>, kind: Kind) -> Result<(DMatrix<f64>, f64, DMatrix<f64>)> {
+    match kind {
+        Kind::Discrete => dare_residual(d, x),
+        Kind::Continuous => care_residual(d, x),
+    }
+}
+
+/// Newton refinement, closed loop, condition; errors if the result is not stabilizing.
+fn finish(d: &Data, x0: DMatrix<f64>, doubling_steps: usize, kind: Kind) -> Result<RiccatiSolution> {
+    let mut x = x0;
+    let (mut res, mut rel, mut k) = residual(d, &x, kind)?;
+    let mut steps = 0;
+    for _ in 0..tol::MAX_NEWTON {
+        if rel <= tol::NEWTON_STOP {
+            break;
+        }
+        let ac = &d.a - &d.b * &k;
+        let delta = match kind {
+            Kind::Discrete => lyap(&ac.transpose(), &res, LyapKind::Discrete),
+            Kind::Continuous => lyap(&ac.transpose(), &res, LyapKind::Continuous),
+        };
+        let Ok(delta) = delta else { break };
+        let xn = symmetrize(&(&x + &delta));
+        let Ok((rn, reln, kn)) = residual(d, &xn, kind) else { break };
+        if !(reln < rel) {
+            break;
+        }
+        x = xn;
+        res = rn;
+        rel = reln;
+        k = kn;
+        steps += 1;
+    }
+    let ac = &d.a - &d.b * &k;
+    // closed-loop eigenvalues and the condition estimate are independent
+    let (cl, condition) = rayon::join(
+        || match kind {
+            Kind::Discrete => radius(&ac),
+            Kind::Continuous => abscissa(&ac),
+        },
+        || condition(d, &x, &ac, kind).unwrap_or(f64::INFINITY),
+    );
+    let cl = cl?;
+    let stabilizing = match kind {
+        Kind::Discrete => cl < 1.0,
+        Kind::Continuous => cl < 0.0,
+    };
+    if !stabilizing {
+        return Err(diagnose(d, kind).unwrap_or_else(|| HinfError::NoStabilizingSolution {
+            equation: name(kind).into(),
+            reason: format!(
+                "the computed solution does not stabilize the closed loop (closed-loop {} = {cl})",
+                if kind == Kind::Discrete { "spectral radius" } else { "abscissa" }
+            ),
+        }));
+    }
+    Ok(RiccatiSolution {
+        x,
+        gain: k,
+        residual: rel,
+        closed_loop: cl,
+        condition,
+        doubling_steps,
+        refinement_steps: steps,
+    })
+}
+
+fn name(kind: Kind) -> &'static str {
+    match kind {
+        Kind::Discrete => "DARE",
+        Kind::Continuous => "CARE",
+    }
+}
+
+fn condition(d: &Data, x: &DMatrix<f64>, ac: &DMatrix<f64>, kind: Kind) -> Result<f64> {
+    let n = d.a.nrows();
+    let ident = DMatrix::<f64>::identity(n, n);
+    let p = match kind {
+        Kind::Discrete => match stein_identity(ac) {
+            Some(p) => p,
+            None => lyap(&ac.transpose(), &ident, LyapKind::Discrete)?,
+        },
+        Kind::Continuous => lyap(&ac.transpose(), &ident, LyapKind::Continuous)?,
+    };
+    let omega_inv = p.norm();
+    let m = match kind {
+        Kind::Discrete => &d.r + d.b.transpose() * x * &d.b,
+        Kind::Continuous => d.r.clone(),
+    };
+    let g = match m.clone().lu().solve(&d.b.transpose()) {
+        Some(mb) => &d.b * mb,
+        None => return Ok(f64::INFINITY),
+    };
+    let (na, nx) = (d.a.norm(), x.norm().max(f64::MIN_POSITIVE));
+    let num = match kind {
+        Kind::Discrete => d.q.norm() + 2.0 * na * na * nx + na * na * g.norm() * nx * nx,
+        Kind::Continuous => d.q.norm() + 2.0 * na * nx + g.norm() * nx * nx,
+    };
+    Ok(omega_inv * num / nx)
+}
+
+/// Says why there is no stabilizing solution, when one of the classical conditions fails.
+fn diagnose(d: &Data, kind: Kind) -> Option<HinfError> {
+    let n = d.a.nrows();
+    let m = d.b.ncols();
+    let err = |reason: String| HinfError::NoStabilizingSolution {
+        equation: name(kind).into(),
+        reason,
+    };
+    // eigenvalues of the extended pencil on the unit circle / imaginary axis
+    let nn = 2 * n + m;
+    let mut l = DMatrix::<f64>::zeros(nn, nn);
+    let mut e = DMatrix::<f64>::zeros(nn, nn);
+    match kind {
+        Kind::Discrete => {
+            // [A 0 B; −Q I −S; Sᵀ 0 R] − λ [I 0 0; 0 Aᵀ 0; 0 −Bᵀ 0]
+            l.view_mut((0, 0), (n, n)).copy_from(&d.a);
+            l.view_mut((0, 2 * n), (n, m)).copy_from(&d.b);
+            l.view_mut((n, 0), (n, n)).copy_from(&(-&d.q));
+            l.view_mut((n, n), (n, n)).fill_with_identity();
+            l.view_mut((n, 2 * n), (n, m)).copy_from(&(-&d.s));
+            l.view_mut((2 * n, 0), (m, n)).copy_from(&d.s.transpose());
+            l.view_mut((2 * n, 2 * n), (m, m)).copy_from(&d.r);
+            e.view_mut((0, 0), (n, n)).fill_with_identity();
+            e.view_mut((n, n), (n, n)).copy_from(&d.a.transpose());
+            e.view_mut((2 * n, n), (m, n)).copy_from(&(-d.b.transpose()));
+        }
+        Kind::Continuous => {
+            // [A 0 B; −Q −Aᵀ −S; Sᵀ Bᵀ R] − λ [I 0 0; 0 I 0; 0 0 0]
+            l.view_mut((0, 0), (n, n)).copy_from(&d.a);
+            l.view_mut((0, 2 * n), (n, m)).copy_from(&d.b);
+            l.view_mut((n, 0), (n, n)).copy_from(&(-&d.q));
+            l.view_mut((n, n), (n, n)).copy_from(&(-d.a.transpose()));
+            l.view_mut((n, 2 * n), (n, m)).copy_from(&(-&d.s));
+            l.view_mut((2 * n, 0), (m, n)).copy_from(&d.s.transpose());
+            l.view_mut((2 * n, n), (m, n)).copy_from(&d.b.transpose());
+            l.view_mut((2 * n, 2 * n), (m, m)).copy_from(&d.r);
+            e.view_mut((0, 0), (2 * n, 2 * n)).fill_with_identity();
+        }
+    }
+    if let Ok(ev) = generalized_eigenvalues(&l, &e) {
+        for (al, be) in ev {
+            if be.norm() <= tol::INFINITE_EIG * al.norm() {
+                continue;
+            }
+            let z = al / be;
+            let bad = match kind {
+                Kind::Discrete => (z.norm() - 1.0).abs() <= tol::CIRCLE,
+                Kind::Continuous => z.re.abs() <= tol::CIRCLE * z.norm().max(1.0),
+            };
+            if bad {
+                return Some(err(format!(
+                    "the {} pencil has an eigenvalue on the {} at {:.6}{:+.6}i: a mode there \
+                     that the input cannot move or Q does not see, or a loop that cannot be \
+                     made strictly stable",
+                    if kind == Kind::Discrete { "symplectic" } else { "Hamiltonian" },
+                    if kind == Kind::Discrete { "unit circle" } else { "imaginary axis" },
+                    z.re,
+                    z.im
+                )));
+            }
+        }
+    }
+    // PBH tests on the modes that need moving
+    let Ok(eigs) = eigenvalues(&d.a) else {
+        return None;
+    };
+    let scale = d.a.norm() + d.b.norm() + d.q.norm();
+    for z in eigs {
+        let unstable = match kind {
+            Kind::Discrete => z.norm() >= 1.0 - tol::CIRCLE,
+            Kind::Continuous => z.re >= -tol::CIRCLE * z.norm().max(1.0),
+        };
+        if !unstable {
+            continue;
+        }
+        let shifted = to_complex(&d.a) - DMatrix::<C>::identity(n, n) * z;
+        let mut ab = DMatrix::<C>::zeros(n, n + m);
+        ab.view_mut((0, 0), (n, n)).copy_from(&shifted);
+        ab.view_mut((0, n), (n, m)).copy_from(&to_complex(&d.b));
+        if smallest_sv(&ab) <= tol::PBH * scale {
+            return Some(err(format!(
+                "(A, B) is not stabilizable: the mode at {:.6}{:+.6}i cannot be moved by the input",
+                z.re, z.im
+            )));
+        }
+        let mut aq = DMatrix::<C>::zeros(2 * n, n);
+        aq.view_mut((0, 0), (n, n)).copy_from(&shifted);
+        aq.view_mut((n, 0), (n, n)).copy_from(&to_complex(&d.q));
+        if smallest_sv(&aq) <= tol::PBH * scale {
+            return Some(err(format!(
+                "the problem is not detectable: Q does not see the mode at {:.6}{:+.6}i",
+                z.re, z.im
+            )));
+        }
+    }
+    None
+}
+
+fn smallest_sv(m: &DMatrix<C>) -> f64 {
+    // σ_min of a tall or wide matrix through the smaller Gram matrix's SVD
+    let g = if m.nrows() >= m.ncols() {
+        m.adjoint() * m
+    } else {
+        m * m.adjoint()
+    };
+    match nalgebra::linalg::SVD::try_new(g, false, false, f64::EPSILON, 1000) {
+        Some(s) => s
+            .singular_values
+            .iter()
+            .cloned()
+            .fold(f64::INFINITY, f64::min)
+            .max(0.0)
+            .sqrt(),
+        None => f64::INFINITY,
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
+mod tests {
+    use super::*;
+
+    fn m(r: usize, c: usize, v: &[f64]) -> DMatrix<f64> {
+        DMatrix::from_row_slice(r, c, v)
+    }
+
+    #[test]
+    fn scalar_dare_and_care() {
+        // DT: x = a²x − a²x²b²/(r + b²x) + q with a = 2, b = 1, q = 1, r = 1:
+        // x² − 4x − 1 = 0 → x = 2 + √5
+        let s = dare(&m(1, 1, &[2.0]), &m(1, 1, &[1.0]), &m(1, 1, &[1.0]), &m(1, 1, &[1.0]), None)
+            .unwrap();
+        assert!((s.x[(0, 0)] - (2.0 + 5f64.sqrt())).abs() < 1e-13);
+        assert!(s.closed_loop < 1.0 && s.residual < 1e-15);
+        // CT: 2ax − x² + 1 = 0 with a = 1 → x = 1 + √2
+        let s = care(&m(1, 1, &[1.0]), &m(1, 1, &[1.0]), &m(1, 1, &[1.0]), &m(1, 1, &[1.0]), None)
+            .unwrap();
+        assert!((s.x[(0, 0)] - (1.0 + 2f64.sqrt())).abs() < 1e-13);
+        assert!(s.closed_loop < 0.0);
+    }
+
+    #[test]
+    fn cross_term_equals_completed_square() {
+        // S ≠ 0 equals the problem with A − BR⁻¹Sᵀ, Q − SR⁻¹Sᵀ
+        let a = m(2, 2, &[0.9, 0.3, -0.2, 1.1]);
+        let b = m(2, 1, &[0.0, 1.0]);
+        let q = m(2, 2, &[2.0, 0.1, 0.1, 1.0]);
+        let r = m(1, 1, &[0.5]);
+        let s = m(2, 1, &[0.2, -0.1]);
+        let x1 = dare(&a, &b, &q, &r, Some(&s)).unwrap().x;
+        let a2 = &a - &b * s.transpose() / 0.5;
+        let q2 = &q - &s * s.transpose() / 0.5;
+        let x2 = dare(&a2, &b, &q2, &r, None).unwrap().x;
+        assert!((&x1 - &x2).norm() < 1e-12 * x2.norm());
+        let c1 = care(&a, &b, &q, &r, Some(&s)).unwrap().x;
+        let c2 = care(&a2, &b, &q2, &r, None).unwrap().x;
+        assert!((&c1 - &c2).norm() < 1e-12 * c2.norm());
+    }
+
+    #[test]
+    fn says_why_there_is_no_solution() {
+        // an unreachable unstable mode
+        let a = m(2, 2, &[1.5, 0.0, 0.0, 0.5]);
+        let b = m(2, 1, &[0.0, 1.0]);
+        let q = DMatrix::identity(2, 2);
+        let r = m(1, 1, &[1.0]);
+        let e = dare(&a, &b, &q, &r, None).unwrap_err().to_string();
+        assert!(e.contains("not stabilizable") || e.contains("unit circle"), "{e}");
+        // an undamped oscillator that Q does not see: eigenvalues on the circle
+        let w: f64 = 0.3;
+        let a = m(2, 2, &[w.cos(), w.sin(), -w.sin(), w.cos()]);
+        let q = DMatrix::zeros(2, 2);
+        let e = dare(&a, &b, &q, &r, None).unwrap_err().to_string();
+        assert!(e.contains("unit circle") || e.contains("detectable"), "{e}");
+        let ac = m(2, 2, &[0.0, 1.0, -1.0, 0.0]);
+        let e = care(&ac, &b, &q, &r, None).unwrap_err().to_string();
+        assert!(e.contains("imaginary axis") || e.contains("detectable"), "{e}");
+        // bad shapes and asymmetry
+        assert!(dare(&a, &b, &m(2, 2, &[1.0, 2.0, 0.0, 1.0]), &r, None).is_err());
+        assert!(care(&a, &b, &q, &m(2, 2, &[1.0, 0.0, 0.0, 1.0]), None).is_err());
+        assert!(care(&a, &b, &q, &m(1, 1, &[-1.0]), None).is_err());
+    }
+}

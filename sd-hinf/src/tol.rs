@@ -1,0 +1,22 @@
+//! Tolerances and iteration limits of this crate, in one place.
+
+/// Relative asymmetry above which Q or R is refused (below, it is symmetrised).
+pub const SYMMETRY: f64 = 1e-10;
+/// A Cholesky pivot below this times the largest one counts as singular R.
+pub const SPD_PIVOT: f64 = 1e-7;
+/// Doubling stops when `‖H_{k+1} − H_k‖ ≤ DOUBLING_STOP·‖H_{k+1}‖`.
+pub const DOUBLING_STOP: f64 = 1e-15;
+/// Most doubling steps (convergence is quadratic: 64 covers ρ(A − BK) up to 1 − 1e-17).
+pub const MAX_DOUBLING: usize = 64;
+/// Newton refinement stops below this relative residual.
+pub const NEWTON_STOP: f64 = 1e-16;
+/// Most Newton refinement steps.
+pub const MAX_NEWTON: usize = 8;
+/// Hamiltonian eigenvalues with `|Re λ| ≤ AXIS·‖H‖` count as on the imaginary axis.
+pub const AXIS: f64 = 1e-13;
+/// Pencil eigenvalues within this of the unit circle (relative to |λ| for the axis) are on it.
+pub const CIRCLE: f64 = 1e-9;
+/// `|β| ≤ INFINITE_EIG·|α|`: an infinite generalized eigenvalue.
+pub const INFINITE_EIG: f64 = 1e-12;
+/// PBH rank test: smallest singular value below this times the data norm.
+pub const PBH: f64 = 1e-10;
