@@ -29,8 +29,9 @@
 //! CARE: `‖Q‖ + 2‖AᵀX‖ + ‖(XB + S)K‖`); the closed-loop spectral radius (DARE) or abscissa
 //! (CARE); and a relative condition estimate `κ = ‖Ω⁻¹‖(‖Q‖ + 2‖A‖‖X‖ + ‖A‖²‖G‖‖X‖²)/‖X‖`
 //! (CT: `‖Q‖ + 2‖A‖‖X‖ + ‖G‖‖X‖²`; Byers 1985, Sun 1998) with `Ω` the closed-loop Lyapunov
-//! (Stein) operator, `‖Ω⁻¹‖ = ‖Ω⁻¹(I)‖₂` exactly for these operators. Expect a relative error
-//! of about `κ·ε` in X.
+//! (Stein) operator, `‖Ω⁻¹‖ = ‖Ω⁻¹(I)‖₂` exactly for these operators, all evaluated in the
+//! coordinates that balance `A − BK` (so physical-coordinate scaling does not inflate it).
+//! Expect a relative error of about `κ·ε` in X (in those coordinates).
 
 use crate::error::{HinfError, Result};
 use crate::tol;
@@ -39,6 +40,7 @@ use num_complex::Complex64 as C;
 use faer::linalg::solvers::Solve;
 use faer::Mat;
 use sd_model::linalg::convert::{eigenvalues, from_faer, generalized_eigenvalues, to_faer};
+use sd_model::linalg::expm::balance_diag;
 use sd_model::linalg::lyap::{lyap, LyapKind};
 use sd_model::linalg::schur::{complex_schur, swap_adjacent, to_complex};
 use sd_model::ModelError;
@@ -513,29 +515,53 @@ fn name(kind: Kind) -> &'static str {
 
 fn condition(d: &Data, x: &DMatrix<f64>, ac: &DMatrix<f64>, kind: Kind) -> Result<f64> {
     let n = d.a.nrows();
+    // evaluate in the coordinates that balance the closed loop (x = D x̃): the estimate is
+    // then not inflated by the scale disparity of physical coordinates
+    let (acb, dv) = balance_diag(ac);
+    let scale = |m: &DMatrix<f64>, left: bool, right: bool| {
+        DMatrix::from_fn(m.nrows(), m.ncols(), |i, j| {
+            let mut v = m[(i, j)];
+            if left {
+                v *= dv[i];
+            }
+            if right {
+                v *= dv[j];
+            }
+            v
+        })
+    };
+    let xb = scale(x, true, true); // DᵀXD
+    let qb = scale(&d.q, true, true);
+    let ab = balance_with(&d.a, &dv);
+    let bb = DMatrix::from_fn(n, d.b.ncols(), |i, j| d.b[(i, j)] / dv[i]);
     let ident = DMatrix::<f64>::identity(n, n);
     let p = match kind {
-        Kind::Discrete => match stein_identity(ac) {
+        Kind::Discrete => match stein_identity(&acb) {
             Some(p) => p,
-            None => lyap(&ac.transpose(), &ident, LyapKind::Discrete)?,
+            None => lyap(&acb.transpose(), &ident, LyapKind::Discrete)?,
         },
-        Kind::Continuous => lyap(&ac.transpose(), &ident, LyapKind::Continuous)?,
+        Kind::Continuous => lyap(&acb.transpose(), &ident, LyapKind::Continuous)?,
     };
     let omega_inv = p.norm();
     let m = match kind {
-        Kind::Discrete => &d.r + d.b.transpose() * x * &d.b,
+        Kind::Discrete => &d.r + bb.transpose() * &xb * &bb,
         Kind::Continuous => d.r.clone(),
     };
-    let g = match m.clone().lu().solve(&d.b.transpose()) {
-        Some(mb) => &d.b * mb,
+    let g = match m.clone().lu().solve(&bb.transpose()) {
+        Some(mb) => &bb * mb,
         None => return Ok(f64::INFINITY),
     };
-    let (na, nx) = (d.a.norm(), x.norm().max(f64::MIN_POSITIVE));
+    let (na, nx) = (ab.norm(), xb.norm().max(f64::MIN_POSITIVE));
     let num = match kind {
-        Kind::Discrete => d.q.norm() + 2.0 * na * na * nx + na * na * g.norm() * nx * nx,
-        Kind::Continuous => d.q.norm() + 2.0 * na * nx + g.norm() * nx * nx,
+        Kind::Discrete => qb.norm() + 2.0 * na * na * nx + na * na * g.norm() * nx * nx,
+        Kind::Continuous => qb.norm() + 2.0 * na * nx + g.norm() * nx * nx,
     };
     Ok(omega_inv * num / nx)
+}
+
+/// `D⁻¹ M D` for the diagonal `d`.
+fn balance_with(m: &DMatrix<f64>, d: &[f64]) -> DMatrix<f64> {
+    DMatrix::from_fn(m.nrows(), m.ncols(), |i, j| m[(i, j)] * d[j] / d[i])
 }
 
 /// Says why there is no stabilizing solution, when one of the classical conditions fails.

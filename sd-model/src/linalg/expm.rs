@@ -105,7 +105,7 @@ fn ell(a: &DMatrix<f64>, m: usize) -> i32 {
 
 /// Diagonal balancing with powers of two (LAPACK xGEBAL, scaling only, no permutation).
 /// Returns `(D⁻¹ A D, d)`.
-pub(crate) fn balance_diag(a: &DMatrix<f64>) -> (DMatrix<f64>, Vec<f64>) {
+pub fn balance_diag(a: &DMatrix<f64>) -> (DMatrix<f64>, Vec<f64>) {
     let n = a.nrows();
     let mut m = a.clone();
     let mut d = vec![1.0; n];
