@@ -20,3 +20,6 @@ pub const CIRCLE: f64 = 1e-9;
 pub const INFINITE_EIG: f64 = 1e-12;
 /// PBH rank test: smallest singular value below this times the data norm.
 pub const PBH: f64 = 1e-10;
+/// Relative agreement required between γ_min from the discrete Riccati equations and from the
+/// bilinear continuous problem.
+pub const GAMMA_AGREE: f64 = 1e-6;

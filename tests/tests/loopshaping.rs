@@ -1,0 +1,161 @@
+//! Issue #4 acceptance: McFarlane–Glover loopshaping against published γ_min values
+//! (`test_data/loopshaping_refs.json`: Skogestad & Postlethwaite Ex. 9.3, the MathWorks
+//! lightly damped resonance, the SLICOT SB10KD example, MATLAB's ncfmargin), the achieved
+//! 4-block norm ≤ γ by the H∞ norm, and the paper's design on the 1 kHz stage model.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use nalgebra::DMatrix;
+use sd_hinf::loopshape::four_block;
+use sd_hinf::{loopshape, weights, Loopshape, LoopshapeOptions};
+use sd_model::{c2d, Discretization, SampleTime, StateSpace, TransferFunction};
+use sd_tests::read_json;
+
+fn conv(a: &[f64], b: &[f64]) -> Vec<f64> {
+    let mut out = vec![0.0; a.len() + b.len() - 1];
+    for (i, x) in a.iter().enumerate() {
+        for (j, y) in b.iter().enumerate() {
+            out[i + j] += x * y;
+        }
+    }
+    out
+}
+
+fn tf(num: Vec<f64>, den: Vec<f64>) -> StateSpace {
+    TransferFunction::new(num, den, SampleTime::Continuous)
+        .unwrap()
+        .to_ss()
+        .unwrap()
+}
+
+fn recomputed(name_prefix: &str, key: &str) -> f64 {
+    let refs = read_json("loopshaping_refs.json");
+    let case = refs["cases"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["name"].as_str().unwrap().starts_with(name_prefix))
+        .unwrap_or_else(|| panic!("no case {name_prefix}"));
+    case[key].as_f64().unwrap()
+}
+
+/// S&P Ex. 9.3: G = 200/((10s+1)(0.05s+1)²), W1 = (s+2)/(s+1e-6).
+fn sp93() -> (StateSpace, StateSpace) {
+    let g = tf(vec![200.0], conv(&[10.0, 1.0], &conv(&[0.05, 1.0], &[0.05, 1.0])));
+    let w1 = tf(vec![1.0, 2.0], vec![1.0, 1e-6]);
+    (g, w1)
+}
+
+fn sb10kd_plant() -> StateSpace {
+    let a = DMatrix::from_row_slice(6, 6, &[
+        0.2, 0.0, 0.3, 0.0, -0.3, -0.1, -0.3, 0.2, -0.4, -0.3, 0.0, 0.0, -0.1, 0.1, -0.1, 0.0,
+        0.0, -0.3, 0.1, 0.0, 0.0, -0.1, -0.1, 0.0, 0.0, 0.3, 0.6, 0.2, 0.1, -0.4, 0.2, -0.4, 0.0,
+        0.0, 0.2, -0.2,
+    ]);
+    let b = DMatrix::from_row_slice(6, 2, &[
+        -1.0, -2.0, 1.0, 3.0, -3.0, -4.0, 1.0, -2.0, 0.0, 1.0, 1.0, 5.0,
+    ]);
+    let c = DMatrix::from_row_slice(2, 6, &[
+        1.0, -1.0, 2.0, -2.0, 0.0, -3.0, -3.0, 0.0, 1.0, -1.0, 1.0, -1.0,
+    ]);
+    StateSpace::new(a, b, c, DMatrix::zeros(2, 2), SampleTime::discrete(1.0).unwrap()).unwrap()
+}
+
+fn check(name: &str, d: &Loopshape, expected_gamma_min: Option<f64>) {
+    // the achieved 4-block norm, recomputed here from the returned K_s
+    let achieved = four_block(&d.shaped_plant, &d.shaped_controller)
+        .unwrap()
+        .hinf_norm()
+        .unwrap()
+        .value;
+    println!(
+        "{name}: γ_min {:.7}, γ {:.7}, achieved {:.7}, closed loop {} ({:.6}), Riccati residuals {:?}",
+        d.gamma_min,
+        d.gamma,
+        achieved,
+        if d.closed_loop_stable { "stable" } else { "UNSTABLE" },
+        d.closed_loop_pole,
+        d.riccati.iter().map(|r| format!("{} {:.1e}", r.name, r.residual)).collect::<Vec<_>>()
+    );
+    if let Some(g) = expected_gamma_min {
+        assert!((d.gamma_min - g).abs() <= 1e-6 * g, "{name}: γ_min {} vs {g}", d.gamma_min);
+    }
+    assert!((achieved - d.achieved).abs() <= 1e-9 * achieved);
+    assert!(achieved <= d.gamma * (1.0 + 1e-6), "{name}: achieved {achieved} > γ {}", d.gamma);
+    assert!(achieved >= d.gamma_min * (1.0 - 1e-6), "{name}: achieved below γ_min?");
+    assert!(d.closed_loop_stable, "{name}: closed loop unstable");
+    for r in &d.riccati {
+        assert!(r.residual <= 1e-12, "{name}: {} residual {:e}", r.name, r.residual);
+    }
+}
+
+#[test]
+fn issue4_skogestad_postlethwaite_9_3_continuous_and_discrete() {
+    let (g, w1) = sp93();
+    let d = loopshape(&g, Some(&w1), None, &LoopshapeOptions::default()).unwrap();
+    check("S&P 9.3 continuous", &d, Some(recomputed("S&P Ex 9.3 continuous", "recomputed")));
+    let gd = c2d(&g, 0.01, Discretization::Zoh).unwrap();
+    let wd = c2d(&w1, 0.01, Discretization::Zoh).unwrap();
+    let d = loopshape(&gd, Some(&wd), None, &LoopshapeOptions::default()).unwrap();
+    let want = recomputed("S&P Ex 9.3 discrete", "recomputed");
+    assert!((want - 2.408584).abs() < 1e-6);
+    check("S&P 9.3 discrete", &d, Some(want));
+}
+
+#[test]
+fn issue4_lightly_damped_resonance() {
+    // G = 16/(s² + 0.16 s + 16), W1 = (1 + 0.8/s)/(s/20 + 1) (negative-feedback sign)
+    let g = tf(vec![16.0], vec![1.0, 0.16, 16.0]);
+    let w1 = tf(vec![20.0, 16.0], vec![1.0, 20.0, 0.0]);
+    let d = loopshape(&g, Some(&w1), None, &LoopshapeOptions::default()).unwrap();
+    check("resonance", &d, Some(recomputed("MathWorks", "recomputed_gamma_min")));
+}
+
+#[test]
+fn issue4_slicot_sb10kd_example_and_strictly_proper() {
+    let g = sb10kd_plant();
+    let d = loopshape(&g, None, None, &LoopshapeOptions::default()).unwrap();
+    check("SB10KD", &d, Some(recomputed("SLICOT SB10KD", "recomputed_gamma_min")));
+    let sp = loopshape(&g, None, None, &LoopshapeOptions { factor: 1.1, strictly_proper: true }).unwrap();
+    check("SB10KD strictly proper", &sp, None);
+    assert_eq!(sp.shaped_controller.d().norm(), 0.0);
+    assert!(sp.gamma_min >= d.gamma_min * (1.0 - 1e-9));
+    println!("strictly proper γ_min {:.6} vs proper {:.6}", sp.gamma_min, d.gamma_min);
+}
+
+#[test]
+fn issue4_ncf_margin_matches_matlab_doc() {
+    // b(P, K) = 1/‖[I; K](I + PK)⁻¹[I P]‖∞ for P = 4/(s − 0.001), K = 1 and 10
+    let p = tf(vec![4.0], vec![1.0, -0.001]);
+    for (k, want) in [(1.0, 0.7069299823996891), (10.0, 0.09950371909980187)] {
+        let kk = StateSpace::gain(DMatrix::from_element(1, 1, k), SampleTime::Continuous).unwrap();
+        let b = 1.0 / four_block(&p, &kk).unwrap().hinf_norm().unwrap().value;
+        assert!((b - want).abs() < 1e-6, "K = {k}: {b} vs {want}");
+    }
+}
+
+#[test]
+fn issue4_paper_design_dips_at_the_aliased_mode() {
+    // the 1 kHz model of the stage: its 653 Hz mode appears at 347 Hz
+    let ts = 1e-3;
+    let p = c2d(&sd_model::stage::paper_stage(0.01).unwrap(), ts, Discretization::Zoh).unwrap();
+    let w1 = weights::pid(65.0, 20.0, Some(ts), &Default::default()).unwrap();
+    let d = loopshape(&p, Some(&w1), None, &LoopshapeOptions::default()).unwrap();
+    check("paper stage 1 kHz", &d, None);
+    let f = sd_model::grid(250.0, 450.0, 2001, false).unwrap();
+    let mag: Vec<f64> = d
+        .controller
+        .freqresp(&f)
+        .unwrap()
+        .response()
+        .iter()
+        .map(|g| 20.0 * g[(0, 0)].norm().log10())
+        .collect();
+    // depth below the straight line between the band edges (dB over Hz)
+    let line = |i: usize| mag[0] + (mag[mag.len() - 1] - mag[0]) * (f[i] - f[0]) / (f[f.len() - 1] - f[0]);
+    let (imin, depth) = (0..f.len())
+        .map(|i| (i, line(i) - mag[i]))
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .unwrap();
+    println!("controller gain dip at {:.2} Hz, {:.1} dB deep", f[imin], depth);
+    assert!((f[imin] - 347.0).abs() < 10.0 && depth > 3.0);
+}
