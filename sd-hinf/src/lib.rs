@@ -5,6 +5,8 @@
 //! - [`loopshape`]: `G_s = W₂PW₁`, γ_min, the central controller for γ = factor·γ_min (or the
 //!   strictly proper one), `K = W₁K_sW₂` for negative feedback, the achieved 4-block norm.
 //! - [`weights`]: PID-like, notch and low-pass weights, discrete by prewarped Tustin.
+//! - `lmi` (feature `lmi`): the H∞ norm by the bounded-real lemma as an SDP (clarabel), the
+//!   independent cross-check used in the tests.
 //!
 //! ```
 //! use sd_hinf::{dare, loopshape, LoopshapeOptions, weights};
@@ -17,6 +19,8 @@
 //! ```
 
 pub mod error;
+#[cfg(feature = "lmi")]
+pub mod lmi;
 pub mod loopshape;
 pub mod riccati;
 pub mod tol;

@@ -39,6 +39,7 @@ pub fn rel_err(x: &DMatrix<f64>, y: &DMatrix<f64>) -> f64 {
     }
 }
 
+pub mod designs;
 pub mod gen;
 
 /// One-sided Welch power spectral density of a real signal sampled at `fs` Hz: Hann window,

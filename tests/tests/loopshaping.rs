@@ -7,25 +7,9 @@
 use nalgebra::DMatrix;
 use sd_hinf::loopshape::four_block;
 use sd_hinf::{loopshape, weights, Loopshape, LoopshapeOptions};
-use sd_model::{c2d, Discretization, SampleTime, StateSpace, TransferFunction};
+use sd_model::{SampleTime, StateSpace};
+use sd_tests::designs::{resonance, sb10kd_plant, sp93, sp93_discrete, tf};
 use sd_tests::read_json;
-
-fn conv(a: &[f64], b: &[f64]) -> Vec<f64> {
-    let mut out = vec![0.0; a.len() + b.len() - 1];
-    for (i, x) in a.iter().enumerate() {
-        for (j, y) in b.iter().enumerate() {
-            out[i + j] += x * y;
-        }
-    }
-    out
-}
-
-fn tf(num: Vec<f64>, den: Vec<f64>) -> StateSpace {
-    TransferFunction::new(num, den, SampleTime::Continuous)
-        .unwrap()
-        .to_ss()
-        .unwrap()
-}
 
 fn recomputed(name_prefix: &str, key: &str) -> f64 {
     let refs = read_json("loopshaping_refs.json");
@@ -36,28 +20,6 @@ fn recomputed(name_prefix: &str, key: &str) -> f64 {
         .find(|c| c["name"].as_str().unwrap().starts_with(name_prefix))
         .unwrap_or_else(|| panic!("no case {name_prefix}"));
     case[key].as_f64().unwrap()
-}
-
-/// S&P Ex. 9.3: G = 200/((10s+1)(0.05s+1)²), W1 = (s+2)/(s+1e-6).
-fn sp93() -> (StateSpace, StateSpace) {
-    let g = tf(vec![200.0], conv(&[10.0, 1.0], &conv(&[0.05, 1.0], &[0.05, 1.0])));
-    let w1 = tf(vec![1.0, 2.0], vec![1.0, 1e-6]);
-    (g, w1)
-}
-
-fn sb10kd_plant() -> StateSpace {
-    let a = DMatrix::from_row_slice(6, 6, &[
-        0.2, 0.0, 0.3, 0.0, -0.3, -0.1, -0.3, 0.2, -0.4, -0.3, 0.0, 0.0, -0.1, 0.1, -0.1, 0.0,
-        0.0, -0.3, 0.1, 0.0, 0.0, -0.1, -0.1, 0.0, 0.0, 0.3, 0.6, 0.2, 0.1, -0.4, 0.2, -0.4, 0.0,
-        0.0, 0.2, -0.2,
-    ]);
-    let b = DMatrix::from_row_slice(6, 2, &[
-        -1.0, -2.0, 1.0, 3.0, -3.0, -4.0, 1.0, -2.0, 0.0, 1.0, 1.0, 5.0,
-    ]);
-    let c = DMatrix::from_row_slice(2, 6, &[
-        1.0, -1.0, 2.0, -2.0, 0.0, -3.0, -3.0, 0.0, 1.0, -1.0, 1.0, -1.0,
-    ]);
-    StateSpace::new(a, b, c, DMatrix::zeros(2, 2), SampleTime::discrete(1.0).unwrap()).unwrap()
 }
 
 fn check(name: &str, d: &Loopshape, expected_gamma_min: Option<f64>) {
@@ -93,8 +55,7 @@ fn issue4_skogestad_postlethwaite_9_3_continuous_and_discrete() {
     let (g, w1) = sp93();
     let d = loopshape(&g, Some(&w1), None, &LoopshapeOptions::default()).unwrap();
     check("S&P 9.3 continuous", &d, Some(recomputed("S&P Ex 9.3 continuous", "recomputed")));
-    let gd = c2d(&g, 0.01, Discretization::Zoh).unwrap();
-    let wd = c2d(&w1, 0.01, Discretization::Zoh).unwrap();
+    let (gd, wd) = sp93_discrete();
     let d = loopshape(&gd, Some(&wd), None, &LoopshapeOptions::default()).unwrap();
     let want = recomputed("S&P Ex 9.3 discrete", "recomputed");
     assert!((want - 2.408584).abs() < 1e-6);
@@ -104,8 +65,7 @@ fn issue4_skogestad_postlethwaite_9_3_continuous_and_discrete() {
 #[test]
 fn issue4_lightly_damped_resonance() {
     // G = 16/(s² + 0.16 s + 16), W1 = (1 + 0.8/s)/(s/20 + 1) (negative-feedback sign)
-    let g = tf(vec![16.0], vec![1.0, 0.16, 16.0]);
-    let w1 = tf(vec![20.0, 16.0], vec![1.0, 20.0, 0.0]);
+    let (g, w1) = resonance();
     let d = loopshape(&g, Some(&w1), None, &LoopshapeOptions::default()).unwrap();
     check("resonance", &d, Some(recomputed("MathWorks", "recomputed_gamma_min")));
 }
@@ -137,7 +97,7 @@ fn issue4_ncf_margin_matches_matlab_doc() {
 fn issue4_paper_design_dips_at_the_aliased_mode() {
     // the 1 kHz model of the stage: its 653 Hz mode appears at 347 Hz
     let ts = 1e-3;
-    let p = c2d(&sd_model::stage::paper_stage(0.01).unwrap(), ts, Discretization::Zoh).unwrap();
+    let p = sd_tests::designs::paper_stage_1khz();
     let w1 = weights::pid(65.0, 20.0, Some(ts), &Default::default()).unwrap();
     let d = loopshape(&p, Some(&w1), None, &LoopshapeOptions::default()).unwrap();
     check("paper stage 1 kHz", &d, None);
