@@ -1,6 +1,6 @@
 //! Command definitions and their implementations.
 
-use crate::io::{emit, from_model, from_multirate, read_model, CliError};
+use crate::io::{emit, from_hinf, from_model, from_multirate, read_model, CliError};
 use clap::{Parser, Subcommand, ValueEnum};
 use sd_model::{c2d, d2c_with_aliases, Discretization, StateSpace};
 use serde_json::json;
@@ -135,6 +135,82 @@ enum Cmd {
         /// Feedback sign: -1 (negative, default) or +1.
         #[arg(long, default_value_t = -1.0, allow_negative_numbers = true)]
         sign: f64,
+        #[arg(short, long)]
+        output: Option<String>,
+    },
+    /// McFarlane–Glover loopshaping: the controller K = W1·Ks·W2 for negative feedback u = −K y.
+    Loopshape {
+        /// Plant model JSON (discrete or continuous).
+        plant: String,
+        /// Input weight W1 (model JSON, nu×nu); identity if absent.
+        #[arg(long)]
+        w1: Option<String>,
+        /// Output weight W2 (model JSON, ny×ny); identity if absent.
+        #[arg(long)]
+        w2: Option<String>,
+        /// γ = factor·γ_min (> 1).
+        #[arg(long, default_value_t = 1.1, allow_negative_numbers = true)]
+        factor: f64,
+        /// Strictly proper controller (no feedthrough; discrete plants).
+        #[arg(long)]
+        strictly_proper: bool,
+        /// Print gamma_min, gamma, the controllers, stability and Riccati residuals as JSON.
+        #[arg(long)]
+        json: bool,
+        #[arg(short, long)]
+        output: Option<String>,
+    },
+    /// Loopshaping weights as model JSON (continuous unless --ts is given).
+    Weight {
+        #[command(subcommand)]
+        kind: WeightKind,
+    },
+}
+
+#[derive(Subcommand, Debug)]
+enum WeightKind {
+    /// PID-like: integrator, lead around the bandwidth, optional low-pass; |W/(m s²)| = 1 at the bandwidth.
+    Pid {
+        #[arg(long, allow_negative_numbers = true)]
+        bandwidth_hz: f64,
+        /// The plant's high-frequency mass line 1/(m s²): m in the plant's units.
+        #[arg(long, allow_negative_numbers = true)]
+        mass: f64,
+        #[arg(long, allow_negative_numbers = true)]
+        ts: Option<f64>,
+        #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
+        integrator_ratio: f64,
+        #[arg(long, default_value_t = 3.0, allow_negative_numbers = true)]
+        lead_ratio: f64,
+        /// 0: no low-pass.
+        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+        lowpass_ratio: f64,
+        #[arg(long, default_value_t = 0.7, allow_negative_numbers = true)]
+        lowpass_zeta: f64,
+        #[arg(short, long)]
+        output: Option<String>,
+    },
+    /// Notch (s² + 2ζz ω s + ω²)/(s² + 2ζp ω s + ω²), prewarped at its frequency.
+    Notch {
+        #[arg(long, allow_negative_numbers = true)]
+        freq_hz: f64,
+        #[arg(long, default_value_t = 0.01, allow_negative_numbers = true)]
+        zeta_zero: f64,
+        #[arg(long, default_value_t = 0.2, allow_negative_numbers = true)]
+        zeta_pole: f64,
+        #[arg(long, allow_negative_numbers = true)]
+        ts: Option<f64>,
+        #[arg(short, long)]
+        output: Option<String>,
+    },
+    /// Second-order low-pass ω²/(s² + 2ζω s + ω²), prewarped at its corner.
+    Lowpass {
+        #[arg(long, allow_negative_numbers = true)]
+        freq_hz: f64,
+        #[arg(long, default_value_t = 0.7, allow_negative_numbers = true)]
+        zeta: f64,
+        #[arg(long, allow_negative_numbers = true)]
+        ts: Option<f64>,
         #[arg(short, long)]
         output: Option<String>,
     },
@@ -315,6 +391,88 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
                 }
                 emit(&text, None)
             }
+        }
+        Cmd::Loopshape {
+            plant,
+            w1,
+            w2,
+            factor,
+            strictly_proper,
+            json,
+            output,
+        } => {
+            let p = read_model(&plant)?;
+            let w1m = w1.as_deref().map(read_model).transpose()?;
+            let w2m = w2.as_deref().map(read_model).transpose()?;
+            let opt = sd_hinf::LoopshapeOptions {
+                factor,
+                strictly_proper,
+            };
+            let d = sd_hinf::loopshape(&p, w1m.as_ref(), w2m.as_ref(), &opt)
+                .map_err(|e| from_hinf(&plant, e))?;
+            if json {
+                let parse = |m: &StateSpace| -> Result<serde_json::Value, CliError> {
+                    serde_json::from_str(&model_json(m)?)
+                        .map_err(|e| CliError::numerical(format!("model JSON: {e}")))
+                };
+                let v = json!({
+                    "gamma_min": d.gamma_min,
+                    "gamma": d.gamma,
+                    "achieved": d.achieved,
+                    "closed_loop_stable": d.closed_loop_stable,
+                    "closed_loop_pole": d.closed_loop_pole,
+                    "controller": parse(&d.controller)?,
+                    "shaped_controller": parse(&d.shaped_controller)?,
+                    "riccati": d.riccati.iter().map(|r| json!({"equation": r.name, "residual": r.residual, "condition": r.condition})).collect::<Vec<_>>(),
+                });
+                emit(&v.to_string(), output.as_deref())
+            } else {
+                eprintln!(
+                    "γ_min {:.6}, γ {:.6}, achieved {:.6}, closed loop {}",
+                    d.gamma_min,
+                    d.gamma,
+                    d.achieved,
+                    if d.closed_loop_stable { "stable" } else { "UNSTABLE" }
+                );
+                emit(&model_json(&d.controller)?, output.as_deref())
+            }
+        }
+        Cmd::Weight { kind } => {
+            let (w, output) = match kind {
+                WeightKind::Pid {
+                    bandwidth_hz,
+                    mass,
+                    ts,
+                    integrator_ratio,
+                    lead_ratio,
+                    lowpass_ratio,
+                    lowpass_zeta,
+                    output,
+                } => {
+                    let opt = sd_hinf::weights::PidOptions {
+                        integrator_ratio,
+                        lead_ratio,
+                        lowpass_ratio,
+                        lowpass_zeta,
+                    };
+                    (sd_hinf::weights::pid(bandwidth_hz, mass, ts, &opt), output)
+                }
+                WeightKind::Notch {
+                    freq_hz,
+                    zeta_zero,
+                    zeta_pole,
+                    ts,
+                    output,
+                } => (sd_hinf::weights::notch(freq_hz, zeta_zero, zeta_pole, ts), output),
+                WeightKind::Lowpass {
+                    freq_hz,
+                    zeta,
+                    ts,
+                    output,
+                } => (sd_hinf::weights::lowpass(freq_hz, zeta, ts), output),
+            };
+            let w = w.map_err(|e| from_hinf("weight", e))?;
+            emit(&model_json(&w)?, output.as_deref())
         }
         Cmd::Downsample {
             model,

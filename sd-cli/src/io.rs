@@ -18,6 +18,13 @@ impl CliError {
             message: msg.into(),
         }
     }
+    /// A numerical failure (exit 1).
+    pub fn numerical(msg: impl Into<String>) -> Self {
+        CliError {
+            code: 1,
+            message: msg.into(),
+        }
+    }
 }
 
 /// Maps a library error to an exit code: convergence failures are numerical (1), everything
@@ -37,6 +44,22 @@ pub fn from_model(context: &str, e: ModelError) -> CliError {
 pub fn from_multirate(context: &str, e: sd_multirate::MultirateError) -> CliError {
     match e {
         sd_multirate::MultirateError::Model(m) => from_model(context, m),
+        other => CliError {
+            code: 2,
+            message: format!("{context}: {other}"),
+        },
+    }
+}
+
+/// Maps an `sd-hinf` error: numerical failures exit 1, everything else (including "no
+/// stabilizing solution", a property of the problem given) 2.
+pub fn from_hinf(context: &str, e: sd_hinf::HinfError) -> CliError {
+    match e {
+        sd_hinf::HinfError::Model(m) => from_model(context, m),
+        sd_hinf::HinfError::Numerical(_) => CliError {
+            code: 1,
+            message: format!("{context}: {e}"),
+        },
         other => CliError {
             code: 2,
             message: format!("{context}: {other}"),
