@@ -3,7 +3,9 @@ python-control / scipy. Usage: python3 tools/bench_python.py CASES.json  (prints
 
 CASES.json: {"c2d": {"model": path, "ts": h, "repeats": k},
              "freqresp": {"model": path, "fmin": .., "fmax": .., "n": .., "log": bool, "repeats": k},
-             "downsample": {"model": path (DT), "factor": F, "repeats": k}}   (optional)
+             "downsample": {"model": path (DT), "factor": F, "repeats": k},   (optional)
+             "dare": {"model": path (DT), "repeats": k},                     (optional)
+             "loopshape": {"plant": path, "w1": path, "repeats": k}}         (optional)
 """
 import json, sys, time
 import numpy as np
@@ -55,4 +57,38 @@ if ds:
     blk = np.zeros((n + nu, n + nu)); blk[:n, :n] = a; blk[:n, n:] = b; blk[n:, n:] = np.eye(nu)
     t, pw = median_time(lambda: np.linalg.matrix_power(blk, ds["factor"]), ds["repeats"])
     res["downsample_numpy_matrix_power"] = {"median_s": t, "ad": pw[:n, :n].tolist(), "bd": pw[:n, n:].tolist()}
+dr = cases.get("dare")
+if dr:
+    import scipy.linalg
+    (a, b, cc, d), _ = load(dr["model"])
+    q = cc.T @ cc
+    r = np.eye(b.shape[1])
+    def rel_res(x):
+        k = np.linalg.solve(r + b.T @ x @ b, b.T @ x @ a)
+        res = a.T @ x @ a - x - a.T @ x @ b @ k + q
+        scale = np.linalg.norm(q) + np.linalg.norm(a.T @ x @ a) + np.linalg.norm(x) + np.linalg.norm(a.T @ x @ b @ k)
+        return float(np.linalg.norm(res) / scale), float(max(abs(np.linalg.eigvals(a - b @ k))))
+    t, x = median_time(lambda: scipy.linalg.solve_discrete_are(a, b, q, r), dr["repeats"])
+    rr, rho = rel_res(x)
+    res["dare_scipy"] = {"median_s": t, "rel_residual": rr, "closed_loop_radius": rho}
+    try:
+        t, out = median_time(lambda: control.dare(a, b, q, r), dr["repeats"])
+        xx = np.asarray(out[0])
+        rr, rho = rel_res(xx)
+        res["dare_python_control"] = {"median_s": t, "rel_residual": rr, "closed_loop_radius": rho}
+    except Exception as e:
+        res["dare_python_control"] = {"error": str(e).strip().splitlines()[0][:200]}
+ls = cases.get("loopshape")
+if ls:
+    import scipy.linalg
+    (pa, pb, pc, pd_), pts = load(ls["plant"])
+    (wa, wb, wc, wd), _ = load(ls["w1"])
+    def gamma_min():
+        gs = control.series(control.ss(wa, wb, wc, wd, pts), control.ss(pa, pb, pc, pd_, pts))
+        a, b, c = np.asarray(gs.A), np.asarray(gs.B), np.asarray(gs.C)
+        x = scipy.linalg.solve_discrete_are(a, b, c.T @ c, np.eye(b.shape[1]))
+        z = scipy.linalg.solve_discrete_are(a.T, c.T, b @ b.T, np.eye(c.shape[0]))
+        return float(np.sqrt(1 + max(abs(np.linalg.eigvals(x @ z)))))
+    t, g = median_time(gamma_min, ls["repeats"])
+    res["loopshape_scipy_gamma_min"] = {"median_s": t, "gamma_min": g}
 print(json.dumps(res))

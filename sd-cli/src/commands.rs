@@ -432,7 +432,11 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
                     d.gamma_min,
                     d.gamma,
                     d.achieved,
-                    if d.closed_loop_stable { "stable" } else { "UNSTABLE" }
+                    if d.closed_loop_stable {
+                        "stable"
+                    } else {
+                        "UNSTABLE"
+                    }
                 );
                 emit(&model_json(&d.controller)?, output.as_deref())
             }
@@ -463,7 +467,10 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
                     zeta_pole,
                     ts,
                     output,
-                } => (sd_hinf::weights::notch(freq_hz, zeta_zero, zeta_pole, ts), output),
+                } => (
+                    sd_hinf::weights::notch(freq_hz, zeta_zero, zeta_pole, ts),
+                    output,
+                ),
                 WeightKind::Lowpass {
                     freq_hz,
                     zeta,

@@ -306,8 +306,19 @@ fn issue4_weight_and_loopshape() {
     let dir = tmpdir("issue4");
     let ct = write(&dir, "ct.json", CT);
     let p = dir.join("p.json").to_string_lossy().into_owned();
-    assert!(sdctl(&["c2d", &ct, "--ts", "0.01", "-o", &p]).status.success());
-    let w = sdctl(&["weight", "pid", "--bandwidth-hz", "2", "--mass", "0.01", "--ts", "0.01"]);
+    assert!(sdctl(&["c2d", &ct, "--ts", "0.01", "-o", &p])
+        .status
+        .success());
+    let w = sdctl(&[
+        "weight",
+        "pid",
+        "--bandwidth-hz",
+        "2",
+        "--mass",
+        "0.01",
+        "--ts",
+        "0.01",
+    ]);
     let wm = model_of(&w);
     assert_eq!(wm.ts(), Some(0.01));
     let w1 = write(&dir, "w1.json", &String::from_utf8_lossy(&w.stdout));
@@ -318,7 +329,14 @@ fn issue4_weight_and_loopshape() {
     let o = sdctl(&["loopshape", &p, "--w1", &w1, "--json", "--strictly-proper"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    for key in ["gamma_min", "gamma", "controller", "shaped_controller", "closed_loop_stable", "riccati"] {
+    for key in [
+        "gamma_min",
+        "gamma",
+        "controller",
+        "shaped_controller",
+        "closed_loop_stable",
+        "riccati",
+    ] {
         assert!(v.get(key).is_some(), "missing {key}");
     }
     assert_eq!(v["closed_loop_stable"], true);
@@ -331,8 +349,20 @@ fn issue4_weight_and_loopshape() {
         assert!(r["residual"].as_f64().unwrap() < 1e-12);
     }
     // notch and low-pass
-    assert!(model_of(&sdctl(&["weight", "notch", "--freq-hz", "3", "--ts", "0.01"])).n() == 2);
-    assert!(model_of(&sdctl(&["weight", "lowpass", "--freq-hz", "3"])).ts().is_none());
+    assert!(
+        model_of(&sdctl(&[
+            "weight",
+            "notch",
+            "--freq-hz",
+            "3",
+            "--ts",
+            "0.01"
+        ]))
+        .n() == 2
+    );
+    assert!(model_of(&sdctl(&["weight", "lowpass", "--freq-hz", "3"]))
+        .ts()
+        .is_none());
     // bad input: exit 2, one line
     assert_input_error(&sdctl(&["loopshape", &p, "--factor", "1"]), "factor");
     assert_input_error(&sdctl(&["loopshape", &p, "--w1", &ct]), "sample time");
@@ -340,5 +370,8 @@ fn issue4_weight_and_loopshape() {
         &sdctl(&["weight", "notch", "--freq-hz", "70", "--ts", "0.01"]),
         "nyquist",
     );
-    assert_input_error(&sdctl(&["weight", "pid", "--bandwidth-hz", "-3", "--mass", "1"]), "bandwidth");
+    assert_input_error(
+        &sdctl(&["weight", "pid", "--bandwidth-hz", "-3", "--mass", "1"]),
+        "bandwidth",
+    );
 }

@@ -98,13 +98,16 @@ pub fn hinf_norm_lmi(sys: &StateSpace) -> Result<LmiNorm> {
             e[(j, i)] = 1.0;
             let mut m = DMatrix::<f64>::zeros(k, k);
             if discrete {
-                m.view_mut((0, 0), (n, n)).copy_from(&(a.transpose() * &e * a - &e));
+                m.view_mut((0, 0), (n, n))
+                    .copy_from(&(a.transpose() * &e * a - &e));
                 let apb = a.transpose() * &e * b;
                 m.view_mut((0, n), (n, nu)).copy_from(&apb);
                 m.view_mut((n, 0), (nu, n)).copy_from(&apb.transpose());
-                m.view_mut((n, n), (nu, nu)).copy_from(&(b.transpose() * &e * b));
+                m.view_mut((n, n), (nu, nu))
+                    .copy_from(&(b.transpose() * &e * b));
             } else {
-                m.view_mut((0, 0), (n, n)).copy_from(&(a.transpose() * &e + &e * a));
+                m.view_mut((0, 0), (n, n))
+                    .copy_from(&(a.transpose() * &e + &e * a));
                 let pb = &e * b;
                 m.view_mut((0, n), (n, nu)).copy_from(&pb);
                 m.view_mut((n, 0), (nu, n)).copy_from(&pb.transpose());
@@ -137,7 +140,7 @@ pub fn hinf_norm_lmi(sys: &StateSpace) -> Result<LmiNorm> {
         }
     });
     let mut bvec: Vec<f64> = svec(&m0).iter().map(|v| -v).collect();
-    bvec.extend(std::iter::repeat(0.0).take(np));
+    bvec.extend(std::iter::repeat_n(0.0, np));
     let amat = to_csc(&dense);
     let pmat = CscMatrix::<f64>::zeros((nvar, nvar));
     let mut q = vec![0.0; nvar];

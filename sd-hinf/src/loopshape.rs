@@ -214,7 +214,9 @@ pub fn four_block(g: &StateSpace, k: &StateSpace) -> Result<StateSpace> {
     let (ng, nk) = (g.n(), k.n());
     let e = (DMatrix::<f64>::identity(ny, ny) + g.d() * k.d())
         .try_inverse()
-        .ok_or_else(|| HinfError::InvalidArgument("I + D_G D_K is singular (ill-posed loop)".into()))?;
+        .ok_or_else(|| {
+            HinfError::InvalidArgument("I + D_G D_K is singular (ill-posed loop)".into())
+        })?;
     // y = E (C_g x_g − D_g C_k x_k + d_y + D_g d_u)
     let yx = &e * g.c();
     let yk = -(&e * g.d() * k.c());
@@ -231,13 +233,16 @@ pub fn four_block(g: &StateSpace, k: &StateSpace) -> Result<StateSpace> {
     let mut c = DMatrix::<f64>::zeros(ny + nu, n);
     let mut d = DMatrix::<f64>::zeros(ny + nu, ny + nu);
     // x_g⁺ = A_g x_g + B_g (u + d_u)
-    a.view_mut((0, 0), (ng, ng)).copy_from(&(g.a() + g.b() * &ux));
+    a.view_mut((0, 0), (ng, ng))
+        .copy_from(&(g.a() + g.b() * &ux));
     a.view_mut((0, ng), (ng, nk)).copy_from(&(g.b() * &uk));
     b.view_mut((0, 0), (ng, ny)).copy_from(&(g.b() * &udy));
-    b.view_mut((0, ny), (ng, nu)).copy_from(&(g.b() * (&udu + DMatrix::<f64>::identity(nu, nu))));
+    b.view_mut((0, ny), (ng, nu))
+        .copy_from(&(g.b() * (&udu + DMatrix::<f64>::identity(nu, nu))));
     // x_k⁺ = A_k x_k + B_k y
     a.view_mut((ng, 0), (nk, ng)).copy_from(&(k.b() * &yx));
-    a.view_mut((ng, ng), (nk, nk)).copy_from(&(k.a() + k.b() * &yk));
+    a.view_mut((ng, ng), (nk, nk))
+        .copy_from(&(k.a() + k.b() * &yk));
     b.view_mut((ng, 0), (nk, ny)).copy_from(&(k.b() * &ydy));
     b.view_mut((ng, ny), (nk, nu)).copy_from(&(k.b() * &ydu));
     c.view_mut((0, 0), (ny, ng)).copy_from(&yx);
@@ -301,7 +306,11 @@ pub fn loopshape(
         Some(w) => w.clone(),
         None => unit_gain(plant.ny(), time)?,
     };
-    if w1.nu() != plant.nu() || w1.ny() != plant.nu() || w2.nu() != plant.ny() || w2.ny() != plant.ny() {
+    if w1.nu() != plant.nu()
+        || w1.ny() != plant.nu()
+        || w2.nu() != plant.ny()
+        || w2.ny() != plant.ny()
+    {
         return Err(HinfError::InvalidArgument(format!(
             "W1 must be {0}x{0} and W2 {1}x{1} for a {1}x{0} plant (got {2}x{3} and {4}x{5})",
             plant.nu(),

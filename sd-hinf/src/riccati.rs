@@ -35,10 +35,11 @@
 
 use crate::error::{HinfError, Result};
 use crate::tol;
+use faer::linalg::matmul::matmul;
+use faer::linalg::solvers::Solve;
+use faer::{Accum, Mat, MatRef, Par};
 use nalgebra::DMatrix;
 use num_complex::Complex64 as C;
-use faer::linalg::solvers::Solve;
-use faer::Mat;
 use sd_model::linalg::convert::{eigenvalues, from_faer, generalized_eigenvalues, to_faer};
 use sd_model::linalg::expm::balance_diag;
 use sd_model::linalg::lyap::{lyap, LyapKind};
@@ -133,7 +134,10 @@ fn check(
 fn spd_solve(r: &DMatrix<f64>, m: &DMatrix<f64>) -> Option<DMatrix<f64>> {
     let ch = r.clone().cholesky()?;
     let l = ch.l();
-    let dmin = l.diagonal().iter().fold(f64::INFINITY, |acc, v| acc.min(v.abs()));
+    let dmin = l
+        .diagonal()
+        .iter()
+        .fold(f64::INFINITY, |acc, v| acc.min(v.abs()));
     let dmax = l.diagonal().iter().fold(0.0f64, |acc, v| acc.max(v.abs()));
     if dmin <= tol::SPD_PIVOT * dmax {
         return None;
@@ -187,19 +191,34 @@ fn all_finite(m: &Mat<f64>) -> bool {
     (0..m.ncols()).all(|j| (0..m.nrows()).all(|i| m[(i, j)].is_finite()))
 }
 
-/// SDA on `(A, G, H)` (faer products and LU); returns `(X, iterations)`.
+/// `dst ← (accumulate ? dst : 0) + lhs·rhs` without allocating.
+fn mm(dst: &mut Mat<f64>, add: bool, lhs: MatRef<'_, f64>, rhs: MatRef<'_, f64>) {
+    matmul(
+        dst.as_mut(),
+        if add { Accum::Add } else { Accum::Replace },
+        lhs,
+        rhs,
+        1.0,
+        Par::Seq,
+    );
+}
+
+/// SDA on `(A, G, H)` (faer products and LU, work matrices allocated once); returns
+/// `(X, iterations)`.
 fn doubling(a: &DMatrix<f64>, g: &DMatrix<f64>, h: &DMatrix<f64>) -> Result<(DMatrix<f64>, usize)> {
     let n = a.nrows();
     let (mut ak, mut gk, mut hk) = (to_faer(a), to_faer(g), to_faer(h));
+    let z = || Mat::<f64>::zeros(n, n);
+    let (mut w, mut t1, mut hn, mut gn, mut an) = (z(), z(), z(), z(), z());
+    let mut rhs = Mat::<f64>::zeros(n, 2 * n);
     let singular = || HinfError::Numerical("I + G_k H_k is singular in the doubling".into());
     for it in 0..tol::MAX_DOUBLING {
-        let mut w = &gk * &hk;
+        mm(&mut w, false, gk.as_ref(), hk.as_ref());
         for i in 0..n {
             w[(i, i)] += 1.0;
         }
         let lu = w.partial_piv_lu();
         // one solve for [W⁻¹A_k, W⁻¹G_k]
-        let mut rhs = Mat::<f64>::zeros(n, 2 * n);
         rhs.as_mut().submatrix_mut(0, 0, n, n).copy_from(&ak);
         rhs.as_mut().submatrix_mut(0, n, n, n).copy_from(&gk);
         lu.solve_in_place(rhs.as_mut());
@@ -208,22 +227,38 @@ fn doubling(a: &DMatrix<f64>, g: &DMatrix<f64>, h: &DMatrix<f64>) -> Result<(DMa
         }
         let v1 = rhs.as_ref().submatrix(0, 0, n, n);
         let v2 = rhs.as_ref().submatrix(0, n, n, n);
-        // the three updates are independent: run them side by side
-        let (mut h_next, (mut g_next, a_next)) = rayon::join(
-            || &hk + ak.transpose() * (&hk * v1),
-            || rayon::join(|| &gk + &ak * (v2 * ak.transpose()), || &ak * v1),
-        );
-        fsym(&mut h_next);
-        fsym(&mut g_next);
-        let dh = (&h_next - &hk).norm_l2();
-        let hn = h_next.norm_l2();
-        if !hn.is_finite() {
-            return Err(HinfError::Numerical("the doubling iteration diverged".into()));
+        // H⁺ = H + Aᵀ(H V1)
+        mm(&mut t1, false, hk.as_ref(), v1);
+        hn.copy_from(&hk);
+        mm(&mut hn, true, ak.transpose(), t1.as_ref());
+        // G⁺ = G + A(V2 Aᵀ)
+        mm(&mut t1, false, v2, ak.transpose());
+        gn.copy_from(&gk);
+        mm(&mut gn, true, ak.as_ref(), t1.as_ref());
+        // A⁺ = A V1
+        mm(&mut an, false, ak.as_ref(), v1);
+        fsym(&mut hn);
+        fsym(&mut gn);
+        // ‖H⁺ − H‖ without a temporary
+        let mut dh2 = 0.0;
+        let mut h2 = 0.0;
+        for j in 0..n {
+            for i in 0..n {
+                let (x, y) = (hn[(i, j)], hk[(i, j)]);
+                dh2 += (x - y) * (x - y);
+                h2 += x * x;
+            }
         }
-        hk = h_next;
-        gk = g_next;
-        ak = a_next;
-        if dh <= tol::DOUBLING_STOP * hn.max(f64::MIN_POSITIVE) {
+        let (dh, hnorm) = (dh2.sqrt(), h2.sqrt());
+        if !hnorm.is_finite() {
+            return Err(HinfError::Numerical(
+                "the doubling iteration diverged".into(),
+            ));
+        }
+        std::mem::swap(&mut hk, &mut hn);
+        std::mem::swap(&mut gk, &mut gn);
+        std::mem::swap(&mut ak, &mut an);
+        if dh <= tol::DOUBLING_STOP * hnorm.max(f64::MIN_POSITIVE) {
             return Ok((from_faer(hk.as_ref()), it + 1));
         }
     }
@@ -238,17 +273,24 @@ fn stein_identity(m: &DMatrix<f64>) -> Option<DMatrix<f64>> {
     let n = m.nrows();
     let mut p = Mat::<f64>::identity(n, n);
     let mut mk = to_faer(m);
+    let (mut t, mut inc, mut sq) = (
+        Mat::<f64>::zeros(n, n),
+        Mat::<f64>::zeros(n, n),
+        Mat::<f64>::zeros(n, n),
+    );
     for _ in 0..tol::MAX_DOUBLING {
-        let inc = mk.transpose() * (&p * &mk);
+        mm(&mut t, false, p.as_ref(), mk.as_ref());
+        mm(&mut inc, false, mk.transpose(), t.as_ref());
         let (ni, np) = (inc.norm_l2(), p.norm_l2());
-        p = &p + &inc;
+        p += &inc;
         if !np.is_finite() {
             return None;
         }
         if ni <= f64::EPSILON * np {
             return Some(from_faer(p.as_ref()));
         }
-        mk = &mk * &mk;
+        mm(&mut sq, false, mk.as_ref(), mk.as_ref());
+        std::mem::swap(&mut mk, &mut sq);
     }
     None
 }
@@ -325,8 +367,9 @@ fn dare_initial(d: &Data) -> Result<(DMatrix<f64>, usize)> {
 
 fn care_residual(d: &Data, x: &DMatrix<f64>) -> Result<(DMatrix<f64>, f64, DMatrix<f64>)> {
     let t = x * &d.b + &d.s; // XB + S
-    let k = spd_solve(&d.r, &t.transpose())
-        .ok_or_else(|| HinfError::InvalidArgument("R must be positive definite for the CARE".into()))?;
+    let k = spd_solve(&d.r, &t.transpose()).ok_or_else(|| {
+        HinfError::InvalidArgument("R must be positive definite for the CARE".into())
+    })?;
     let ax = d.a.transpose() * x;
     let tk = &t * &k;
     let res = symmetrize(&(&ax + ax.transpose() - &tk + &d.q));
@@ -391,12 +434,14 @@ fn care_initial(d: &Data) -> Result<DMatrix<f64>> {
     let u21 = u.view((n, 0), (n, n)).into_owned();
     // X U11 = U21  ⇔  U11ᵀ Xᵀ = U21ᵀ
     let lu = u11.transpose().lu();
-    let xt = lu.solve(&u21.transpose()).ok_or_else(|| HinfError::NoStabilizingSolution {
-        equation: "CARE".into(),
-        reason: "the stable invariant subspace is not a graph (U11 singular): (A, B) is not \
+    let xt = lu
+        .solve(&u21.transpose())
+        .ok_or_else(|| HinfError::NoStabilizingSolution {
+            equation: "CARE".into(),
+            reason: "the stable invariant subspace is not a graph (U11 singular): (A, B) is not \
                  stabilizable"
-            .into(),
-    })?;
+                .into(),
+        })?;
     let x = xt.transpose().map(|z| z.re);
     Ok(symmetrize(&x))
 }
@@ -447,7 +492,12 @@ fn residual(d: &Data, x: &DMatrix<f64>, kind: Kind) -> Result<(DMatrix<f64>, f64
 }
 
 /// Newton refinement, closed loop, condition; errors if the result is not stabilizing.
-fn finish(d: &Data, x0: DMatrix<f64>, doubling_steps: usize, kind: Kind) -> Result<RiccatiSolution> {
+fn finish(
+    d: &Data,
+    x0: DMatrix<f64>,
+    doubling_steps: usize,
+    kind: Kind,
+) -> Result<RiccatiSolution> {
     let mut x = x0;
     let (mut res, mut rel, mut k) = residual(d, &x, kind)?;
     let mut steps = 0;
@@ -462,8 +512,10 @@ fn finish(d: &Data, x0: DMatrix<f64>, doubling_steps: usize, kind: Kind) -> Resu
         };
         let Ok(delta) = delta else { break };
         let xn = symmetrize(&(&x + &delta));
-        let Ok((rn, reln, kn)) = residual(d, &xn, kind) else { break };
-        if !(reln < rel) {
+        let Ok((rn, reln, kn)) = residual(d, &xn, kind) else {
+            break;
+        };
+        if reln.partial_cmp(&rel) != Some(std::cmp::Ordering::Less) {
             break;
         }
         x = xn;
@@ -487,13 +539,15 @@ fn finish(d: &Data, x0: DMatrix<f64>, doubling_steps: usize, kind: Kind) -> Resu
         Kind::Continuous => cl < 0.0,
     };
     if !stabilizing {
-        return Err(diagnose(d, kind).unwrap_or_else(|| HinfError::NoStabilizingSolution {
-            equation: name(kind).into(),
-            reason: format!(
+        return Err(
+            diagnose(d, kind).unwrap_or_else(|| HinfError::NoStabilizingSolution {
+                equation: name(kind).into(),
+                reason: format!(
                 "the computed solution does not stabilize the closed loop (closed-loop {} = {cl})",
                 if kind == Kind::Discrete { "spectral radius" } else { "abscissa" }
             ),
-        }));
+            }),
+        );
     }
     Ok(RiccatiSolution {
         x,
@@ -588,7 +642,8 @@ fn diagnose(d: &Data, kind: Kind) -> Option<HinfError> {
             l.view_mut((2 * n, 2 * n), (m, m)).copy_from(&d.r);
             e.view_mut((0, 0), (n, n)).fill_with_identity();
             e.view_mut((n, n), (n, n)).copy_from(&d.a.transpose());
-            e.view_mut((2 * n, n), (m, n)).copy_from(&(-d.b.transpose()));
+            e.view_mut((2 * n, n), (m, n))
+                .copy_from(&(-d.b.transpose()));
         }
         Kind::Continuous => {
             // [A 0 B; −Q −Aᵀ −S; Sᵀ Bᵀ R] − λ [I 0 0; 0 I 0; 0 0 0]
@@ -618,8 +673,16 @@ fn diagnose(d: &Data, kind: Kind) -> Option<HinfError> {
                     "the {} pencil has an eigenvalue on the {} at {:.6}{:+.6}i: a mode there \
                      that the input cannot move or Q does not see, or a loop that cannot be \
                      made strictly stable",
-                    if kind == Kind::Discrete { "symplectic" } else { "Hamiltonian" },
-                    if kind == Kind::Discrete { "unit circle" } else { "imaginary axis" },
+                    if kind == Kind::Discrete {
+                        "symplectic"
+                    } else {
+                        "Hamiltonian"
+                    },
+                    if kind == Kind::Discrete {
+                        "unit circle"
+                    } else {
+                        "imaginary axis"
+                    },
                     z.re,
                     z.im
                 )));
@@ -694,13 +757,25 @@ mod tests {
     fn scalar_dare_and_care() {
         // DT: x = a²x − a²x²b²/(r + b²x) + q with a = 2, b = 1, q = 1, r = 1:
         // x² − 4x − 1 = 0 → x = 2 + √5
-        let s = dare(&m(1, 1, &[2.0]), &m(1, 1, &[1.0]), &m(1, 1, &[1.0]), &m(1, 1, &[1.0]), None)
-            .unwrap();
+        let s = dare(
+            &m(1, 1, &[2.0]),
+            &m(1, 1, &[1.0]),
+            &m(1, 1, &[1.0]),
+            &m(1, 1, &[1.0]),
+            None,
+        )
+        .unwrap();
         assert!((s.x[(0, 0)] - (2.0 + 5f64.sqrt())).abs() < 1e-13);
         assert!(s.closed_loop < 1.0 && s.residual < 1e-15);
         // CT: 2ax − x² + 1 = 0 with a = 1 → x = 1 + √2
-        let s = care(&m(1, 1, &[1.0]), &m(1, 1, &[1.0]), &m(1, 1, &[1.0]), &m(1, 1, &[1.0]), None)
-            .unwrap();
+        let s = care(
+            &m(1, 1, &[1.0]),
+            &m(1, 1, &[1.0]),
+            &m(1, 1, &[1.0]),
+            &m(1, 1, &[1.0]),
+            None,
+        )
+        .unwrap();
         assert!((s.x[(0, 0)] - (1.0 + 2f64.sqrt())).abs() < 1e-13);
         assert!(s.closed_loop < 0.0);
     }
@@ -731,7 +806,10 @@ mod tests {
         let q = DMatrix::identity(2, 2);
         let r = m(1, 1, &[1.0]);
         let e = dare(&a, &b, &q, &r, None).unwrap_err().to_string();
-        assert!(e.contains("not stabilizable") || e.contains("unit circle"), "{e}");
+        assert!(
+            e.contains("not stabilizable") || e.contains("unit circle"),
+            "{e}"
+        );
         // an undamped oscillator that Q does not see: eigenvalues on the circle
         let w: f64 = 0.3;
         let a = m(2, 2, &[w.cos(), w.sin(), -w.sin(), w.cos()]);
@@ -740,7 +818,10 @@ mod tests {
         assert!(e.contains("unit circle") || e.contains("detectable"), "{e}");
         let ac = m(2, 2, &[0.0, 1.0, -1.0, 0.0]);
         let e = care(&ac, &b, &q, &r, None).unwrap_err().to_string();
-        assert!(e.contains("imaginary axis") || e.contains("detectable"), "{e}");
+        assert!(
+            e.contains("imaginary axis") || e.contains("detectable"),
+            "{e}"
+        );
         // bad shapes and asymmetry
         assert!(dare(&a, &b, &m(2, 2, &[1.0, 2.0, 0.0, 1.0]), &r, None).is_err());
         assert!(care(&a, &b, &q, &m(2, 2, &[1.0, 0.0, 0.0, 1.0]), None).is_err());

@@ -62,7 +62,10 @@ fn chain(parts: &[StateSpace]) -> Result<StateSpace> {
     let mut it = parts.iter();
     let mut acc = match it.next() {
         Some(p) => p.clone(),
-        None => StateSpace::gain(nalgebra::DMatrix::from_element(1, 1, 1.0), SampleTime::Continuous)?,
+        None => StateSpace::gain(
+            nalgebra::DMatrix::from_element(1, 1, 1.0),
+            SampleTime::Continuous,
+        )?,
     };
     for p in it {
         acc = series(&acc, p)?;
@@ -81,7 +84,13 @@ fn discretize(w: StateSpace, ts: Option<f64>, f_hz: f64) -> Result<StateSpace> {
                     0.5 / ts
                 )));
             }
-            Ok(c2d(&w, ts, Discretization::Tustin { prewarp_hz: Some(f_hz) })?)
+            Ok(c2d(
+                &w,
+                ts,
+                Discretization::Tustin {
+                    prewarp_hz: Some(f_hz),
+                },
+            )?)
         }
     }
 }
@@ -105,13 +114,18 @@ pub fn pid(bandwidth_hz: f64, mass: f64, ts: Option<f64>, opt: &PidOptions) -> R
         (opt.lowpass_ratio, "low-pass ratio"),
     ] {
         if !(v.is_finite() && v >= 0.0) {
-            return Err(HinfError::InvalidArgument(format!("{what} {v} must be >= 0")));
+            return Err(HinfError::InvalidArgument(format!(
+                "{what} {v} must be >= 0"
+            )));
         }
     }
     let wc = 2.0 * PI * bandwidth_hz;
     let mut parts = Vec::new();
     if opt.integrator_ratio > 0.0 {
-        parts.push(section(vec![1.0, wc / opt.integrator_ratio], vec![1.0, 0.0])?);
+        parts.push(section(
+            vec![1.0, wc / opt.integrator_ratio],
+            vec![1.0, 0.0],
+        )?);
     }
     if opt.lead_ratio > 1.0 {
         let (wz, wp) = (wc / opt.lead_ratio, wc * opt.lead_ratio);
@@ -138,10 +152,15 @@ pub fn pid(bandwidth_hz: f64, mass: f64, ts: Option<f64>, opt: &PidOptions) -> R
     let shape = chain(&parts)?;
     let g = shape.eval_direct(C::new(0.0, wc))?[(0, 0)].norm();
     if !(g.is_finite() && g > 0.0) {
-        return Err(HinfError::Numerical("the weight's gain at crossover is not finite".into()));
+        return Err(HinfError::Numerical(
+            "the weight's gain at crossover is not finite".into(),
+        ));
     }
     let k = mass * wc * wc / g;
-    let gain = StateSpace::gain(nalgebra::DMatrix::from_element(1, 1, k), SampleTime::Continuous)?;
+    let gain = StateSpace::gain(
+        nalgebra::DMatrix::from_element(1, 1, k),
+        SampleTime::Continuous,
+    )?;
     discretize(series(&shape, &gain)?, ts, bandwidth_hz)
 }
 
@@ -192,10 +211,22 @@ mod tests {
             let w = pid(65.0, 20.0, ts, &PidOptions::default()).unwrap();
             let wc = 2.0 * PI * 65.0;
             // |W/(m s²)| = 1 at ω_c, exactly also in discrete time (prewarped there)
-            assert!((mag(&w, 65.0) / (20.0 * wc * wc) - 1.0).abs() < 1e-9, "{ts:?}");
+            assert!(
+                (mag(&w, 65.0) / (20.0 * wc * wc) - 1.0).abs() < 1e-9,
+                "{ts:?}"
+            );
             assert!(mag(&w, 1.0) > mag(&w, 10.0)); // integrator
         }
-        assert!(pid(65.0, 20.0, Some(1e-3), &PidOptions { lowpass_ratio: 10.0, ..Default::default() }).is_err());
+        assert!(pid(
+            65.0,
+            20.0,
+            Some(1e-3),
+            &PidOptions {
+                lowpass_ratio: 10.0,
+                ..Default::default()
+            }
+        )
+        .is_err());
         assert!(pid(-1.0, 20.0, None, &PidOptions::default()).is_err());
     }
 

@@ -21,15 +21,28 @@ fn confirm(name: &str, p: &StateSpace, w1: Option<&StateSpace>, opt: LoopshapeOp
         d.gamma, lmi.gamma, lmi.status
     );
     assert!(rel <= 1e-5, "{name}: LMI {} vs H∞ {ours}", lmi.gamma);
-    assert!(lmi.gamma <= d.gamma * (1.0 + 1e-6), "{name}: LMI level above γ");
+    assert!(
+        lmi.gamma <= d.gamma * (1.0 + 1e-6),
+        "{name}: LMI level above γ"
+    );
 }
 
 #[test]
 fn issue4_lmi_confirms_achieved_gamma() {
     let (g, w) = sp93();
-    confirm("S&P 9.3 continuous", &g, Some(&w), LoopshapeOptions::default());
+    confirm(
+        "S&P 9.3 continuous",
+        &g,
+        Some(&w),
+        LoopshapeOptions::default(),
+    );
     let (g, w) = sp93_discrete();
-    confirm("S&P 9.3 discrete", &g, Some(&w), LoopshapeOptions::default());
+    confirm(
+        "S&P 9.3 discrete",
+        &g,
+        Some(&w),
+        LoopshapeOptions::default(),
+    );
     let (g, w) = resonance();
     confirm("resonance", &g, Some(&w), LoopshapeOptions::default());
     let g = sb10kd_plant();
@@ -45,5 +58,10 @@ fn issue4_lmi_confirms_achieved_gamma() {
     );
     let p = paper_stage_1khz();
     let w1 = weights::pid(65.0, 20.0, Some(1e-3), &Default::default()).unwrap();
-    confirm("paper stage 1 kHz", &p, Some(&w1), LoopshapeOptions::default());
+    confirm(
+        "paper stage 1 kHz",
+        &p,
+        Some(&w1),
+        LoopshapeOptions::default(),
+    );
 }

@@ -39,14 +39,30 @@ fn check(name: &str, d: &Loopshape, expected_gamma_min: Option<f64>) {
         d.riccati.iter().map(|r| format!("{} {:.1e}", r.name, r.residual)).collect::<Vec<_>>()
     );
     if let Some(g) = expected_gamma_min {
-        assert!((d.gamma_min - g).abs() <= 1e-6 * g, "{name}: γ_min {} vs {g}", d.gamma_min);
+        assert!(
+            (d.gamma_min - g).abs() <= 1e-6 * g,
+            "{name}: γ_min {} vs {g}",
+            d.gamma_min
+        );
     }
     assert!((achieved - d.achieved).abs() <= 1e-9 * achieved);
-    assert!(achieved <= d.gamma * (1.0 + 1e-6), "{name}: achieved {achieved} > γ {}", d.gamma);
-    assert!(achieved >= d.gamma_min * (1.0 - 1e-6), "{name}: achieved below γ_min?");
+    assert!(
+        achieved <= d.gamma * (1.0 + 1e-6),
+        "{name}: achieved {achieved} > γ {}",
+        d.gamma
+    );
+    assert!(
+        achieved >= d.gamma_min * (1.0 - 1e-6),
+        "{name}: achieved below γ_min?"
+    );
     assert!(d.closed_loop_stable, "{name}: closed loop unstable");
     for r in &d.riccati {
-        assert!(r.residual <= 1e-12, "{name}: {} residual {:e}", r.name, r.residual);
+        assert!(
+            r.residual <= 1e-12,
+            "{name}: {} residual {:e}",
+            r.name,
+            r.residual
+        );
     }
 }
 
@@ -54,7 +70,11 @@ fn check(name: &str, d: &Loopshape, expected_gamma_min: Option<f64>) {
 fn issue4_skogestad_postlethwaite_9_3_continuous_and_discrete() {
     let (g, w1) = sp93();
     let d = loopshape(&g, Some(&w1), None, &LoopshapeOptions::default()).unwrap();
-    check("S&P 9.3 continuous", &d, Some(recomputed("S&P Ex 9.3 continuous", "recomputed")));
+    check(
+        "S&P 9.3 continuous",
+        &d,
+        Some(recomputed("S&P Ex 9.3 continuous", "recomputed")),
+    );
     let (gd, wd) = sp93_discrete();
     let d = loopshape(&gd, Some(&wd), None, &LoopshapeOptions::default()).unwrap();
     let want = recomputed("S&P Ex 9.3 discrete", "recomputed");
@@ -67,19 +87,39 @@ fn issue4_lightly_damped_resonance() {
     // G = 16/(s² + 0.16 s + 16), W1 = (1 + 0.8/s)/(s/20 + 1) (negative-feedback sign)
     let (g, w1) = resonance();
     let d = loopshape(&g, Some(&w1), None, &LoopshapeOptions::default()).unwrap();
-    check("resonance", &d, Some(recomputed("MathWorks", "recomputed_gamma_min")));
+    check(
+        "resonance",
+        &d,
+        Some(recomputed("MathWorks", "recomputed_gamma_min")),
+    );
 }
 
 #[test]
 fn issue4_slicot_sb10kd_example_and_strictly_proper() {
     let g = sb10kd_plant();
     let d = loopshape(&g, None, None, &LoopshapeOptions::default()).unwrap();
-    check("SB10KD", &d, Some(recomputed("SLICOT SB10KD", "recomputed_gamma_min")));
-    let sp = loopshape(&g, None, None, &LoopshapeOptions { factor: 1.1, strictly_proper: true }).unwrap();
+    check(
+        "SB10KD",
+        &d,
+        Some(recomputed("SLICOT SB10KD", "recomputed_gamma_min")),
+    );
+    let sp = loopshape(
+        &g,
+        None,
+        None,
+        &LoopshapeOptions {
+            factor: 1.1,
+            strictly_proper: true,
+        },
+    )
+    .unwrap();
     check("SB10KD strictly proper", &sp, None);
     assert_eq!(sp.shaped_controller.d().norm(), 0.0);
     assert!(sp.gamma_min >= d.gamma_min * (1.0 - 1e-9));
-    println!("strictly proper γ_min {:.6} vs proper {:.6}", sp.gamma_min, d.gamma_min);
+    println!(
+        "strictly proper γ_min {:.6} vs proper {:.6}",
+        sp.gamma_min, d.gamma_min
+    );
 }
 
 #[test]
@@ -111,11 +151,15 @@ fn issue4_paper_design_dips_at_the_aliased_mode() {
         .map(|g| 20.0 * g[(0, 0)].norm().log10())
         .collect();
     // depth below the straight line between the band edges (dB over Hz)
-    let line = |i: usize| mag[0] + (mag[mag.len() - 1] - mag[0]) * (f[i] - f[0]) / (f[f.len() - 1] - f[0]);
+    let line =
+        |i: usize| mag[0] + (mag[mag.len() - 1] - mag[0]) * (f[i] - f[0]) / (f[f.len() - 1] - f[0]);
     let (imin, depth) = (0..f.len())
         .map(|i| (i, line(i) - mag[i]))
         .max_by(|a, b| a.1.total_cmp(&b.1))
         .unwrap();
-    println!("controller gain dip at {:.2} Hz, {:.1} dB deep", f[imin], depth);
+    println!(
+        "controller gain dip at {:.2} Hz, {:.1} dB deep",
+        f[imin], depth
+    );
     assert!((f[imin] - 347.0).abs() < 10.0 && depth > 3.0);
 }

@@ -45,10 +45,16 @@ fn issue4_riccati_exact_cases() {
             if ok { "" } else { "  FAIL" }
         ));
         if !ok {
-            failures.push(format!("{name}: relative error {err:e} (scipy {scipy:e}, κε {:e})", sol.condition * f64::EPSILON));
+            failures.push(format!(
+                "{name}: relative error {err:e} (scipy {scipy:e}, κε {:e})",
+                sol.condition * f64::EPSILON
+            ));
         }
         if c["name"] == "CAREX 2.6" && c["param"].as_f64() == Some(1e6) {
-            assert!(err < 8.6e-4, "CAREX 2.6 at 1e6: {err:e} does not beat scipy's 8.6e-4");
+            assert!(
+                err < 8.6e-4,
+                "CAREX 2.6 at 1e6: {err:e} does not beat scipy's 8.6e-4"
+            );
         }
     }
     println!("{}", rows.join("\n"));

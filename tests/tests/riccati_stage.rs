@@ -32,6 +32,9 @@ fn issue4_stage60_dare() {
         assert!(sol.closed_loop < 1.0);
         // the solution is symmetric positive semidefinite
         assert!((&sol.x - sol.x.transpose()).norm() == 0.0);
-        assert!(sol.x.clone().cholesky().is_some() || sol.x.symmetric_eigenvalues().min() > -1e-10 * sol.x.norm());
+        assert!(
+            sol.x.clone().cholesky().is_some()
+                || sol.x.symmetric_eigenvalues().min() > -1e-10 * sol.x.norm()
+        );
     }
 }

@@ -68,6 +68,39 @@ pub fn run(quick: bool) -> Result<(), String> {
     std::fs::write(&dt_path, sd_model::model_to_json_string(&pd).map_err(e)?)
         .map_err(|x| x.to_string())?;
 
+    // DARE of the 60-state stage at 5 kHz (timed before the 200 000-point frequency response,
+    // whose many small allocations slow every later allocation-heavy timing in this process) (Q = CᵀC, R = 1) and a loopshaping design at 1 kHz
+    eprintln!(
+        "[bench] DARE of the 60-state stage at 5 kHz, loopshaping of the paper stage at 1 kHz..."
+    );
+    let q = pd.c().transpose() * pd.c();
+    let r1 = nalgebra::DMatrix::from_element(1, 1, 1.0);
+    let (t_dare, sol) = time_it(reps * 4, || sd_hinf::dare(pd.a(), pd.b(), &q, &r1, None));
+    let sol = sol.map_err(|x| x.to_string())?;
+    let mut dare_entry = json!({"name": "dare", "size": "60-state stage at 5 kHz, Q = C'C, R = 1",
+        "ours_s": t_dare, "ours_rel_residual": sol.residual, "ours_closed_loop_radius": sol.closed_loop,
+        "ours_condition_estimate": sol.condition});
+    let p1k = c2d(
+        &sd_model::stage::paper_stage(0.01).map_err(e)?,
+        1e-3,
+        Discretization::Zoh,
+    )
+    .map_err(e)?;
+    let w1 = sd_hinf::weights::pid(65.0, 20.0, Some(1e-3), &Default::default())
+        .map_err(|x| x.to_string())?;
+    let (t_ls, design) = time_it(reps * 4, || {
+        sd_hinf::loopshape(&p1k, Some(&w1), None, &Default::default())
+    });
+    let design = design.map_err(|x| x.to_string())?;
+    let p1k_path = dir.join("paper_stage_1khz.json");
+    let w1_path = dir.join("w1_pid65.json");
+    std::fs::write(&p1k_path, sd_model::model_to_json_string(&p1k).map_err(e)?)
+        .map_err(|x| x.to_string())?;
+    std::fs::write(&w1_path, sd_model::model_to_json_string(&w1).map_err(e)?)
+        .map_err(|x| x.to_string())?;
+    let mut ls_entry = json!({"name": "loopshape", "size": "paper stage at 1 kHz (4 states) with a PID-like W1 (3 states)",
+        "ours_full_design_s": t_ls, "ours_gamma_min": design.gamma_min});
+
     // freqresp: library call and the whole sdctl process
     let (fmin, fmax) = (0.1, 2500.0);
     let f = grid(fmin, fmax, nfreq, true).map_err(e)?;
@@ -114,6 +147,8 @@ pub fn run(quick: bool) -> Result<(), String> {
             "c2d": {"model": ct_path, "ts": 2e-4, "repeats": reps * 10},
             "freqresp": {"model": dt_path, "fmin": fmin, "fmax": fmax, "n": nfreq, "log": true, "repeats": if quick { 1 } else { 3 }},
             "downsample": {"model": dt_path, "factor": 5, "repeats": reps * 10},
+            "dare": {"model": dt_path, "repeats": reps},
+            "loopshape": {"plant": p1k_path, "w1": w1_path, "repeats": reps * 4},
         });
         let cases_path = dir.join("python_cases.json");
         std::fs::write(&cases_path, cases.to_string()).map_err(|x| x.to_string())?;
@@ -182,9 +217,23 @@ pub fn run(quick: bool) -> Result<(), String> {
                 "numpy_rel_error_vs_zoh_1khz": {"a": rel(&a, direct.a()), "b": rel(&b, direct.b())}});
             ds_entry["ratio_numpy_over_ours"] = json!(t_np / t_ds);
         }
+        let sc = &py["dare_scipy"];
+        dare_entry["peer"] = json!({"scipy_solve_discrete_are": sc, "python_control_dare_slycot_sb02od": py["dare_python_control"]});
+        dare_entry["ratio_scipy_over_ours"] =
+            json!(sc["median_s"].as_f64().unwrap_or(f64::NAN) / t_dare);
+        let pl = &py["loopshape_scipy_gamma_min"];
+        ls_entry["peer"] = json!({"scipy_gamma_min_only": pl});
+        ls_entry["ratio_scipy_gamma_min_only_over_our_full_design"] =
+            json!(pl["median_s"].as_f64().unwrap_or(f64::NAN) / t_ls);
+        ls_entry["gamma_min_rel_difference"] = json!(
+            (pl["gamma_min"].as_f64().unwrap_or(f64::NAN) - design.gamma_min).abs()
+                / design.gamma_min
+        );
         entries.push(c2d_entry);
         entries.push(fr_entry);
         entries.push(ds_entry);
+        entries.push(dare_entry);
+        entries.push(ls_entry);
         let res = json!({"quick": quick, "python": py["versions"], "entries": entries});
         finish(&dir, res)
     } else {
@@ -192,6 +241,8 @@ pub fn run(quick: bool) -> Result<(), String> {
         entries.push(c2d_entry);
         entries.push(fr_entry);
         entries.push(ds_entry);
+        entries.push(dare_entry);
+        entries.push(ls_entry);
         finish(
             &dir,
             json!({"quick": quick, "python": null, "entries": entries}),
