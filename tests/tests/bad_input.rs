@@ -144,3 +144,85 @@ fn issue2_ill_posed_problems() {
     // H2 of an unstable model
     assert!(matches!(p.h2_norm(), Err(ModelError::Unstable { .. })));
 }
+
+#[test]
+fn issue3_issue4_bad_input_is_an_error_not_a_panic() {
+    use sd_hinf::{care, dare, loopshape, LoopshapeOptions};
+    use sd_multirate::{c2d_nonideal, downsample, lift, MultirateLoop, NonIdeal};
+    let d = |v: &[f64], r: usize| DMatrix::from_row_slice(r, v.len() / r, v);
+    let a = d(&[0.5, 0.1, 0.0, 0.7], 2);
+    let b = d(&[0.0, 1.0], 2);
+    let q = DMatrix::<f64>::identity(2, 2);
+    let r = d(&[1.0], 1);
+    // NaN, wrong shapes, asymmetric Q
+    let mut an = a.clone();
+    an[(0, 0)] = f64::NAN;
+    assert!(dare(&an, &b, &q, &r, None)
+        .unwrap_err()
+        .to_string()
+        .contains("NaN"));
+    assert!(care(&a, &d(&[1.0, 2.0, 3.0], 3), &q, &r, None).is_err());
+    assert!(dare(&a, &b, &d(&[1.0, 1.0, 0.0, 1.0], 2), &r, None)
+        .unwrap_err()
+        .to_string()
+        .contains("symmetric"));
+    assert!(dare(&a, &b, &q, &r, Some(&m(3, 1))).is_err());
+    // loopshaping: mixed domains, wrong weight shape, bad factor
+    let pd = StateSpace::new(
+        a.clone(),
+        b.clone(),
+        d(&[1.0, 0.0], 1),
+        m(1, 1),
+        SampleTime::discrete(0.1).unwrap(),
+    )
+    .unwrap();
+    let pc = StateSpace::new(
+        a.clone(),
+        b.clone(),
+        d(&[1.0, 0.0], 1),
+        m(1, 1),
+        SampleTime::Continuous,
+    )
+    .unwrap();
+    assert!(loopshape(&pd, Some(&pc), None, &LoopshapeOptions::default()).is_err());
+    let w2x2 =
+        StateSpace::gain(DMatrix::identity(2, 2), SampleTime::discrete(0.1).unwrap()).unwrap();
+    assert!(loopshape(&pd, Some(&w2x2), None, &LoopshapeOptions::default()).is_err());
+    assert!(loopshape(
+        &pd,
+        None,
+        None,
+        &LoopshapeOptions {
+            factor: f64::NAN,
+            strictly_proper: false
+        }
+    )
+    .is_err());
+    assert!(loopshape(
+        &pc,
+        None,
+        None,
+        &LoopshapeOptions {
+            factor: 1.1,
+            strictly_proper: true
+        }
+    )
+    .is_err());
+    // multirate: domains, factors, fractions, rates
+    assert!(downsample(&pc, 2).is_err() && lift(&pd, 0).is_err());
+    assert!(c2d_nonideal(
+        &pc,
+        0.1,
+        NonIdeal {
+            hold_delay: -0.1,
+            averaging: 0.0
+        }
+    )
+    .is_err());
+    assert!(c2d_nonideal(&pc, f64::INFINITY, NonIdeal::hold_delay(0.5)).is_err());
+    let kslow = StateSpace::gain(d(&[1.0], 1), SampleTime::discrete(0.3).unwrap()).unwrap();
+    assert!(MultirateLoop::new(&pd, &kslow, 2)
+        .unwrap_err()
+        .to_string()
+        .contains("ts"));
+}
