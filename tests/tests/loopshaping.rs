@@ -163,3 +163,31 @@ fn issue4_paper_design_dips_at_the_aliased_mode() {
     );
     assert!((f[imin] - 347.0).abs() < 10.0 && depth > 3.0);
 }
+
+#[test]
+fn issue4_shaped_plant_with_feedthrough() {
+    // a discrete shaped plant with D ≠ 0: handled by the R = I + DᵀD, S = CᵀD forms
+    let (g, w) = sp93_discrete();
+    let gd = StateSpace::new(
+        g.a().clone(),
+        g.b().clone(),
+        g.c().clone(),
+        DMatrix::from_element(1, 1, 0.3),
+        g.time(),
+    )
+    .unwrap();
+    let d = loopshape(&gd, Some(&w), None, &LoopshapeOptions::default()).unwrap();
+    check("S&P 9.3 discrete with D = 0.3", &d, None);
+    // and in continuous time
+    let (g, w) = sp93();
+    let gc = StateSpace::new(
+        g.a().clone(),
+        g.b().clone(),
+        g.c().clone(),
+        DMatrix::from_element(1, 1, 0.3),
+        g.time(),
+    )
+    .unwrap();
+    let d = loopshape(&gc, Some(&w), None, &LoopshapeOptions::default()).unwrap();
+    check("S&P 9.3 continuous with D = 0.3", &d, None);
+}
