@@ -1,3 +1,29 @@
-//! Multisine design, FRF estimation (periodic, closed loop, LPM) with variances, and discrete-time rational fitting. Owned by issue #5.
+//! `sd-ident`: from measured data to a discrete-time model.
 //!
-//! This crate has no public API yet: nothing here pretends to work before its issue lands.
+//! - [`multisine`]: random-phase, Schroeder and random-odd multisines on fold-aware grids, crest
+//!   factor, CSV output.
+//! - [`experiment`]: the DESIGN §4 manifest (TOML) and robust CSV reading.
+//! - [`frf`]: FRF of periodic data — closed loop `(Y/R)/(U/R)` or open loop — with variances
+//!   from the spread over periods, and noise / nonlinear-distortion levels.
+//! - [`lpm`]: the local polynomial method for transients and non-periodic (MIMO) data.
+//! - [`fit`]: discrete-time rational fitting up to order ~60 (SK iterations in a partial-fraction
+//!   basis, then Levenberg–Marquardt on the variance-weighted cost; stability by reflection;
+//!   rigid-body poles at z = 1 optionally fixed; order selection).
+
+pub mod error;
+pub mod experiment;
+pub mod fit;
+pub mod frf;
+pub mod lpm;
+pub mod multisine;
+pub mod rng;
+pub mod tol;
+
+pub use error::{IdentError, Result};
+pub use experiment::{parse_manifest, read_columns, Experiment, ExperimentSpec, Role};
+pub use fit::{
+    fit, fit_with_progress, model_cost, select_order, FitOptions, FitProgress, FitResult, Weighting,
+};
+pub use frf::{frf_periodic, DistortionReport, FrfEstimate, PeriodicOptions};
+pub use lpm::{lpm, lpm_closed_loop, LpmEstimate, LpmOptions};
+pub use multisine::{crest_factor, design, write_csv, Lines, Multisine, MultisineSpec, Phases};

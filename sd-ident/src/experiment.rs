@@ -1,0 +1,344 @@
+//! Measured experiments: the TOML manifest and the CSV data of DESIGN §4.
+//!
+//! The manifest lists `[[experiment]]` tables (`name`, `file`, `sample_rate_hz`, optional
+//! `period_samples`, `skip_periods`, `reference`, `role`, and the `input` and `output` column
+//! names). CSV files are read robustly: quoted headers, extra columns, trailing commas and empty
+//! cells in unused columns are fine; only the named columns are parsed, and a bad cell there is
+//! an error naming the file, line and column. Nothing depends on the signals' units or scale.
+//!
+//! The library never opens files: [`parse_manifest`] takes the manifest text and
+//! [`Experiment::from_reader`] a reader of the CSV; the CLI and xtask do the I/O.
+
+use crate::error::{IdentError, Result};
+use std::io::Read;
+
+/// Role of an experiment in a diagnosis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Role {
+    /// The model is fitted here.
+    Model,
+    /// The model's prediction is checked here (default).
+    Validation,
+}
+
+/// One `[[experiment]]` of a manifest.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExperimentSpec {
+    /// Unique name.
+    pub name: String,
+    /// CSV file, relative to the manifest.
+    pub file: String,
+    /// Sample rate (Hz).
+    pub sample_rate_hz: f64,
+    /// Samples per period of a periodic excitation.
+    pub period_samples: Option<usize>,
+    /// Leading periods to drop (transient).
+    pub skip_periods: usize,
+    /// Column of the external excitation, if any.
+    pub reference: Option<String>,
+    /// Column of the plant input.
+    pub input: String,
+    /// Column of the measured output.
+    pub output: String,
+    /// Model or validation.
+    pub role: Role,
+}
+
+/// An experiment with its signals.
+#[derive(Debug, Clone)]
+pub struct Experiment {
+    /// What the manifest says.
+    pub spec: ExperimentSpec,
+    /// Reference signal, if the manifest names one.
+    pub r: Option<Vec<f64>>,
+    /// Plant input.
+    pub u: Vec<f64>,
+    /// Measured output.
+    pub y: Vec<f64>,
+}
+
+fn fmt_err(detail: String) -> IdentError {
+    IdentError::Format {
+        file: "manifest".into(),
+        detail,
+    }
+}
+
+/// Parses a manifest (DESIGN §4).
+///
+/// # Errors
+/// TOML syntax (with line and column), a missing or mistyped field, duplicate names, a
+/// non-positive rate or period.
+pub fn parse_manifest(text: &str) -> Result<Vec<ExperimentSpec>> {
+    let doc: toml::Table = text
+        .parse()
+        .map_err(|e: toml::de::Error| fmt_err(e.to_string().replace('\n', " ")))?;
+    let list = doc
+        .get("experiment")
+        .and_then(|v| v.as_array())
+        .ok_or_else(|| fmt_err("no [[experiment]] tables".into()))?;
+    let mut out: Vec<ExperimentSpec> = Vec::with_capacity(list.len());
+    for (i, item) in list.iter().enumerate() {
+        let t = item
+            .as_table()
+            .ok_or_else(|| fmt_err(format!("experiment {} is not a table", i + 1)))?;
+        let ctx = |field: &str, what: &str| {
+            let name = t.get("name").and_then(|v| v.as_str()).unwrap_or("?");
+            fmt_err(format!("experiment {} ({name}): `{field}` {what}", i + 1))
+        };
+        let s = |field: &str| -> Result<String> {
+            t.get(field)
+                .and_then(|v| v.as_str())
+                .map(str::to_string)
+                .ok_or_else(|| ctx(field, "is missing or not a string"))
+        };
+        let opt_s = |field: &str| -> Result<Option<String>> {
+            match t.get(field) {
+                None => Ok(None),
+                Some(v) => v
+                    .as_str()
+                    .map(|x| Some(x.to_string()))
+                    .ok_or_else(|| ctx(field, "must be a string")),
+            }
+        };
+        let opt_u = |field: &str| -> Result<Option<usize>> {
+            match t.get(field) {
+                None => Ok(None),
+                Some(v) => match v.as_integer() {
+                    Some(x) if x >= 0 => Ok(Some(x as usize)),
+                    _ => Err(ctx(field, "must be a non-negative integer")),
+                },
+            }
+        };
+        let rate = match t.get("sample_rate_hz") {
+            Some(v) => v
+                .as_float()
+                .or_else(|| v.as_integer().map(|x| x as f64))
+                .ok_or_else(|| ctx("sample_rate_hz", "must be a number"))?,
+            None => return Err(ctx("sample_rate_hz", "is missing")),
+        };
+        if !(rate.is_finite() && rate > 0.0) {
+            return Err(ctx("sample_rate_hz", "must be > 0"));
+        }
+        let period = opt_u("period_samples")?;
+        if period == Some(0) {
+            return Err(ctx("period_samples", "must be > 0"));
+        }
+        let role = match opt_s("role")?.as_deref() {
+            None | Some("validation") => Role::Validation,
+            Some("model") => Role::Model,
+            Some(_) => return Err(ctx("role", "must be \"model\" or \"validation\"")),
+        };
+        let spec = ExperimentSpec {
+            name: s("name")?,
+            file: s("file")?,
+            sample_rate_hz: rate,
+            period_samples: period,
+            skip_periods: opt_u("skip_periods")?.unwrap_or(0),
+            reference: opt_s("reference")?,
+            input: s("input")?,
+            output: s("output")?,
+            role,
+        };
+        if out.iter().any(|e| e.name == spec.name) {
+            return Err(fmt_err(format!(
+                "experiment name `{}` is used twice",
+                spec.name
+            )));
+        }
+        out.push(spec);
+    }
+    Ok(out)
+}
+
+/// Reads the named columns of a CSV with a header row (module documentation).
+///
+/// # Errors
+/// A missing column (the message lists the header), a bad or empty cell in a named column
+/// (file, line, column), no data rows.
+pub fn read_columns<R: Read>(reader: R, file: &str, names: &[&str]) -> Result<Vec<Vec<f64>>> {
+    let ferr = |detail: String| IdentError::Format {
+        file: file.to_string(),
+        detail,
+    };
+    let mut rdr = csv::ReaderBuilder::new()
+        .has_headers(true)
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .from_reader(reader);
+    let header = rdr
+        .headers()
+        .map_err(|e| ferr(format!("cannot read the header row: {e}")))?
+        .clone();
+    // a quote after a space is not CSV quoting: strip such quotes from the names too
+    let cols: Vec<&str> = header
+        .iter()
+        .map(|h| h.trim().trim_matches('"').trim())
+        .collect();
+    let mut idx = Vec::with_capacity(names.len());
+    for name in names {
+        match cols.iter().position(|c| c == name) {
+            Some(i) => idx.push(i),
+            None => {
+                return Err(ferr(format!(
+                    "no column `{name}` in the header ({})",
+                    cols.join(", ")
+                )))
+            }
+        }
+    }
+    let mut out: Vec<Vec<f64>> = vec![Vec::new(); names.len()];
+    let mut rec = csv::ByteRecord::new();
+    let mut line = 1usize;
+    loop {
+        match rdr.read_byte_record(&mut rec) {
+            Ok(false) => break,
+            Ok(true) => {}
+            Err(e) => return Err(ferr(format!("line {}: {e}", line + 1))),
+        }
+        line = rec
+            .position()
+            .map(|p| p.line() as usize)
+            .unwrap_or(line + 1);
+        if rec.iter().all(|f| f.iter().all(u8::is_ascii_whitespace)) {
+            continue; // blank line
+        }
+        for (k, &i) in idx.iter().enumerate() {
+            let cell = rec.get(i).unwrap_or(b"");
+            let text = std::str::from_utf8(cell).map(str::trim).unwrap_or("");
+            let v: f64 = text.parse().map_err(|_| {
+                ferr(format!(
+                    "line {line}, column {} (`{}`): {}",
+                    i + 1,
+                    names[k],
+                    if text.is_empty() {
+                        "empty cell".to_string()
+                    } else {
+                        format!("`{text}` is not a number")
+                    }
+                ))
+            })?;
+            if !v.is_finite() {
+                return Err(ferr(format!(
+                    "line {line}, column {} (`{}`): {text} is not finite",
+                    i + 1,
+                    names[k]
+                )));
+            }
+            out[k].push(v);
+        }
+    }
+    if out.first().map(|c| c.is_empty()).unwrap_or(true) {
+        return Err(ferr("no data rows".into()));
+    }
+    Ok(out)
+}
+
+impl Experiment {
+    /// Reads an experiment's columns from its CSV.
+    ///
+    /// # Errors
+    /// As [`read_columns`]; a period longer than the record.
+    pub fn from_reader<R: Read>(spec: ExperimentSpec, reader: R) -> Result<Self> {
+        let mut names: Vec<&str> = vec![&spec.input, &spec.output];
+        if let Some(r) = &spec.reference {
+            names.push(r);
+        }
+        let mut cols = read_columns(reader, &spec.file, &names)?;
+        let r = if spec.reference.is_some() {
+            cols.pop()
+        } else {
+            None
+        };
+        let y = cols.pop().unwrap_or_default();
+        let u = cols.pop().unwrap_or_default();
+        if let Some(p) = spec.period_samples {
+            let needed = p * (spec.skip_periods + 1);
+            if u.len() < needed {
+                return Err(IdentError::Data(format!(
+                    "{}: {} rows, but period_samples = {p} and skip_periods = {} need at least {needed}",
+                    spec.file,
+                    u.len(),
+                    spec.skip_periods
+                )));
+            }
+        }
+        Ok(Experiment { spec, r, u, y })
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
+mod tests {
+    use super::*;
+
+    const MANIFEST: &str = r#"
+[[experiment]]
+name = "fast"
+file = "fast.csv"
+sample_rate_hz = 5000.0
+period_samples = 4
+skip_periods = 1
+reference = "r"
+input = "u"
+output = "y"
+role = "model"
+
+[[experiment]]
+name = "slow"
+file = "slow.csv"
+sample_rate_hz = 1000
+input = "u"
+output = "y"
+"#;
+
+    #[test]
+    fn manifest_and_messy_csv() {
+        let specs = parse_manifest(MANIFEST).unwrap();
+        assert_eq!(specs.len(), 2);
+        assert_eq!(specs[0].role, Role::Model);
+        assert_eq!(specs[1].role, Role::Validation);
+        assert_eq!(specs[1].sample_rate_hz, 1000.0);
+        // quoted header, extra column, trailing comma, empty cell in an unused column
+        let csv = "\"t\", \"u\",\"y\" ,r,extra,\n0,1,2,3,,\n1,1.5,2.5,3.5,x,\n\n2,1e-3,-2,0,,\n3,1,1,1,,\n4,1,1,1,,\n5,1,1,1,,\n6,1,1,1,,\n7,1,1,1,,\n";
+        let e = Experiment::from_reader(specs[0].clone(), csv.as_bytes()).unwrap();
+        assert_eq!(e.u.len(), 8);
+        assert_eq!(e.u[2], 1e-3);
+        assert_eq!(e.r.as_ref().unwrap()[1], 3.5);
+    }
+
+    #[test]
+    fn errors_name_file_line_and_column() {
+        let specs = parse_manifest(MANIFEST).unwrap();
+        let csv = "u,y,r\n1,2,3\n1,,3\n";
+        let e = Experiment::from_reader(specs[0].clone(), csv.as_bytes())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("fast.csv")
+                && e.contains("line 3")
+                && e.contains("column 2")
+                && e.contains("empty"),
+            "{e}"
+        );
+        let csv = "u,y,r\n1,2,abc\n";
+        let e = Experiment::from_reader(specs[0].clone(), csv.as_bytes())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`abc`"), "{e}");
+        let e = read_columns("a,b\n1,2\n".as_bytes(), "f.csv", &["c"])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no column `c`"), "{e}");
+        assert!(parse_manifest("[[experiment]]\nname = 1\n").is_err());
+        assert!(parse_manifest(&MANIFEST.replace("1000", "-1")).is_err());
+        assert!(parse_manifest(&MANIFEST.replace("\"slow\"", "\"fast\""))
+            .unwrap_err()
+            .to_string()
+            .contains("twice"));
+        assert!(parse_manifest("[[experiment\n")
+            .unwrap_err()
+            .to_string()
+            .contains("line"));
+    }
+}

@@ -1,0 +1,793 @@
+//! Discrete-time rational models fitted to an FRD, up to order ~60.
+//!
+//! **Model** (partial fractions in z, a well-conditioned basis; DESIGN §5):
+//! `Ĝ(z) = Σ_i r_i/(z − p_i) + Σ_{l=1}^{m} c_l/(z − 1)^l + d`, free poles p_i real or in
+//! complex-conjugate pairs, m ∈ {0, 1, 2} fixed rigid-body poles at z = 1, optional d.
+//!
+//! **Cost**: `V = Σ_k w_k² |G_k − Ĝ(z_k)|²`, `z_k = e^{j2πf_k T}`, with `w_k = 1/σ_k` from the
+//! FRD's variance (default when present), or relative `w_k = 1/|G_k|`, or uniform.
+//!
+//! **Step 1, Sanathanan–Koerner iterations in the partial-fraction basis** (vector fitting;
+//! Gustavsen & Semlyen, IEEE TPWRD 14(3), 1999, in the z-domain): with the current poles, solve
+//! the linear weighted least-squares problem `N(z_k) − G_k σ(z_k) ≈ G_k`,
+//! `σ(z) = 1 + Σ c̃_i φ_i(z)`, by QR of the stacked real equations (columns scaled; never
+//! normal equations). The zeros of σ, `eig(A − b c̃ᵀ)`, are the new poles; unstable ones are
+//! **reflected** (p ↦ 1/p̄), never clamped. Start: lightly damped pairs spread over the band.
+//!
+//! **Step 2, Levenberg–Marquardt** on V itself over poles (real and imaginary parts), residues,
+//! rigid-body residues and d, with the analytic Jacobian (`∂/∂p r/(z − p) = r/(z − p)²`),
+//! Marquardt's column scaling, QR of `[J; √λ D]`, and reflection of any pole that leaves the
+//! unit disc. It stops when an accepted step improves V by less than 1e-9 relative.
+//!
+//! **Result**: a real modal state-space model (2×2 blocks `[[α, β], [−β, α]]` per pair, a
+//! Jordan block for the rigid body), the cost history, the median relative error.
+
+use crate::error::{IdentError, Result};
+use crate::tol;
+use faer::linalg::solvers::SolveLstsq;
+use faer::Mat;
+use nalgebra::DMatrix;
+use num_complex::Complex64 as C;
+use sd_model::linalg::convert::eigenvalues;
+use sd_model::{Frd, SampleTime, StateSpace};
+use std::f64::consts::PI;
+
+/// Weighting of the fit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Weighting {
+    /// `1/σ_k` from the FRD's variance; relative if it has none (default).
+    Variance,
+    /// `1/|G_k|`.
+    Relative,
+    /// 1.
+    Uniform,
+}
+
+/// Fit settings.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitOptions {
+    /// Model order n (states), including the rigid-body poles.
+    pub order: usize,
+    /// Fixed poles at z = 1 (0, 1 or 2).
+    pub rigid_body: usize,
+    /// Fit a feedthrough d.
+    pub feedthrough: bool,
+    /// Weighting.
+    pub weighting: Weighting,
+    /// SK (pole relocation) iterations.
+    pub sk_iterations: usize,
+    /// Levenberg–Marquardt iterations (0: SK only).
+    pub lm_iterations: usize,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions {
+            order: 8,
+            rigid_body: 0,
+            feedthrough: true,
+            weighting: Weighting::Variance,
+            sk_iterations: tol::SK_ITERATIONS,
+            lm_iterations: tol::LM_ITERATIONS,
+        }
+    }
+}
+
+/// Progress of a fit (for long fits; the caller decides how to show it).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitProgress {
+    /// "sk" or "lm".
+    pub stage: &'static str,
+    /// Iteration within the stage.
+    pub iteration: usize,
+    /// Current cost V.
+    pub cost: f64,
+}
+
+/// A fitted model.
+#[derive(Debug, Clone)]
+pub struct FitResult {
+    /// Real modal state-space model at the FRD's sample time.
+    pub model: StateSpace,
+    /// Final cost V.
+    pub cost: f64,
+    /// Cost after each SK and accepted LM iteration.
+    pub history: Vec<FitProgress>,
+    /// The poles (free and fixed).
+    pub poles: Vec<C>,
+    /// Median of `|G_k − Ĝ_k| / |G_k|` over the data.
+    pub median_rel_error: f64,
+}
+
+/// The model in partial fractions.
+#[derive(Debug, Clone)]
+struct Pf {
+    /// Real free poles with residues.
+    real: Vec<(f64, f64)>,
+    /// Complex pairs: pole (upper half plane) and residue.
+    pairs: Vec<(C, C)>,
+    /// Rigid-body residues c_1 … c_m.
+    rigid: Vec<f64>,
+    d: f64,
+}
+
+impl Pf {
+    fn eval(&self, z: C) -> C {
+        let mut g = C::new(self.d, 0.0);
+        for &(p, r) in &self.real {
+            g += r / (z - p);
+        }
+        for &(a, r) in &self.pairs {
+            g += r / (z - a) + r.conj() / (z - a.conj());
+        }
+        let mut q = C::new(1.0, 0.0);
+        for &c in &self.rigid {
+            q /= z - 1.0;
+            g += q * c;
+        }
+        g
+    }
+    fn poles(&self) -> Vec<C> {
+        let mut p: Vec<C> = self.real.iter().map(|&(p, _)| C::new(p, 0.0)).collect();
+        for &(a, _) in &self.pairs {
+            p.push(a);
+            p.push(a.conj());
+        }
+        p.extend(std::iter::repeat_n(C::new(1.0, 0.0), self.rigid.len()));
+        p
+    }
+}
+
+struct Data {
+    z: Vec<C>,
+    g: Vec<C>,
+    w: Vec<f64>,
+}
+
+fn reflect(p: C) -> C {
+    let m = p.norm();
+    if m > 1.0 {
+        p / (m * m) // 1/p̄ = p/|p|²
+    } else if m > 1.0 - tol::STABILITY_MARGIN {
+        p * ((1.0 - tol::STABILITY_MARGIN) / m)
+    } else {
+        p
+    }
+}
+
+fn cost(data: &Data, pf: &Pf) -> f64 {
+    data.z
+        .iter()
+        .zip(&data.g)
+        .zip(&data.w)
+        .map(|((&z, &g), &w)| (w * (pf.eval(z) - g).norm()).powi(2))
+        .sum()
+}
+
+/// Weighted least squares `min ‖A x − b‖` with column scaling, by faer's QR.
+fn lstsq(a: &Mat<f64>, b: &Mat<f64>) -> Result<Vec<f64>> {
+    let ncol = a.ncols();
+    let mut scaled = a.clone();
+    let mut s = vec![1.0; ncol];
+    for j in 0..ncol {
+        let nj = scaled.col(j).norm_l2();
+        if nj > 0.0 {
+            s[j] = nj;
+            for i in 0..scaled.nrows() {
+                scaled[(i, j)] /= nj;
+            }
+        }
+    }
+    let x = scaled.qr().solve_lstsq(b);
+    let out: Vec<f64> = (0..ncol).map(|j| x[(j, 0)] / s[j]).collect();
+    if out.iter().any(|v| !v.is_finite()) {
+        return Err(IdentError::Numerical(
+            "the least-squares problem of the fit is singular".into(),
+        ));
+    }
+    Ok(out)
+}
+
+/// Free-pole basis (real and pair functions) at z, as complex values per column.
+fn free_basis(real: &[f64], pairs: &[C], z: C, out: &mut Vec<C>) {
+    for &p in real {
+        out.push(1.0 / (z - p));
+    }
+    for &a in pairs {
+        let (u, v) = (1.0 / (z - a), 1.0 / (z - a.conj()));
+        out.push(u + v);
+        out.push(C::new(0.0, 1.0) * (u - v));
+    }
+}
+
+fn rigid_basis(m: usize, z: C, out: &mut Vec<C>) {
+    let mut q = C::new(1.0, 0.0);
+    for _ in 0..m {
+        q /= z - 1.0;
+        out.push(q);
+    }
+}
+
+/// Residues and d for given poles (the linear step).
+fn residues(data: &Data, real: &[f64], pairs: &[C], m: usize, feed: bool) -> Result<Pf> {
+    let nf = real.len() + 2 * pairs.len();
+    let ncol = nf + m + usize::from(feed);
+    let k = data.z.len();
+    let mut a = Mat::<f64>::zeros(2 * k, ncol);
+    let mut b = Mat::<f64>::zeros(2 * k, 1);
+    let mut row = Vec::with_capacity(ncol);
+    for (i, ((&z, &g), &w)) in data.z.iter().zip(&data.g).zip(&data.w).enumerate() {
+        row.clear();
+        free_basis(real, pairs, z, &mut row);
+        rigid_basis(m, z, &mut row);
+        if feed {
+            row.push(C::new(1.0, 0.0));
+        }
+        for (j, v) in row.iter().enumerate() {
+            a[(2 * i, j)] = w * v.re;
+            a[(2 * i + 1, j)] = w * v.im;
+        }
+        b[(2 * i, 0)] = w * g.re;
+        b[(2 * i + 1, 0)] = w * g.im;
+    }
+    let x = lstsq(&a, &b)?;
+    let mut it = x.into_iter();
+    let mut next = || it.next().unwrap_or(0.0);
+    let real_r: Vec<(f64, f64)> = real.iter().map(|&p| (p, next())).collect();
+    let pairs_r: Vec<(C, C)> = pairs
+        .iter()
+        .map(|&a| {
+            let (c1, c2) = (next(), next());
+            (a, C::new(c1, c2))
+        })
+        .collect();
+    let rigid: Vec<f64> = (0..m).map(|_| next()).collect();
+    let d = if feed { next() } else { 0.0 };
+    Ok(Pf {
+        real: real_r,
+        pairs: pairs_r,
+        rigid,
+        d,
+    })
+}
+
+/// One SK / vector-fitting pole relocation.
+fn relocate(
+    data: &Data,
+    real: &[f64],
+    pairs: &[C],
+    m: usize,
+    feed: bool,
+) -> Result<(Vec<f64>, Vec<C>)> {
+    let nf = real.len() + 2 * pairs.len();
+    let nn = nf + m + usize::from(feed);
+    let ncol = nn + nf;
+    let k = data.z.len();
+    let mut a = Mat::<f64>::zeros(2 * k, ncol);
+    let mut b = Mat::<f64>::zeros(2 * k, 1);
+    let mut row = Vec::with_capacity(nn);
+    let mut srow = Vec::with_capacity(nf);
+    for (i, ((&z, &g), &w)) in data.z.iter().zip(&data.g).zip(&data.w).enumerate() {
+        row.clear();
+        free_basis(real, pairs, z, &mut row);
+        rigid_basis(m, z, &mut row);
+        if feed {
+            row.push(C::new(1.0, 0.0));
+        }
+        srow.clear();
+        free_basis(real, pairs, z, &mut srow);
+        for (j, v) in row.iter().enumerate() {
+            a[(2 * i, j)] = w * v.re;
+            a[(2 * i + 1, j)] = w * v.im;
+        }
+        for (j, v) in srow.iter().enumerate() {
+            let t = -g * v * w;
+            a[(2 * i, nn + j)] = t.re;
+            a[(2 * i + 1, nn + j)] = t.im;
+        }
+        b[(2 * i, 0)] = w * g.re;
+        b[(2 * i + 1, 0)] = w * g.im;
+    }
+    let x = lstsq(&a, &b)?;
+    let ct = &x[nn..];
+    // zeros of σ: eig(A − b c̃ᵀ) in the real block realisation of the basis
+    let mut am = DMatrix::<f64>::zeros(nf, nf);
+    let mut bv = vec![0.0; nf];
+    let mut idx = 0;
+    for &p in real {
+        am[(idx, idx)] = p;
+        bv[idx] = 1.0;
+        idx += 1;
+    }
+    for &p in pairs {
+        am[(idx, idx)] = p.re;
+        am[(idx, idx + 1)] = p.im;
+        am[(idx + 1, idx)] = -p.im;
+        am[(idx + 1, idx + 1)] = p.re;
+        bv[idx] = 2.0;
+        idx += 2;
+    }
+    for i in 0..nf {
+        for j in 0..nf {
+            am[(i, j)] -= bv[i] * ct[j];
+        }
+    }
+    let ev = eigenvalues(&am)?;
+    split_poles(&ev)
+}
+
+/// Sorts eigenvalues into reflected real poles and upper-half-plane pair representatives.
+fn split_poles(ev: &[C]) -> Result<(Vec<f64>, Vec<C>)> {
+    let mut real = Vec::new();
+    let mut pairs = Vec::new();
+    for &e in ev {
+        let e = reflect(e);
+        if e.im.abs() <= 1e-12 * e.norm().max(1e-300) {
+            real.push(e.re);
+        } else if e.im > 0.0 {
+            pairs.push(e);
+        }
+    }
+    if real.len() + 2 * pairs.len() != ev.len() {
+        return Err(IdentError::Numerical(
+            "pole relocation gave an unpaired complex pole".into(),
+        ));
+    }
+    Ok((real, pairs))
+}
+
+fn starting_poles(freq_hz: &[f64], ts: f64, nf: usize) -> (Vec<f64>, Vec<C>) {
+    let npairs = nf / 2;
+    let fmax = freq_hz.iter().cloned().fold(0.0, f64::max).min(0.499 / ts);
+    let fmin_data = freq_hz
+        .iter()
+        .cloned()
+        .fold(f64::INFINITY, f64::min)
+        .max(1e-6 / ts);
+    let fmin = fmin_data.max(fmax / 1000.0);
+    let logspace = fmax / fmin > 20.0;
+    let pairs = (0..npairs)
+        .map(|i| {
+            let t = (i as f64 + 0.5) / npairs as f64;
+            let f = if logspace {
+                fmin * (fmax / fmin).powf(t)
+            } else {
+                fmin + (fmax - fmin) * t
+            };
+            let beta = 2.0 * PI * f * ts;
+            C::from_polar((-tol::START_DAMPING * beta).exp(), beta)
+        })
+        .collect();
+    let real = if nf % 2 == 1 {
+        vec![(-2.0 * PI * (fmin * fmax).sqrt() * ts).exp()]
+    } else {
+        Vec::new()
+    };
+    (real, pairs)
+}
+
+/// Parameter vector ↔ model for LM.
+fn to_params(pf: &Pf) -> Vec<f64> {
+    let mut v = Vec::new();
+    for &(p, r) in &pf.real {
+        v.push(p);
+        v.push(r);
+    }
+    for &(a, r) in &pf.pairs {
+        v.extend([a.re, a.im, r.re, r.im]);
+    }
+    v.extend(pf.rigid.iter().cloned());
+    v.push(pf.d);
+    v
+}
+
+fn from_params(template: &Pf, v: &[f64]) -> Pf {
+    let mut i = 0;
+    let real = template
+        .real
+        .iter()
+        .map(|_| {
+            let t = (reflect(C::new(v[i], 0.0)).re, v[i + 1]);
+            i += 2;
+            t
+        })
+        .collect();
+    let pairs = template
+        .pairs
+        .iter()
+        .map(|_| {
+            let a = reflect(C::new(v[i], v[i + 1]));
+            let r = C::new(v[i + 2], v[i + 3]);
+            i += 4;
+            (a, r)
+        })
+        .collect();
+    let rigid = template
+        .rigid
+        .iter()
+        .map(|_| {
+            i += 1;
+            v[i - 1]
+        })
+        .collect();
+    Pf {
+        real,
+        pairs,
+        rigid,
+        d: v[i],
+    }
+}
+
+fn jacobian(data: &Data, pf: &Pf, feed: bool) -> (Mat<f64>, Mat<f64>) {
+    let np = 2 * pf.real.len() + 4 * pf.pairs.len() + pf.rigid.len() + 1;
+    let k = data.z.len();
+    let mut j = Mat::<f64>::zeros(2 * k, np);
+    let mut e = Mat::<f64>::zeros(2 * k, 1);
+    let jj = C::new(0.0, 1.0);
+    for (i, ((&z, &g), &w)) in data.z.iter().zip(&data.g).zip(&data.w).enumerate() {
+        let mut cols: Vec<C> = Vec::with_capacity(np);
+        for &(p, r) in &pf.real {
+            let u = 1.0 / (z - p);
+            cols.push(u * u * r);
+            cols.push(u);
+        }
+        for &(a, r) in &pf.pairs {
+            let (u, v) = (1.0 / (z - a), 1.0 / (z - a.conj()));
+            cols.push(u * u * r + v * v * r.conj());
+            cols.push(jj * (u * u * r - v * v * r.conj()));
+            cols.push(u + v);
+            cols.push(jj * (u - v));
+        }
+        rigid_basis(pf.rigid.len(), z, &mut cols);
+        cols.push(C::new(if feed { 1.0 } else { 0.0 }, 0.0));
+        for (c, v) in cols.iter().enumerate() {
+            j[(2 * i, c)] = w * v.re;
+            j[(2 * i + 1, c)] = w * v.im;
+        }
+        let r = (pf.eval(z) - g) * w;
+        e[(2 * i, 0)] = r.re;
+        e[(2 * i + 1, 0)] = r.im;
+    }
+    (j, e)
+}
+
+fn lm(
+    data: &Data,
+    mut pf: Pf,
+    opt: &FitOptions,
+    history: &mut Vec<FitProgress>,
+    progress: &mut dyn FnMut(&FitProgress),
+) -> Result<Pf> {
+    let mut v = cost(data, &pf);
+    let mut lambda: f64 = 1e-3;
+    let mut accepted = 0;
+    for _ in 0..opt.lm_iterations {
+        let (j, e) = jacobian(data, &pf, opt.feedthrough);
+        let np = j.ncols();
+        let dn: Vec<f64> = (0..np).map(|c| j.col(c).norm_l2()).collect();
+        let theta = to_params(&pf);
+        let mut improved = false;
+        for _ in 0..12 {
+            let rows = j.nrows();
+            let mut aug = Mat::<f64>::zeros(rows + np, np);
+            aug.as_mut().submatrix_mut(0, 0, rows, np).copy_from(&j);
+            let mut rhs = Mat::<f64>::zeros(rows + np, 1);
+            for r in 0..rows {
+                rhs[(r, 0)] = -e[(r, 0)];
+            }
+            for c in 0..np {
+                aug[(rows + c, c)] = lambda.sqrt() * dn[c].max(f64::MIN_POSITIVE);
+            }
+            let step = match lstsq(&aug, &rhs) {
+                Ok(s) => s,
+                Err(_) => {
+                    lambda *= 10.0;
+                    continue;
+                }
+            };
+            let mut trial = theta.clone();
+            for (t, s) in trial.iter_mut().zip(&step) {
+                *t += s;
+            }
+            if !opt.feedthrough {
+                if let Some(last) = trial.last_mut() {
+                    *last = 0.0;
+                }
+            }
+            let cand = from_params(&pf, &trial);
+            let vc = cost(data, &cand);
+            if vc.is_finite() && vc < v {
+                let rel = (v - vc) / v;
+                pf = cand;
+                v = vc;
+                lambda = (lambda / 3.0).max(1e-12);
+                improved = true;
+                accepted += 1;
+                let p = FitProgress {
+                    stage: "lm",
+                    iteration: accepted,
+                    cost: v,
+                };
+                progress(&p);
+                history.push(p);
+                if rel < tol::LM_STOP {
+                    return Ok(pf);
+                }
+                break;
+            }
+            lambda *= 4.0;
+        }
+        if !improved {
+            break;
+        }
+    }
+    Ok(pf)
+}
+
+fn weights(frd: &Frd, w: Weighting) -> Result<Vec<f64>> {
+    let g: Vec<C> = frd.response().iter().map(|m| m[(0, 0)]).collect();
+    let rel = || {
+        g.iter()
+            .map(|v| 1.0 / v.norm().max(f64::MIN_POSITIVE))
+            .collect::<Vec<f64>>()
+    };
+    Ok(match w {
+        Weighting::Uniform => vec![1.0; g.len()],
+        Weighting::Relative => rel(),
+        Weighting::Variance => match frd.variance() {
+            Some(var) => {
+                let v: Vec<f64> = var.iter().map(|m| m[(0, 0)]).collect();
+                if v.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
+                    return Err(IdentError::Data(
+                        "the FRD variance must be positive at every line for variance weighting; \
+                         use relative weighting"
+                            .into(),
+                    ));
+                }
+                v.iter().map(|x| 1.0 / x.sqrt()).collect()
+            }
+            None => rel(),
+        },
+    })
+}
+
+/// Fits a discrete-time model to a SISO FRD (module documentation).
+///
+/// # Errors
+/// A continuous-time or MIMO FRD, an order below the rigid-body count, too few lines for the
+/// parameters, a singular least-squares problem.
+pub fn fit(frd: &Frd, opt: &FitOptions) -> Result<FitResult> {
+    fit_with_progress(frd, opt, &mut |_| {})
+}
+
+/// [`fit`] reporting each iteration to `progress`.
+pub fn fit_with_progress(
+    frd: &Frd,
+    opt: &FitOptions,
+    progress: &mut dyn FnMut(&FitProgress),
+) -> Result<FitResult> {
+    let ts = match frd.time() {
+        SampleTime::Discrete { ts } => ts,
+        SampleTime::Continuous => {
+            return Err(IdentError::InvalidArgument(
+                "fit needs a discrete-time FRD (its ts fixes z = e^{jωT})".into(),
+            ))
+        }
+    };
+    if frd.shape() != (1, 1) {
+        return Err(IdentError::InvalidArgument(format!(
+            "fit is SISO; the FRD is {}x{} (fit each entry)",
+            frd.shape().0,
+            frd.shape().1
+        )));
+    }
+    if opt.rigid_body > 2 || opt.order < opt.rigid_body || opt.order == 0 {
+        return Err(IdentError::InvalidArgument(format!(
+            "order {} with {} rigid-body poles: need 1 ≤ order, rigid_body ≤ 2 and rigid_body ≤ order",
+            opt.order, opt.rigid_body
+        )));
+    }
+    let nf = opt.order - opt.rigid_body;
+    let nparams = 2 * nf + opt.rigid_body + usize::from(opt.feedthrough);
+    if 2 * frd.len() <= nparams {
+        return Err(IdentError::Data(format!(
+            "{} lines give {} real equations, too few for {nparams} parameters",
+            frd.len(),
+            2 * frd.len()
+        )));
+    }
+    let data = Data {
+        z: frd
+            .freq_hz()
+            .iter()
+            .map(|&f| C::from_polar(1.0, 2.0 * PI * f * ts))
+            .collect(),
+        g: frd.response().iter().map(|m| m[(0, 0)]).collect(),
+        w: weights(frd, opt.weighting)?,
+    };
+    if data.g.iter().any(|v| !v.is_finite()) {
+        return Err(IdentError::Data(
+            "the FRD has NaN or infinite values".into(),
+        ));
+    }
+    let (mut real, mut pairs) = starting_poles(frd.freq_hz(), ts, nf);
+    let mut history = Vec::new();
+    let mut best: Option<(f64, Pf)> = None;
+    for it in 0..opt.sk_iterations {
+        let (r2, p2) = relocate(&data, &real, &pairs, opt.rigid_body, opt.feedthrough)?;
+        real = r2;
+        pairs = p2;
+        let pf = residues(&data, &real, &pairs, opt.rigid_body, opt.feedthrough)?;
+        let v = cost(&data, &pf);
+        let p = FitProgress {
+            stage: "sk",
+            iteration: it + 1,
+            cost: v,
+        };
+        progress(&p);
+        history.push(p);
+        if best.as_ref().map(|b| v < b.0).unwrap_or(true) {
+            best = Some((v, pf));
+        }
+    }
+    let pf = match best {
+        Some((_, pf)) => pf,
+        None => residues(&data, &real, &pairs, opt.rigid_body, opt.feedthrough)?,
+    };
+    let pf = lm(&data, pf, opt, &mut history, progress)?;
+    let v = cost(&data, &pf);
+    let mut rel: Vec<f64> = data
+        .z
+        .iter()
+        .zip(&data.g)
+        .map(|(&z, &g)| (pf.eval(z) - g).norm() / g.norm().max(f64::MIN_POSITIVE))
+        .collect();
+    rel.sort_by(f64::total_cmp);
+    let median = rel[rel.len() / 2];
+    Ok(FitResult {
+        model: to_state_space(&pf, ts)?,
+        cost: v,
+        history,
+        poles: pf.poles(),
+        median_rel_error: median,
+    })
+}
+
+/// The cost V of a given model on an FRD (same weighting as [`fit`]), e.g. of the true model.
+///
+/// # Errors
+/// Shapes or sample times that do not match.
+pub fn model_cost(frd: &Frd, model: &StateSpace, weighting: Weighting) -> Result<f64> {
+    if !frd.time().compatible(&model.time()) || model.nu() != 1 || model.ny() != 1 {
+        return Err(IdentError::InvalidArgument(
+            "model and FRD must be SISO with the same sample time".into(),
+        ));
+    }
+    let w = weights(frd, weighting)?;
+    let m = model.freqresp(frd.freq_hz())?;
+    Ok(m.response()
+        .iter()
+        .zip(frd.response())
+        .zip(&w)
+        .map(|((a, b), w)| (w * (a[(0, 0)] - b[(0, 0)]).norm()).powi(2))
+        .sum())
+}
+
+fn to_state_space(pf: &Pf, ts: f64) -> Result<StateSpace> {
+    let n = pf.real.len() + 2 * pf.pairs.len() + pf.rigid.len();
+    let mut a = DMatrix::<f64>::zeros(n, n);
+    let mut b = DMatrix::<f64>::zeros(n, 1);
+    let mut c = DMatrix::<f64>::zeros(1, n);
+    let mut i = 0;
+    match pf.rigid.len() {
+        0 => {}
+        1 => {
+            a[(0, 0)] = 1.0;
+            b[(0, 0)] = 1.0;
+            c[(0, 0)] = pf.rigid[0];
+            i = 1;
+        }
+        _ => {
+            // c1/(z−1) + c2/(z−1)²: Jordan block, B = [0; 1], C = [c2, c1]
+            a[(0, 0)] = 1.0;
+            a[(0, 1)] = 1.0;
+            a[(1, 1)] = 1.0;
+            b[(1, 0)] = 1.0;
+            c[(0, 0)] = pf.rigid[1];
+            c[(0, 1)] = pf.rigid[0];
+            i = 2;
+        }
+    }
+    for &(p, r) in &pf.real {
+        a[(i, i)] = p;
+        b[(i, 0)] = 1.0;
+        c[(0, i)] = r;
+        i += 1;
+    }
+    for &(p, r) in &pf.pairs {
+        a[(i, i)] = p.re;
+        a[(i, i + 1)] = p.im;
+        a[(i + 1, i)] = -p.im;
+        a[(i + 1, i + 1)] = p.re;
+        b[(i, 0)] = 2.0;
+        c[(0, i)] = r.re;
+        c[(0, i + 1)] = r.im;
+        i += 2;
+    }
+    Ok(StateSpace::new(
+        a,
+        b,
+        c,
+        DMatrix::from_element(1, 1, pf.d),
+        SampleTime::discrete(ts)?,
+    )?)
+}
+
+/// Fits every order in `orders` and reports the cost of each; the selected order minimizes
+/// Akaike's final prediction error `V·(1 + p/N)/(1 − p/N)` (p parameters, N real equations).
+///
+/// # Errors
+/// As [`fit`]; an empty order list.
+pub fn select_order(
+    frd: &Frd,
+    orders: &[usize],
+    base: &FitOptions,
+) -> Result<(Vec<(usize, f64)>, FitResult)> {
+    let mut table = Vec::new();
+    let mut best: Option<(f64, FitResult)> = None;
+    let neq = 2.0 * frd.len() as f64;
+    for &n in orders {
+        let opt = FitOptions {
+            order: n,
+            ..base.clone()
+        };
+        let r = fit(frd, &opt)?;
+        let p =
+            (2 * (n - base.rigid_body) + base.rigid_body + usize::from(base.feedthrough)) as f64;
+        let fpe = if p < neq {
+            r.cost * (1.0 + p / neq) / (1.0 - p / neq)
+        } else {
+            f64::INFINITY
+        };
+        table.push((n, r.cost));
+        if best.as_ref().map(|b| fpe < b.0).unwrap_or(true) {
+            best = Some((fpe, r));
+        }
+    }
+    match best {
+        Some((_, r)) => Ok((table, r)),
+        None => Err(IdentError::InvalidArgument("no order to try".into())),
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn recovers_a_two_mode_model_exactly_from_noise_free_data() {
+        let p = sd_model::stage::paper_stage_two_modes().unwrap();
+        let pd = sd_model::c2d(&p, 2e-4, sd_model::Discretization::Zoh).unwrap();
+        let f = sd_model::grid(1.0, 2400.0, 600, true).unwrap();
+        let frd = pd.freqresp(&f).unwrap();
+        let r = fit(
+            &frd,
+            &FitOptions {
+                order: pd.n(),
+                rigid_body: 2,
+                feedthrough: false,
+                weighting: Weighting::Relative,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert!(r.median_rel_error < 1e-8, "{}", r.median_rel_error);
+        assert!(r
+            .model
+            .poles()
+            .unwrap()
+            .iter()
+            .all(|z| z.norm() <= 1.0 + 1e-12));
+    }
+}

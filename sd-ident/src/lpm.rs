@@ -1,0 +1,238 @@
+//! The local polynomial method (Pintelon, Schoukens, Vandersteen & Barbé, "Estimation of
+//! nonparametric noise and FRF models for multivariable systems", MSSP 24(3), 2010): FRFs from
+//! transient-affected or non-periodic data.
+//!
+//! With the N-point DFTs `X(k)` (nx excitations) and `Z(k)` (nz responses), around every line k
+//! the FRF and the transient (leakage) term are modelled as polynomials of degree R in the
+//! line offset r ∈ [−n, n]:
+//! `Z(k+r) = (G_k + Σ_s g_s r^s) X(k+r) + T_k + Σ_s t_s r^s + V(k+r)`.
+//! The `(nx + 1)(R + 1)` coefficients per output follow by least squares over the `2n + 1`
+//! lines (solved by SVD, r scaled to [−1, 1]); `G_k` is the estimate, the residual gives the
+//! noise covariance `C_V = EᴴE/(2n + 1 − q)`, and `var Ĝ_k(i, j) = C_V(i, i)·[(KᴴK)⁻¹]_jj`.
+//! The window is shifted (not shrunk) at the band edges. Default R = 2 and the smallest n with
+//! at least `nx + 2` residual degrees of freedom.
+//!
+//! In closed loop, use the reference as excitation: [`lpm_closed_loop`] estimates `Y/R` and
+//! `U/R` and returns their ratio with first-order variance.
+
+use crate::error::{IdentError, Result};
+use nalgebra::DMatrix;
+use num_complex::Complex64 as C;
+use rustfft::FftPlanner;
+use sd_model::{Frd, SampleTime};
+
+/// LPM settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LpmOptions {
+    /// Polynomial degree R.
+    pub degree: usize,
+    /// Half-width n of the local window (default: smallest with nx + 2 residual DOF).
+    pub half_width: Option<usize>,
+}
+
+impl Default for LpmOptions {
+    fn default() -> Self {
+        LpmOptions {
+            degree: 2,
+            half_width: None,
+        }
+    }
+}
+
+/// An LPM estimate.
+#[derive(Debug, Clone)]
+pub struct LpmEstimate {
+    /// The FRF (nz × nx per line) with the variance of each entry.
+    pub frd: Frd,
+    /// Noise covariance of the responses per line (nz × nz).
+    pub noise_cov: Vec<DMatrix<C>>,
+}
+
+fn dft_columns(x: &DMatrix<f64>) -> Vec<Vec<C>> {
+    let n = x.nrows();
+    let fft = FftPlanner::<f64>::new().plan_fft_forward(n);
+    (0..x.ncols())
+        .map(|j| {
+            let mut buf: Vec<C> = x.column(j).iter().map(|&v| C::new(v, 0.0)).collect();
+            fft.process(&mut buf);
+            buf
+        })
+        .collect()
+}
+
+/// LPM estimate of the FRF from `x` (N×nx) to `z` (N×nz) sampled at `fs`, at the DFT lines
+/// 1 … N/2 − 1.
+///
+/// # Errors
+/// Mismatched lengths, a record too short for the window, a singular local problem (an
+/// excitation with no power in a window).
+pub fn lpm(fs: f64, x: &DMatrix<f64>, z: &DMatrix<f64>, opt: &LpmOptions) -> Result<LpmEstimate> {
+    let (n_samp, nx, nz) = (x.nrows(), x.ncols(), z.ncols());
+    if z.nrows() != n_samp || nx == 0 || nz == 0 {
+        return Err(IdentError::Data(format!(
+            "excitation ({}x{nx}) and response ({}x{nz}) need the same number of rows and at \
+             least one column each",
+            n_samp,
+            z.nrows()
+        )));
+    }
+    if x.iter().chain(z.iter()).any(|v| !v.is_finite()) {
+        return Err(IdentError::Data(
+            "the signals contain NaN or infinite values".into(),
+        ));
+    }
+    let r = opt.degree;
+    let q = (nx + 1) * (r + 1);
+    let hw = opt
+        .half_width
+        .unwrap_or_else(|| (q + nx + 2).saturating_sub(1).div_ceil(2));
+    let w = 2 * hw + 1;
+    if w <= q {
+        return Err(IdentError::InvalidArgument(format!(
+            "window of {w} lines cannot fit {q} local parameters; widen it"
+        )));
+    }
+    let half = n_samp / 2;
+    if half < w + 2 {
+        return Err(IdentError::Data(format!(
+            "{n_samp} samples are too few for a local window of {w} lines"
+        )));
+    }
+    let xs = dft_columns(x);
+    let zs = dft_columns(z);
+    let (lo, hi) = (1usize, half - 1);
+    let mut freq = Vec::new();
+    let mut resp = Vec::new();
+    let mut var = Vec::new();
+    let mut noise = Vec::new();
+    for k in lo..=hi {
+        // window centre shifted to stay inside [lo, hi]
+        let start = k.saturating_sub(hw).max(lo).min(hi + 1 - w);
+        let mut kmat = DMatrix::<C>::zeros(w, q);
+        let mut zw = DMatrix::<C>::zeros(w, nz);
+        for (row, line) in (start..start + w).enumerate() {
+            let off = (line as f64 - k as f64) / hw.max(1) as f64;
+            let mut pw = 1.0;
+            for s in 0..=r {
+                for j in 0..nx {
+                    kmat[(row, s * nx + j)] = xs[j][line] * pw;
+                }
+                kmat[(row, (r + 1) * nx + s)] = C::new(pw, 0.0);
+                pw *= off;
+            }
+            for i in 0..nz {
+                zw[(row, i)] = zs[i][line];
+            }
+        }
+        // column scaling, then SVD least squares
+        let scale: Vec<f64> = (0..q)
+            .map(|c| kmat.column(c).norm().max(f64::MIN_POSITIVE))
+            .collect();
+        for c in 0..q {
+            let s = scale[c];
+            kmat.column_mut(c).iter_mut().for_each(|v| *v /= s);
+        }
+        let svd = nalgebra::linalg::SVD::try_new(kmat.clone(), true, true, f64::EPSILON, 200)
+            .ok_or_else(|| IdentError::Numerical("SVD of a local LPM problem".into()))?;
+        let smax = svd.singular_values.iter().cloned().fold(0.0, f64::max);
+        let smin = svd
+            .singular_values
+            .iter()
+            .cloned()
+            .fold(f64::INFINITY, f64::min);
+        if smin <= 1e-12 * smax {
+            return Err(IdentError::Data(format!(
+                "the local LPM problem at line {k} is singular: the excitation has no power \
+                 there (or the inputs are collinear)"
+            )));
+        }
+        let theta = svd
+            .solve(&zw, 0.0)
+            .map_err(|e| IdentError::Numerical(format!("LPM solve: {e}")))?;
+        let e = &zw - &kmat * &theta;
+        let dof = (w - q) as f64;
+        let cv = (e.adjoint() * &e).map(|v| v / dof);
+        // (KᴴK)⁻¹ = V Σ⁻² Vᴴ (scaled coordinates)
+        let v_t = svd
+            .v_t
+            .as_ref()
+            .ok_or_else(|| IdentError::Numerical("SVD without V".into()))?;
+        let mut g = DMatrix::<C>::zeros(nz, nx);
+        let mut gv = DMatrix::<f64>::zeros(nz, nx);
+        for j in 0..nx {
+            let mut d = 0.0;
+            for (l, sv) in svd.singular_values.iter().enumerate() {
+                d += v_t[(l, j)].norm_sqr() / (sv * sv);
+            }
+            for i in 0..nz {
+                g[(i, j)] = theta[(j, i)] / scale[j];
+                gv[(i, j)] = cv[(i, i)].re * d / (scale[j] * scale[j]);
+            }
+        }
+        freq.push(k as f64 * fs / n_samp as f64);
+        resp.push(g);
+        var.push(gv);
+        noise.push(cv);
+    }
+    Ok(LpmEstimate {
+        frd: Frd::new(freq, resp, Some(var), SampleTime::discrete(1.0 / fs)?)?,
+        noise_cov: noise,
+    })
+}
+
+/// Closed-loop LPM (SISO): `Ĝ = (Y/R)/(U/R)` with both ratios from one LPM with the reference
+/// as excitation, and the first-order variance including their correlation.
+///
+/// # Errors
+/// As [`lpm`]; a line where `U/R` vanishes.
+pub fn lpm_closed_loop(fs: f64, r: &[f64], u: &[f64], y: &[f64], opt: &LpmOptions) -> Result<Frd> {
+    let n = r.len();
+    if u.len() != n || y.len() != n {
+        return Err(IdentError::Data(
+            "r, u and y must have the same length".into(),
+        ));
+    }
+    let x = DMatrix::from_column_slice(n, 1, r);
+    let mut z = DMatrix::zeros(n, 2);
+    z.column_mut(0).copy_from_slice(y);
+    z.column_mut(1).copy_from_slice(u);
+    let est = lpm(fs, &x, &z, opt)?;
+    let mut resp = Vec::new();
+    let mut var = Vec::new();
+    for (i, g) in est.frd.response().iter().enumerate() {
+        let (gy, gu) = (g[(0, 0)], g[(1, 0)]);
+        if gu.norm() == 0.0 {
+            return Err(IdentError::Data(format!(
+                "U/R vanishes at {} Hz",
+                est.frd.freq_hz()[i]
+            )));
+        }
+        let gg = gy / gu;
+        let v = est.frd.variance().map(|v| &v[i]);
+        let cv = &est.noise_cov[i];
+        let vv = match v {
+            Some(v) => {
+                // var(Gy), var(Gu) and their covariance share the same (KᴴK)⁻¹ factor
+                let (vy, vu) = (v[(0, 0)], v[(1, 0)]);
+                let factor = if cv[(0, 0)].re > 0.0 {
+                    vy / cv[(0, 0)].re
+                } else {
+                    0.0
+                };
+                let cyu = cv[(0, 1)] * factor;
+                gg.norm_sqr()
+                    * (vy / gy.norm_sqr().max(f64::MIN_POSITIVE) + vu / gu.norm_sqr()
+                        - 2.0 * (cyu / (gy * gu.conj())).re)
+            }
+            None => 0.0,
+        };
+        resp.push(DMatrix::from_element(1, 1, gg));
+        var.push(DMatrix::from_element(1, 1, vv.max(0.0)));
+    }
+    Ok(Frd::new(
+        est.frd.freq_hz().to_vec(),
+        resp,
+        Some(var),
+        est.frd.time(),
+    )?)
+}
