@@ -345,7 +345,9 @@ fn starting_poles(freq_hz: &[f64], ts: f64, nf: usize) -> (Vec<f64>, Vec<C>) {
         .fold(f64::INFINITY, f64::min)
         .max(1e-6 / ts);
     let fmin = fmin_data.max(fmax / 1000.0);
-    let logspace = fmax / fmin > 20.0;
+    // linear spacing (Gustavsen & Semlyen's advice for resonant responses), unless the band
+    // spans more than three decades
+    let logspace = fmax / fmin > 1000.0;
     let pairs = (0..npairs)
         .map(|i| {
             let t = (i as f64 + 0.5) / npairs as f64;

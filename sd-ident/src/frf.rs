@@ -8,10 +8,17 @@
 //!   that r excites (the indirect estimate: unbiased although u and y both carry the loop's
 //!   noise; the direct `Y/U` on non-periodic closed-loop data is biased towards −1/K);
 //! - **open loop** (no reference): the same ratio on the lines the input excites;
-//! - **variance** (errors-in-variables, first order): `var Ĝ = |Ĝ|²/M · (σ²_Y/|Ȳ|² + σ²_U/|Ū|²
-//!   − 2 Re(σ_YU/(Ȳ Ū*)))`, with `σ²_X = Σ_m|X_m − X̄|²/(M − 1)` and the cross term likewise;
+//! - **variance** (errors-in-variables, first order):
+//!   `var Ĝ = (σ²_Ȳ + |Ĝ|²σ²_Ū − 2 Re(Ĝ* σ_ȲŪ))/|Ū|²`, with the noise (co)variances of the
+//!   period means estimated from the spread of the data between the periodic lines: with the
+//!   DFT of the whole steady record (L = M·P points) the mean over periods is exactly
+//!   `X̄(k) = X_L(kM)/M`, and the 2(M − 1) bins `kM ± 1 … kM ± (M − 1)` between two harmonics
+//!   hold noise only, so `σ²_X̄ = mean_j |X_L(kM + j)|²/M²` (and the cross term likewise). This is
+//!   the spread over periods seen in the frequency domain, but immune to the leakage of
+//!   low-frequency noise (a rigid body's drift) that inflates the per-period sample variance at
+//!   high frequencies — that leakage telescopes in the mean and does not belong in its variance;
 //! - **noise and nonlinear distortion**: at non-excited lines in the band, `|Ȳ|²` is noise plus
-//!   nonlinear distortion and `σ²_Y/M` is noise alone; their ratio (≈ 1 without distortion) is
+//!   nonlinear distortion and `σ²_Ȳ` is noise alone; their ratio (≈ 1 without distortion) is
 //!   reported separately for odd and even lines (random-odd multisines).
 //!
 //! Needs M ≥ 2 for variances; with M = 1 the variance is absent.
@@ -67,26 +74,6 @@ pub struct FrfEstimate {
     pub u_mean: Vec<C>,
 }
 
-/// DFTs of each period: `out[m][k]` for k = 0..P.
-fn period_spectra(x: &[f64], p: usize, skip: usize, m: usize) -> Vec<Vec<C>> {
-    let fft = FftPlanner::<f64>::new().plan_fft_forward(p);
-    (0..m)
-        .map(|i| {
-            let start = (skip + i) * p;
-            let mut buf: Vec<C> = x[start..start + p]
-                .iter()
-                .map(|&v| C::new(v, 0.0))
-                .collect();
-            fft.process(&mut buf);
-            buf
-        })
-        .collect()
-}
-
-fn mean(specs: &[Vec<C>], k: usize) -> C {
-    specs.iter().map(|s| s[k]).sum::<C>() / specs.len() as f64
-}
-
 /// FRF of periodic data (module documentation). `r` is the external reference (closed loop),
 /// or `None` when u is exogenous.
 ///
@@ -124,14 +111,44 @@ pub fn frf_periodic(
         )));
     }
     let m = total - opt.skip_periods;
-    let us = period_spectra(u, p, opt.skip_periods, m);
-    let ys = period_spectra(y, p, opt.skip_periods, m);
+    let start = opt.skip_periods * p;
+    let len = m * p;
+    let long = |x: &[f64]| -> Vec<C> {
+        let mut buf: Vec<C> = x[start..start + len]
+            .iter()
+            .map(|&v| C::new(v, 0.0))
+            .collect();
+        FftPlanner::<f64>::new()
+            .plan_fft_forward(len)
+            .process(&mut buf);
+        buf
+    };
+    let ul = long(u);
+    let yl = long(y);
     let exc_src = match r {
-        Some(r) => period_spectra(r, p, opt.skip_periods, m),
-        None => us.clone(),
+        Some(r) => long(r),
+        None => ul.clone(),
+    };
+    let mf = m as f64;
+    let mean_at = |x: &[C], k: usize| x[k * m] / mf;
+    // noise (co)variances of the period means from the bins between harmonics
+    let noise = |k: usize| -> (f64, f64, C) {
+        let (mut suu, mut syy, mut syu) = (0.0, 0.0, C::new(0.0, 0.0));
+        let mut cnt = 0.0;
+        for j in 1..m {
+            for b in [k * m + j, k * m - j] {
+                let (ub, yb) = (ul[b], yl[b]);
+                suu += ub.norm_sqr();
+                syy += yb.norm_sqr();
+                syu += yb * ub.conj();
+                cnt += 1.0;
+            }
+        }
+        let s = cnt * mf * mf;
+        (suu / s, syy / s, syu / s)
     };
     let half = p / 2;
-    let amp: Vec<f64> = (0..=half).map(|k| mean(&exc_src, k).norm()).collect();
+    let amp: Vec<f64> = (0..=half).map(|k| mean_at(&exc_src, k).norm()).collect();
     let amax = amp[1..].iter().cloned().fold(0.0, f64::max);
     if amax == 0.0 {
         return Err(IdentError::Data(
@@ -144,12 +161,11 @@ pub fn frf_periodic(
     if lines.is_empty() {
         return Err(IdentError::Data("no excited line found".into()));
     }
-    let mf = m as f64;
     let mut resp = Vec::with_capacity(lines.len());
     let mut var = Vec::with_capacity(lines.len());
     let (mut ym, mut um) = (Vec::new(), Vec::new());
     for &k in &lines {
-        let (ub, yb) = (mean(&us, k), mean(&ys, k));
+        let (ub, yb) = (mean_at(&ul, k), mean_at(&yl, k));
         if ub.norm() == 0.0 {
             return Err(IdentError::Data(format!(
                 "the input has no power at the excited line {k} (f = {} Hz)",
@@ -161,17 +177,8 @@ pub fn frf_periodic(
         ym.push(yb);
         um.push(ub);
         if m >= 2 {
-            let (mut suu, mut syy, mut syu) = (0.0, 0.0, C::new(0.0, 0.0));
-            for i in 0..m {
-                let (du, dy) = (us[i][k] - ub, ys[i][k] - yb);
-                suu += du.norm_sqr();
-                syy += dy.norm_sqr();
-                syu += dy * du.conj();
-            }
-            let d = mf - 1.0;
-            let (suu, syy, syu) = (suu / d, syy / d, syu / d);
-            let v = g.norm_sqr() / mf
-                * (syy / yb.norm_sqr() + suu / ub.norm_sqr() - 2.0 * (syu / (yb * ub.conj())).re);
+            let (suu, syy, syu) = noise(k);
+            let v = (syy + g.norm_sqr() * suu - 2.0 * (g.conj() * syu).re) / ub.norm_sqr();
             var.push(nalgebra::DMatrix::from_element(1, 1, v.max(0.0)));
         }
     }
@@ -185,15 +192,14 @@ pub fn frf_periodic(
     let distortion = if m >= 2 {
         let (kmin, kmax) = (lines[0], lines[lines.len() - 1]);
         let excited: std::collections::HashSet<usize> = lines.iter().cloned().collect();
-        let (mut odd, mut even, mut noise) = ((0usize, 0.0), (0usize, 0.0), (0usize, 0.0));
+        let (mut odd, mut even, mut nsum) = ((0usize, 0.0), (0usize, 0.0), (0usize, 0.0));
         for k in kmin..=kmax {
             if excited.contains(&k) {
                 continue;
             }
-            let yb = mean(&ys, k);
-            let syy: f64 = ys.iter().map(|s| (s[k] - yb).norm_sqr()).sum::<f64>() / (mf - 1.0);
-            noise.0 += 1;
-            noise.1 += syy / mf;
+            let yb = mean_at(&yl, k);
+            nsum.0 += 1;
+            nsum.1 += noise(k).1;
             if k % 2 == 1 {
                 odd.0 += 1;
                 odd.1 += yb.norm_sqr();
@@ -202,8 +208,8 @@ pub fn frf_periodic(
                 even.1 += yb.norm_sqr();
             }
         }
-        if noise.0 > 0 {
-            let nl = noise.1 / noise.0 as f64;
+        if nsum.0 > 0 {
+            let nl = nsum.1 / nsum.0 as f64;
             let ol = if odd.0 > 0 { odd.1 / odd.0 as f64 } else { 0.0 };
             let el = if even.0 > 0 {
                 even.1 / even.0 as f64
