@@ -21,7 +21,9 @@
 //!   nonlinear distortion and `σ²_Ȳ` is noise alone; their ratio (≈ 1 without distortion) is
 //!   reported separately for odd and even lines (random-odd multisines).
 //!
-//! Needs M ≥ 2 for variances; with M = 1 the variance is absent.
+//! With a single period (M = 1) there is no spread to measure: the output noise is then taken as
+//! white, its level `σ²_Y` estimated from the non-excited bins (at least 8 are needed; otherwise
+//! the variance is absent), and `var Ĝ = σ²_Y/|Ū|²` (input noise neglected).
 
 use crate::error::{IdentError, Result};
 use crate::tol;
@@ -36,6 +38,21 @@ pub struct PeriodicOptions {
     pub period: usize,
     /// Leading periods dropped.
     pub skip_periods: usize,
+    /// A line is excited when its reference (or input) amplitude exceeds this fraction of the
+    /// largest one ([`tol::EXCITED_FRACTION`] by default; raise it for swept or coloured
+    /// excitations that leave weakly excited lines between the intended ones).
+    pub excited_fraction: f64,
+}
+
+impl PeriodicOptions {
+    /// `period` samples per period, `skip` transient periods, the default excitation threshold.
+    pub fn new(period: usize, skip: usize) -> Self {
+        PeriodicOptions {
+            period,
+            skip_periods: skip,
+            excited_fraction: tol::EXCITED_FRACTION,
+        }
+    }
 }
 
 /// Noise and distortion levels at non-excited lines (mean power over the lines of the band).
@@ -156,7 +173,7 @@ pub fn frf_periodic(
         ));
     }
     let lines: Vec<usize> = (1..half)
-        .filter(|&k| amp[k] > tol::EXCITED_FRACTION * amax)
+        .filter(|&k| amp[k] > opt.excited_fraction * amax)
         .collect();
     if lines.is_empty() {
         return Err(IdentError::Data("no excited line found".into()));
@@ -182,11 +199,27 @@ pub fn frf_periodic(
             var.push(nalgebra::DMatrix::from_element(1, 1, v.max(0.0)));
         }
     }
+    if m == 1 {
+        // white output noise from the non-excited bins of the single period
+        let excited: std::collections::HashSet<usize> = lines.iter().cloned().collect();
+        let quiet: Vec<f64> = (1..half)
+            .filter(|k| !excited.contains(k))
+            .map(|k| yl[k].norm_sqr())
+            .collect();
+        if quiet.len() >= 8 {
+            let s2 = quiet.iter().sum::<f64>() / quiet.len() as f64;
+            var = um
+                .iter()
+                .map(|u| nalgebra::DMatrix::from_element(1, 1, s2 / u.norm_sqr()))
+                .collect();
+        }
+    }
+    let has_var = !var.is_empty();
     let freq: Vec<f64> = lines.iter().map(|&k| k as f64 * fs / p as f64).collect();
     let frd = Frd::new(
         freq,
         resp,
-        if m >= 2 { Some(var) } else { None },
+        if has_var { Some(var) } else { None },
         SampleTime::discrete(1.0 / fs)?,
     )?;
     let distortion = if m >= 2 {

@@ -111,7 +111,7 @@ fn issue5_closed_loop_frf_unbiased_direct_biased_and_order8_fit() {
     assert_eq!(est.periods, 60);
     let truth = p.freqresp(est.frd.freq_hz()).unwrap();
     let var = est.frd.variance().unwrap();
-    let mut z: Vec<f64> = (0..est.frd.len())
+    let z: Vec<f64> = (0..est.frd.len())
         .map(|i| {
             (est.frd.response()[i][(0, 0)] - truth.response()[i][(0, 0)]).norm_sqr()
                 / var[i][(0, 0)]
