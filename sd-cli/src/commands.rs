@@ -1,6 +1,6 @@
 //! Command definitions and their implementations.
 
-use crate::io::{emit, from_hinf, from_model, from_multirate, read_model, CliError};
+use crate::io::{emit, from_hinf, from_ident, from_model, from_multirate, read_model, CliError};
 use clap::{Parser, Subcommand, ValueEnum};
 use sd_model::{c2d, d2c_with_aliases, Discretization, StateSpace};
 use serde_json::json;
@@ -160,11 +160,48 @@ enum Cmd {
         #[arg(short, long)]
         output: Option<String>,
     },
+    /// FRF of one experiment of a manifest (periodic: averaged over periods; otherwise LPM), FRD JSON with var.
+    Frf {
+        /// Experiment manifest (TOML, DESIGN §4).
+        manifest: String,
+        /// Name of the experiment.
+        #[arg(long)]
+        experiment: String,
+        /// Excited-line threshold relative to the strongest line (periodic data).
+        #[arg(long, allow_negative_numbers = true)]
+        excited_fraction: Option<f64>,
+        #[arg(short, long)]
+        output: Option<String>,
+    },
+    /// Fit a discrete-time model of order N to a SISO FRD (progress on stderr).
+    Fit {
+        /// FRD JSON (discrete).
+        frd: String,
+        #[arg(long)]
+        order: usize,
+        /// Poles fixed at z = 1 (0, 1 or 2).
+        #[arg(long, default_value_t = 0)]
+        rigid_body: usize,
+        /// No feedthrough term.
+        #[arg(long)]
+        strictly_proper: bool,
+        #[arg(long, value_enum, default_value = "variance")]
+        weighting: WeightingArg,
+        #[arg(short, long)]
+        output: Option<String>,
+    },
     /// Loopshaping weights as model JSON (continuous unless --ts is given).
     Weight {
         #[command(subcommand)]
         kind: WeightKind,
     },
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum WeightingArg {
+    Variance,
+    Relative,
+    Uniform,
 }
 
 #[derive(Subcommand, Debug)]
@@ -440,6 +477,98 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
                 );
                 emit(&model_json(&d.controller)?, output.as_deref())
             }
+        }
+        Cmd::Frf {
+            manifest,
+            experiment,
+            excited_fraction,
+            output,
+        } => {
+            let text = crate::io::read_text(&manifest)?;
+            let specs = sd_ident::parse_manifest(&text).map_err(|e| from_ident(&manifest, e))?;
+            let spec = specs
+                .into_iter()
+                .find(|s| s.name == experiment)
+                .ok_or_else(|| {
+                    CliError::input(format!("{manifest}: no experiment named `{experiment}`"))
+                })?;
+            let base = std::path::Path::new(&manifest)
+                .parent()
+                .map(|p| p.to_path_buf())
+                .unwrap_or_default();
+            let path = base.join(&spec.file);
+            let file = std::fs::File::open(&path)
+                .map_err(|e| CliError::input(format!("cannot open {}: {e}", path.display())))?;
+            let exp = sd_ident::Experiment::from_reader(spec, std::io::BufReader::new(file))
+                .map_err(|e| from_ident(&manifest, e))?;
+            let fs = exp.spec.sample_rate_hz;
+            let frd = match exp.spec.period_samples {
+                Some(p) => {
+                    let mut opt = sd_ident::PeriodicOptions::new(p, exp.spec.skip_periods);
+                    if let Some(f) = excited_fraction {
+                        if !(f.is_finite() && f > 0.0 && f < 1.0) {
+                            return Err(CliError::input(format!(
+                                "--excited-fraction {f} must be in (0, 1)"
+                            )));
+                        }
+                        opt.excited_fraction = f;
+                    }
+                    sd_ident::frf_periodic(fs, exp.r.as_deref(), &exp.u, &exp.y, &opt)
+                        .map_err(|e| from_ident(&experiment, e))?
+                        .frd
+                }
+                None => {
+                    let lo = sd_ident::LpmOptions::default();
+                    match &exp.r {
+                        Some(r) => sd_ident::lpm_closed_loop(fs, r, &exp.u, &exp.y, &lo),
+                        None => {
+                            let n = exp.u.len();
+                            let x = nalgebra::DMatrix::from_column_slice(n, 1, &exp.u);
+                            let z = nalgebra::DMatrix::from_column_slice(n, 1, &exp.y);
+                            sd_ident::lpm(fs, &x, &z, &lo).map(|e| e.frd)
+                        }
+                    }
+                    .map_err(|e| from_ident(&experiment, e))?
+                }
+            };
+            let json = sd_model::frd_to_json_string(&frd).map_err(|e| from_model("output", e))?;
+            emit(&json, output.as_deref())
+        }
+        Cmd::Fit {
+            frd,
+            order,
+            rigid_body,
+            strictly_proper,
+            weighting,
+            output,
+        } => {
+            let text = crate::io::read_text(&frd)?;
+            let data = sd_model::frd_from_json_str(&text).map_err(|e| from_model(&frd, e))?;
+            let opt = sd_ident::FitOptions {
+                order,
+                rigid_body,
+                feedthrough: !strictly_proper,
+                weighting: match weighting {
+                    WeightingArg::Variance => sd_ident::Weighting::Variance,
+                    WeightingArg::Relative => sd_ident::Weighting::Relative,
+                    WeightingArg::Uniform => sd_ident::Weighting::Uniform,
+                },
+                ..Default::default()
+            };
+            let r = sd_ident::fit_with_progress(&data, &opt, &mut |p| {
+                eprintln!(
+                    "[fit] {} iteration {:>3}: cost {:.6e}",
+                    p.stage, p.iteration, p.cost
+                );
+            })
+            .map_err(|e| from_ident(&frd, e))?;
+            eprintln!(
+                "[fit] order {}: cost {:.6e}, median relative error {:.3} %",
+                r.model.n(),
+                r.cost,
+                100.0 * r.median_rel_error
+            );
+            emit(&model_json(&r.model)?, output.as_deref())
         }
         Cmd::Weight { kind } => {
             let (w, output) = match kind {

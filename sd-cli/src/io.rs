@@ -67,6 +67,18 @@ pub fn from_hinf(context: &str, e: sd_hinf::HinfError) -> CliError {
     }
 }
 
+/// Maps an `sd-ident` error: numerical failures exit 1, everything else 2.
+pub fn from_ident(context: &str, e: sd_ident::IdentError) -> CliError {
+    match e {
+        sd_ident::IdentError::Model(m) => from_model(context, m),
+        sd_ident::IdentError::Numerical(_) => CliError::numerical(format!("{context}: {e}")),
+        other => CliError {
+            code: 2,
+            message: format!("{context}: {other}"),
+        },
+    }
+}
+
 /// Reads a file (or stdin for "-") to a string.
 pub fn read_text(path: &str) -> Result<String, CliError> {
     let mut s = String::new();

@@ -375,3 +375,74 @@ fn issue4_weight_and_loopshape() {
         "bandwidth",
     );
 }
+
+#[test]
+fn issue5_frf_and_fit() {
+    let dir = tmpdir("issue5");
+    // a 2nd-order resonance at 100 Hz, sampled at 1 kHz, driven by a multisine (4 periods)
+    let ct = write(
+        &dir,
+        "ct.json",
+        r#"{"type":"ss","ts":null,"a":[[0,1],[-394784.176,-62.83]],"b":[[0],[394784.176]],"c":[[1,0]],"d":[[0]]}"#,
+    );
+    let pd = model_of(&sdctl(&["c2d", &ct, "--ts", "0.001"]));
+    let ms = sd_ident::design(&sd_ident::MultisineSpec {
+        fs: 1000.0,
+        period: 1000,
+        f_min: 1.0,
+        f_max: 400.0,
+        lines: sd_ident::Lines::Full,
+        phases: sd_ident::Phases::Schroeder,
+        rms: 1.0,
+        fold_rate_hz: None,
+    })
+    .unwrap();
+    let u = ms.repeat(4);
+    let y = pd
+        .simulate(&nalgebra::DMatrix::from_column_slice(u.len(), 1, &u), None)
+        .unwrap()
+        .y;
+    let mut csv = String::from("\"time\", \"u\",y,unused,\n");
+    for (i, v) in u.iter().enumerate() {
+        csv.push_str(&format!("{},{v},{},,\n", i as f64 * 1e-3, y[(i, 0)]));
+    }
+    write(&dir, "data.csv", &csv);
+    let manifest = write(
+        &dir,
+        "exp.toml",
+        "[[experiment]]\nname = \"a\"\nfile = \"data.csv\"\nsample_rate_hz = 1000.0\nperiod_samples = 1000\nskip_periods = 1\ninput = \"u\"\noutput = \"y\"\n",
+    );
+    let o = sdctl(&["frf", &manifest, "--experiment", "a"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let frd = sd_model::frd_from_json_str(&String::from_utf8_lossy(&o.stdout)).unwrap();
+    assert_eq!(frd.len(), 400);
+    let truth = pd.freqresp(frd.freq_hz()).unwrap();
+    for i in 0..frd.len() {
+        let (a, b) = (frd.response()[i][(0, 0)], truth.response()[i][(0, 0)]);
+        assert!((a - b).norm() < 1e-9 * b.norm());
+    }
+    let frd_path = write(&dir, "frd.json", &String::from_utf8_lossy(&o.stdout));
+    let o = sdctl(&[
+        "fit",
+        &frd_path,
+        "--order",
+        "2",
+        "--weighting",
+        "relative",
+        "--strictly-proper",
+    ]);
+    let m = model_of(&o);
+    assert_eq!(m.n(), 2);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("median relative error"));
+    let fr = m.freqresp(&[100.0]).unwrap().response()[0][(0, 0)];
+    let tr = pd.freqresp(&[100.0]).unwrap().response()[0][(0, 0)];
+    assert!((fr - tr).norm() < 1e-6 * tr.norm());
+    // errors: unknown experiment, bad cell, continuous FRD
+    assert_input_error(
+        &sdctl(&["frf", &manifest, "--experiment", "b"]),
+        "no experiment named",
+    );
+    write(&dir, "data.csv", "u,y\n1,2\n1,x\n");
+    assert_input_error(&sdctl(&["frf", &manifest, "--experiment", "a"]), "line 3");
+    assert_input_error(&sdctl(&["fit", &ct, "--order", "2"]), "frd");
+}
