@@ -5,7 +5,8 @@ CASES.json: {"c2d": {"model": path, "ts": h, "repeats": k},
              "freqresp": {"model": path, "fmin": .., "fmax": .., "n": .., "log": bool, "repeats": k},
              "downsample": {"model": path (DT), "factor": F, "repeats": k},   (optional)
              "dare": {"model": path (DT), "repeats": k},                     (optional)
-             "loopshape": {"plant": path, "w1": path, "repeats": k}}         (optional)
+             "loopshape": {"plant": path, "w1": path, "repeats": k},         (optional)
+             "frf": {"u": f64 file, "y": f64 file, "period": P, "skip": S, "repeats": k}}
 """
 import json, sys, time
 import numpy as np
@@ -91,4 +92,19 @@ if ls:
         return float(np.sqrt(1 + max(abs(np.linalg.eigvals(x @ z)))))
     t, g = median_time(gamma_min, ls["repeats"])
     res["loopshape_scipy_gamma_min"] = {"median_s": t, "gamma_min": g}
+fr = cases.get("frf")
+if fr:
+    u = np.fromfile(fr["u"], dtype="<f8"); y = np.fromfile(fr["y"], dtype="<f8")
+    p = fr["period"]; skip = fr["skip"]
+    def est():
+        m = len(u) // p - skip
+        U = np.fft.fft(u[skip * p:(skip + m) * p].reshape(m, p), axis=1)
+        Y = np.fft.fft(y[skip * p:(skip + m) * p].reshape(m, p), axis=1)
+        Um, Ym = U.mean(0), Y.mean(0)
+        lines = np.arange(1, p // 2)
+        G = Ym[lines] / Um[lines]
+        var = (np.var(Y[:, lines], axis=0, ddof=1) / np.abs(Um[lines]) ** 2) / m
+        return G, var
+    t, (G, var) = median_time(est, fr["repeats"])
+    res["frf_numpy_periodic_average"] = {"median_s": t, "lines": int(len(G))}
 print(json.dumps(res))

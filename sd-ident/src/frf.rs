@@ -289,42 +289,12 @@ mod tests {
         let y: Vec<f64> = (0..u.len())
             .map(|n| 2.0 * u[(n + u.len() - 1) % u.len()])
             .collect();
-        let est = frf_periodic(
-            100.0,
-            None,
-            &u,
-            &y,
-            &PeriodicOptions {
-                period: p,
-                skip_periods: 1,
-            },
-        )
-        .unwrap();
+        let est = frf_periodic(100.0, None, &u, &y, &PeriodicOptions::new(p, 1)).unwrap();
         for (i, &k) in est.lines.iter().enumerate() {
             let want = C::from_polar(2.0, -2.0 * std::f64::consts::PI * k as f64 / p as f64);
             assert!((est.frd.response()[i][(0, 0)] - want).norm() < 1e-10);
         }
-        assert!(frf_periodic(
-            100.0,
-            None,
-            &u,
-            &y[1..],
-            &PeriodicOptions {
-                period: p,
-                skip_periods: 0
-            }
-        )
-        .is_err());
-        assert!(frf_periodic(
-            100.0,
-            None,
-            &u,
-            &y,
-            &PeriodicOptions {
-                period: p,
-                skip_periods: 4
-            }
-        )
-        .is_err());
+        assert!(frf_periodic(100.0, None, &u, &y[1..], &PeriodicOptions::new(p, 0)).is_err());
+        assert!(frf_periodic(100.0, None, &u, &y, &PeriodicOptions::new(p, 4)).is_err());
     }
 }

@@ -103,10 +103,7 @@ fn issue5_closed_loop_frf_unbiased_direct_biased_and_order8_fit() {
     .unwrap();
     let periods = 61;
     let rec = simulate(&p, &k, &ms.repeat(periods), 2.0, 3e-10, 5);
-    let opt = PeriodicOptions {
-        period: PERIOD,
-        skip_periods: 1,
-    };
+    let opt = PeriodicOptions::new(PERIOD, 1);
     let est = frf_periodic(FS, Some(&rec.r), &rec.u, &rec.y, &opt).unwrap();
     assert_eq!(est.periods, 60);
     let truth = p.freqresp(est.frd.freq_hz()).unwrap();

@@ -101,6 +101,73 @@ pub fn run(quick: bool) -> Result<(), String> {
     let mut ls_entry = json!({"name": "loopshape", "size": "paper stage at 1 kHz (4 states) with a PID-like W1 (3 states)",
         "ours_full_design_s": t_ls, "ours_gamma_min": design.gamma_min});
 
+    // FRF estimation: the 5 kHz stage driven by a multisine, 21 periods of 10 000 samples
+    eprintln!("[bench] FRF estimation (210 000 samples) and an order-60 fit (2500 lines)...");
+    let ms = sd_ident::design(&sd_ident::MultisineSpec {
+        fs: 5000.0,
+        period: 10_000,
+        f_min: 0.5,
+        f_max: 2400.0,
+        lines: sd_ident::Lines::Full,
+        phases: sd_ident::Phases::Random { seed: 1 },
+        rms: 1.0,
+        fold_rate_hz: Some(1000.0),
+    })
+    .map_err(|x| x.to_string())?;
+    let u = ms.repeat(21);
+    let y: Vec<f64> = pd
+        .simulate(&nalgebra::DMatrix::from_column_slice(u.len(), 1, &u), None)
+        .map_err(e)?
+        .y
+        .iter()
+        .cloned()
+        .collect();
+    let popt = sd_ident::PeriodicOptions::new(10_000, 1);
+    let (t_frf, est) = time_it(reps, || sd_ident::frf_periodic(5000.0, None, &u, &y, &popt));
+    let est = est.map_err(|x| x.to_string())?;
+    let to_bytes = |v: &[f64]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+    let (u_path, y_path) = (dir.join("frf_u.f64"), dir.join("frf_y.f64"));
+    std::fs::write(&u_path, to_bytes(&u)).map_err(|x| x.to_string())?;
+    std::fs::write(&y_path, to_bytes(&y)).map_err(|x| x.to_string())?;
+    let mut frf_entry = json!({"name": "frf_periodic", "size": "210 000 samples, period 10 000, 20 periods averaged",
+        "ours_s": t_frf, "lines": est.lines.len()});
+    // order-60 fit of 2500 lines at 40 dB SNR
+    let f60: Vec<f64> = (1..=2500).map(|k| k as f64 * 0.999).collect();
+    let truth = pd.freqresp(&f60).map_err(e)?;
+    let mut seed: u64 = 60;
+    let mut normal = || {
+        // SplitMix64 + Box–Muller, enough for bench noise
+        let mut next = || {
+            seed = seed.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = seed;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (a, b) = (next().max(1e-300), next());
+        (-2.0 * a.ln()).sqrt() * (2.0 * std::f64::consts::PI * b).cos()
+    };
+    let (mut resp, mut var) = (Vec::new(), Vec::new());
+    for g in truth.response() {
+        let g = g[(0, 0)];
+        let s = 0.01 * g.norm();
+        let n = num_complex::Complex64::new(normal(), normal()) * (s / 2f64.sqrt());
+        resp.push(nalgebra::DMatrix::from_element(1, 1, g + n));
+        var.push(nalgebra::DMatrix::from_element(1, 1, s * s));
+    }
+    let frd60 = sd_model::Frd::new(f60, resp, Some(var), truth.time()).map_err(e)?;
+    let fopt = sd_ident::FitOptions {
+        order: 60,
+        rigid_body: 2,
+        feedthrough: false,
+        ..Default::default()
+    };
+    let (t_fit, fit60) = time_it(if quick { 1 } else { 3 }, || sd_ident::fit(&frd60, &fopt));
+    let fit60 = fit60.map_err(|x| x.to_string())?;
+    let fit_entry = json!({"name": "fit_order60", "size": "2500 lines of the 60-state stage at 5 kHz, 40 dB SNR",
+        "ours_s": t_fit, "median_rel_error": fit60.median_rel_error, "cost": fit60.cost,
+        "peer": "none: python-control and scipy have no rational FRF fitting"});
+
     // freqresp: library call and the whole sdctl process
     let (fmin, fmax) = (0.1, 2500.0);
     let f = grid(fmin, fmax, nfreq, true).map_err(e)?;
@@ -149,6 +216,7 @@ pub fn run(quick: bool) -> Result<(), String> {
             "downsample": {"model": dt_path, "factor": 5, "repeats": reps * 10},
             "dare": {"model": dt_path, "repeats": reps},
             "loopshape": {"plant": p1k_path, "w1": w1_path, "repeats": reps * 4},
+            "frf": {"u": u_path, "y": y_path, "period": 10_000, "skip": 1, "repeats": reps},
         });
         let cases_path = dir.join("python_cases.json");
         std::fs::write(&cases_path, cases.to_string()).map_err(|x| x.to_string())?;
@@ -232,8 +300,14 @@ pub fn run(quick: bool) -> Result<(), String> {
         entries.push(c2d_entry);
         entries.push(fr_entry);
         entries.push(ds_entry);
+        let pf = &py["frf_numpy_periodic_average"];
+        frf_entry["peer"] = json!({"numpy_fft_period_average": pf});
+        frf_entry["ratio_numpy_over_ours"] =
+            json!(pf["median_s"].as_f64().unwrap_or(f64::NAN) / t_frf);
         entries.push(dare_entry);
         entries.push(ls_entry);
+        entries.push(frf_entry);
+        entries.push(fit_entry);
         let res = json!({"quick": quick, "python": py["versions"], "entries": entries});
         finish(&dir, res)
     } else {
@@ -243,6 +317,8 @@ pub fn run(quick: bool) -> Result<(), String> {
         entries.push(ds_entry);
         entries.push(dare_entry);
         entries.push(ls_entry);
+        entries.push(frf_entry);
+        entries.push(fit_entry);
         finish(
             &dir,
             json!({"quick": quick, "python": null, "entries": entries}),
