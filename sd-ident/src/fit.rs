@@ -792,4 +792,39 @@ mod tests {
             .iter()
             .all(|z| z.norm() <= 1.0 + 1e-12));
     }
+
+    #[test]
+    fn nothing_depends_on_the_scale_of_the_data() {
+        let p = sd_model::stage::paper_stage_two_modes().unwrap();
+        let pd = sd_model::c2d(&p, 2e-4, sd_model::Discretization::Zoh).unwrap();
+        let f = sd_model::grid(1.0, 2400.0, 400, true).unwrap();
+        let frd = pd.freqresp(&f).unwrap();
+        let opt = FitOptions {
+            order: pd.n(),
+            rigid_body: 2,
+            feedthrough: false,
+            weighting: Weighting::Relative,
+            ..Default::default()
+        };
+        let a = fit(&frd, &opt).unwrap();
+        for scale in [1e-12, 1e9] {
+            let resp = frd
+                .response()
+                .iter()
+                .map(|g| g * C::new(scale, 0.0))
+                .collect();
+            let scaled = Frd::new(f.clone(), resp, None, frd.time()).unwrap();
+            let b = fit(&scaled, &opt).unwrap();
+            assert!(
+                (b.median_rel_error - a.median_rel_error).abs() < 1e-9,
+                "{scale}"
+            );
+            assert!(
+                (b.cost - a.cost).abs() <= 1e-6 * a.cost.max(1e-20),
+                "{scale}: {} vs {}",
+                b.cost,
+                a.cost
+            );
+        }
+    }
 }
