@@ -1,3 +1,23 @@
-//! Closed-loop analysis: stability, sensitivities, margins, spectra, standstill simulation, intersample performance. Owned by issue #6.
+//! `sd-analysis`: closed-loop analysis of sampled-data motion systems.
 //!
-//! This crate has no public API yet: nothing here pretends to work before its issue lands.
+//! - [`ClosedLoop`]: internal stability, S, T, PS, KS, |S| peak, margins (python-control's
+//!   definitions), bandwidth, the `sdctl analyze` summary.
+//! - [`spectra`]: Welch and periodogram PSDs with windows, cumulative power spectrum, rms,
+//!   dominant frequency.
+//! - [`standstill`]: disturbance simulation of a single-rate loop, and of a slow controller on a
+//!   fast plant (errors at both rates).
+//! - [`intersample`]: predicted fast- and slow-rate error spectra of a multirate loop and the
+//!   control sensitivity `K_d S_d`.
+
+pub mod closed_loop;
+pub mod error;
+pub mod intersample;
+pub mod spectra;
+pub mod standstill;
+pub mod tol;
+
+pub use closed_loop::{ClosedLoop, Margins, Responses, Summary};
+pub use error::{AnalysisError, Result};
+pub use intersample::{intersample, Intersample};
+pub use spectra::{cps, periodogram, rms, welch, Spectrum, Window};
+pub use standstill::{standstill, standstill_multirate, MultirateStandstill, Standstill};

@@ -1,0 +1,447 @@
+//! The closed loop of a plant P and a controller K under negative feedback `u = −K y`.
+//!
+//! - **Internal stability**: the eigenvalues of the interconnection's state matrix (all four
+//!   closed-loop maps share it), reported as the spectral radius (DT) or abscissa (CT).
+//! - **Sensitivities** (output side): `S = (I + PK)⁻¹`, `T = PK(I + PK)⁻¹ = I − S`,
+//!   `PS = P(I + KP)⁻¹ = S P` (input disturbance to output), `KS = K(I + PK)⁻¹` (the control
+//!   sensitivity the paper uses as its intersample indicator). MIMO allowed. As models (for
+//!   norms, simulation) and, accurately, pointwise from P(f) and K(f) ([`ClosedLoop::responses`]).
+//! - **|S| peak**: `‖S‖∞` and its frequency ([`sd_model::StateSpace::hinf_norm`]).
+//! - **Margins** (SISO, loop gain `L = PK`), with python-control's definitions
+//!   (`stability_margins`): phase crossovers where `L` crosses the negative real axis
+//!   (including ω = 0 and, in discrete time, the Nyquist frequency when `L` is real and
+//!   negative there), gain margin `1/|L|` there, the one with the smallest `|log GM|` reported;
+//!   gain crossovers `|L| = 1`, phase margin `(∠L mod 360°) − 180°`, the smallest `|PM|`
+//!   reported; **modulus margin** `inf_ω |1 + L| = 1/‖S‖∞` from the H∞ norm (python-control's
+//!   `sm` keeps only interior minima of a polynomial, and misses the global one on some
+//!   discrete loops; ours is the global one, including ω → ∞).
+//! - **Bandwidth**: the lowest gain crossover of `|L|` (the usual motion-control definition: the
+//!   frequency up to which the loop gain exceeds one).
+//!
+//! Crossings are bracketed on a log grid of [`crate::tol::GRID_POINTS`] points (plus dense
+//! points around every lightly damped pole of L) and refined by bisection to machine precision.
+
+use crate::error::{AnalysisError, Result};
+use crate::tol;
+use num_complex::Complex64 as C;
+use sd_model::connect::{feedback, series};
+use sd_model::{FreqRespEvaluator, SampleTime, StateSpace};
+use std::f64::consts::PI;
+
+/// Stability margins of a SISO loop.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Margins {
+    /// Gain margin (factor; `inf` when L never crosses the negative real axis).
+    pub gain_margin: f64,
+    /// Phase crossover frequency of the reported gain margin (Hz; NaN if none).
+    pub phase_crossover_hz: f64,
+    /// Phase margin (degrees; `inf` when |L| never crosses 1).
+    pub phase_margin_deg: f64,
+    /// Gain crossover frequency of the reported phase margin (Hz; NaN if none).
+    pub gain_crossover_hz: f64,
+    /// `inf |1 + L| = 1/‖S‖∞`.
+    pub modulus_margin: f64,
+    /// Where it is attained (Hz; infinite when only approached as ω → ∞).
+    pub modulus_margin_hz: f64,
+    /// All phase crossovers `(Hz, gain margin)`.
+    pub all_phase_crossovers: Vec<(f64, f64)>,
+    /// All gain crossovers `(Hz, phase margin)`.
+    pub all_gain_crossovers: Vec<(f64, f64)>,
+}
+
+impl Margins {
+    /// Gain margin in dB.
+    pub fn gain_margin_db(&self) -> f64 {
+        20.0 * self.gain_margin.log10()
+    }
+}
+
+/// The four closed-loop maps at one frequency.
+#[derive(Debug, Clone)]
+pub struct Responses {
+    /// `S = (I + PK)⁻¹`.
+    pub s: nalgebra::DMatrix<C>,
+    /// `T = PK S`.
+    pub t: nalgebra::DMatrix<C>,
+    /// `PS = S P`.
+    pub ps: nalgebra::DMatrix<C>,
+    /// `KS = K S`.
+    pub ks: nalgebra::DMatrix<C>,
+}
+
+/// The closed loop of P and K (module documentation).
+#[derive(Debug, Clone)]
+pub struct ClosedLoop {
+    p: StateSpace,
+    k: StateSpace,
+    ev_p: FreqRespEvaluator,
+    ev_k: FreqRespEvaluator,
+    l: StateSpace,
+    cl: StateSpace,
+    s: StateSpace,
+    t: StateSpace,
+    ps: StateSpace,
+    ks: StateSpace,
+}
+
+/// The summary `sdctl analyze` prints.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Summary {
+    /// Internally stable.
+    pub stable: bool,
+    /// Spectral radius (DT) or abscissa (CT) of the closed loop.
+    pub closed_loop_radius: f64,
+    /// Lowest gain crossover (Hz; NaN if none).
+    pub bandwidth_hz: f64,
+    /// `‖S‖∞` in dB.
+    pub sensitivity_peak_db: f64,
+    /// Its frequency (Hz).
+    pub sensitivity_peak_hz: f64,
+    /// Gain margin in dB (SISO; NaN for MIMO).
+    pub gain_margin_db: f64,
+    /// Phase margin in degrees (SISO; NaN for MIMO).
+    pub phase_margin_deg: f64,
+    /// `1/‖S‖∞`.
+    pub modulus_margin: f64,
+}
+
+fn identity(n: usize, time: SampleTime) -> Result<StateSpace> {
+    Ok(StateSpace::gain(nalgebra::DMatrix::identity(n, n), time)?)
+}
+
+impl ClosedLoop {
+    /// Builds the loop; K must be `nu(P) × ny(P)` with the same sample time.
+    ///
+    /// # Errors
+    /// Mixed sample times, wrong shapes, an ill-posed loop (`I + D_P D_K` singular).
+    pub fn new(p: &StateSpace, k: &StateSpace) -> Result<Self> {
+        if !p.time().compatible(&k.time()) {
+            return Err(AnalysisError::InvalidArgument(
+                "plant and controller must have the same sample time".into(),
+            ));
+        }
+        if k.nu() != p.ny() || k.ny() != p.nu() {
+            return Err(AnalysisError::InvalidArgument(format!(
+                "the controller must be {}x{} (inputs = plant outputs), got {}x{}",
+                p.nu(),
+                p.ny(),
+                k.ny(),
+                k.nu()
+            )));
+        }
+        let l = series(k, p)?;
+        let cl = feedback(p, k, -1.0)?;
+        let s = feedback(&identity(p.ny(), p.time())?, &l, -1.0)?;
+        let t = feedback(&l, &identity(p.ny(), p.time())?, -1.0)?;
+        let ps = series(p, &s)?;
+        let ks = series(&s, k)?;
+        Ok(ClosedLoop {
+            ev_p: FreqRespEvaluator::new(p)?,
+            ev_k: FreqRespEvaluator::new(k)?,
+            p: p.clone(),
+            k: k.clone(),
+            l,
+            cl,
+            s,
+            t,
+            ps,
+            ks,
+        })
+    }
+
+    /// The loop gain `L = PK`.
+    pub fn loop_gain(&self) -> &StateSpace {
+        &self.l
+    }
+    /// `S = (I + PK)⁻¹`.
+    pub fn sensitivity(&self) -> &StateSpace {
+        &self.s
+    }
+    /// `T = PK(I + PK)⁻¹`.
+    pub fn complementary(&self) -> &StateSpace {
+        &self.t
+    }
+    /// `PS`.
+    pub fn process_sensitivity(&self) -> &StateSpace {
+        &self.ps
+    }
+    /// `KS`.
+    pub fn control_sensitivity(&self) -> &StateSpace {
+        &self.ks
+    }
+    /// The plant.
+    pub fn plant(&self) -> &StateSpace {
+        &self.p
+    }
+    /// The controller.
+    pub fn controller(&self) -> &StateSpace {
+        &self.k
+    }
+
+    /// Spectral radius (DT) or abscissa (CT) of the closed loop, and whether it is stable.
+    pub fn stability(&self) -> Result<(f64, bool)> {
+        let poles = self.cl.poles()?;
+        Ok(if self.cl.time().is_continuous() {
+            let a = poles.iter().map(|z| z.re).fold(f64::NEG_INFINITY, f64::max);
+            (a, a < 0.0)
+        } else {
+            let r = poles.iter().map(|z| z.norm()).fold(0.0, f64::max);
+            (r, r < 1.0)
+        })
+    }
+
+    /// `‖S‖∞` and its frequency (Hz).
+    pub fn sensitivity_peak(&self) -> Result<(f64, f64)> {
+        let h = self.s.hinf_norm()?;
+        Ok((h.value, h.peak_hz))
+    }
+
+    /// S, T, PS and KS at a frequency (Hz), from P(f) and K(f) evaluated separately. Near the
+    /// zeros of S (low frequencies, where |PK| is large) this keeps full relative accuracy,
+    /// which evaluating a state-space realization of S itself cannot (its pole–residue sum
+    /// cancels to a tiny value).
+    ///
+    /// # Errors
+    /// `I + PK` singular at f (a closed-loop pole on the boundary).
+    pub fn responses(&self, f_hz: f64) -> Result<Responses> {
+        let p = self.ev_p.eval_hz(f_hz);
+        let k = self.ev_k.eval_hz(f_hz);
+        let ny = p.nrows();
+        let s = (nalgebra::DMatrix::<C>::identity(ny, ny) + &p * &k)
+            .try_inverse()
+            .ok_or_else(|| {
+                AnalysisError::InvalidArgument(format!("I + PK is singular at {f_hz} Hz"))
+            })?;
+        let t = &p * &k * &s;
+        let ps = &s * &p;
+        let ks = &k * &s;
+        Ok(Responses { s, t, ps, ks })
+    }
+
+    /// `σ_max(S(f))` at a frequency (Hz).
+    pub fn sensitivity_at(&self, f_hz: f64) -> Result<f64> {
+        Ok(sigma_max(&self.responses(f_hz)?.s))
+    }
+
+    fn require_siso(&self) -> Result<()> {
+        if self.p.nu() != 1 || self.p.ny() != 1 {
+            return Err(AnalysisError::InvalidArgument(format!(
+                "margins are defined for SISO loops; the plant is {}x{} (use the sensitivity peak)",
+                self.p.ny(),
+                self.p.nu()
+            )));
+        }
+        Ok(())
+    }
+
+    /// The frequency grid (Hz) on which crossings are bracketed.
+    fn grid(&self) -> Result<Vec<f64>> {
+        let poles = self.l.poles()?;
+        let zeros = self.l.zeros().unwrap_or_default();
+        let (lo, hi, nyq) = match self.l.time() {
+            SampleTime::Discrete { ts } => {
+                let nyq = 0.5 / ts;
+                (nyq * 1e-7, nyq, true)
+            }
+            SampleTime::Continuous => {
+                let w: Vec<f64> = poles
+                    .iter()
+                    .chain(zeros.iter())
+                    .map(|z| z.norm())
+                    .filter(|&v| v > 0.0 && v.is_finite())
+                    .collect();
+                let wmin = w.iter().cloned().fold(f64::INFINITY, f64::min);
+                let wmax = w.iter().cloned().fold(0.0, f64::max);
+                let (lo, mut hi) = if w.is_empty() {
+                    (1e-3, 1e3)
+                } else {
+                    (wmin / (2.0 * PI) * 1e-3, wmax / (2.0 * PI) * 1e3)
+                };
+                // a high gain moves the crossover above the poles: extend until |L| ≪ 1
+                let ev = FreqRespEvaluator::new(&self.l)?;
+                let mut guard = 0;
+                while guard < 30 && (ev.eval_hz(hi)[(0, 0)] - self.l.d()[(0, 0)]).norm() > 1e-3 {
+                    hi *= 10.0;
+                    guard += 1;
+                }
+                (lo, hi, false)
+            }
+        };
+        let mut f = sd_model::grid(lo, hi, tol::GRID_POINTS, true)?;
+        // dense points around lightly damped poles
+        for p in &poles {
+            let (fr, zeta) = match self.l.time() {
+                SampleTime::Discrete { ts } => {
+                    if p.norm() == 0.0 {
+                        continue;
+                    }
+                    let s = p.ln() / ts;
+                    (
+                        s.im.abs() / (2.0 * PI),
+                        -s.re / s.norm().max(f64::MIN_POSITIVE),
+                    )
+                }
+                SampleTime::Continuous => (
+                    p.im.abs() / (2.0 * PI),
+                    -p.re / p.norm().max(f64::MIN_POSITIVE),
+                ),
+            };
+            if fr > lo && fr < hi && zeta < 0.2 {
+                let width = (4.0 * zeta.abs().max(1e-4) * fr).max(1e-9);
+                for i in 0..tol::RESONANCE_POINTS {
+                    let x =
+                        fr - width + 2.0 * width * i as f64 / (tol::RESONANCE_POINTS - 1) as f64;
+                    if x > lo && x < hi {
+                        f.push(x);
+                    }
+                }
+            }
+        }
+        f.sort_by(f64::total_cmp);
+        f.dedup();
+        if nyq {
+            if let Some(last) = f.last_mut() {
+                *last = hi;
+            }
+        }
+        Ok(f)
+    }
+
+    /// Stability margins (module documentation; SISO).
+    ///
+    /// # Errors
+    /// A MIMO loop.
+    pub fn margins(&self) -> Result<Margins> {
+        self.require_siso()?;
+        let ev = FreqRespEvaluator::new(&self.l)?;
+        let lval = |f: f64| ev.eval_hz(f)[(0, 0)];
+        let f = self.grid()?;
+        let vals: Vec<C> = f.iter().map(|&x| lval(x)).collect();
+        let mut phase_x: Vec<(f64, f64)> = Vec::new();
+        let mut gain_x: Vec<(f64, f64)> = Vec::new();
+        // ω = 0 (if L is finite there) and the Nyquist frequency: real values of L
+        let at_zero = match self.l.time() {
+            SampleTime::Continuous => ev.eval_at(C::new(0.0, 0.0))[(0, 0)],
+            SampleTime::Discrete { .. } => ev.eval_at(C::new(1.0, 0.0))[(0, 0)],
+        };
+        if at_zero.is_finite() && at_zero.re <= 0.0 && at_zero.im.abs() <= 1e-12 * at_zero.norm() {
+            phase_x.push((0.0, 1.0 / at_zero.norm()));
+        }
+        for i in 0..f.len() - 1 {
+            let (a, b) = (vals[i], vals[i + 1]);
+            if !(a.is_finite() && b.is_finite()) {
+                continue;
+            }
+            if (a.im > 0.0) != (b.im > 0.0) && (a.re < 0.0 || b.re < 0.0) {
+                let w = bisect(f[i], f[i + 1], |x| lval(x).im);
+                let lw = lval(w);
+                if lw.re <= 0.0 {
+                    phase_x.push((w, 1.0 / lw.norm()));
+                }
+            }
+            if (a.norm() > 1.0) != (b.norm() > 1.0) {
+                let w = bisect(f[i], f[i + 1], |x| lval(x).norm() - 1.0);
+                let lw = lval(w);
+                let pm = (lw.arg().to_degrees()).rem_euclid(360.0) - 180.0;
+                gain_x.push((w, pm));
+            }
+        }
+        if let SampleTime::Discrete { ts } = self.l.time() {
+            let nyq = 0.5 / ts;
+            let ln = ev.eval_at(C::new(-1.0, 0.0))[(0, 0)];
+            if ln.is_finite()
+                && ln.re <= 0.0
+                && !phase_x.iter().any(|&(w, _)| (w - nyq).abs() < 1e-9 * nyq)
+            {
+                phase_x.push((nyq, 1.0 / ln.norm()));
+            }
+        }
+        let (gm, wpc) = match phase_x
+            .iter()
+            .min_by(|a, b| a.1.ln().abs().total_cmp(&b.1.ln().abs()))
+        {
+            Some(&(w, g)) => (g, w),
+            None => (f64::INFINITY, f64::NAN),
+        };
+        let (pm, wgc) = gain_x
+            .iter()
+            .cloned()
+            .min_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+            .map(|(w, p)| (p, w))
+            .unwrap_or((f64::INFINITY, f64::NAN));
+        // modulus margin: the global infimum of |1 + L| is 1/‖S‖∞ (attained at ω → ∞ for
+        // strictly proper continuous loops, which no grid reaches)
+        let (peak, peak_hz) = self.sensitivity_peak()?;
+        let (mm, wms) = (1.0 / peak, peak_hz);
+        Ok(Margins {
+            gain_margin: gm,
+            phase_crossover_hz: wpc,
+            phase_margin_deg: pm,
+            gain_crossover_hz: wgc,
+            modulus_margin: mm,
+            modulus_margin_hz: wms,
+            all_phase_crossovers: phase_x,
+            all_gain_crossovers: gain_x,
+        })
+    }
+
+    /// The bandwidth: the lowest gain crossover of |L| (Hz), if any (SISO).
+    pub fn bandwidth_hz(&self) -> Result<Option<f64>> {
+        let m = self.margins()?;
+        Ok(m.all_gain_crossovers.iter().map(|g| g.0).reduce(f64::min))
+    }
+
+    /// Everything `sdctl analyze` reports.
+    pub fn summary(&self) -> Result<Summary> {
+        let (radius, stable) = self.stability()?;
+        let (peak, peak_hz) = self.sensitivity_peak()?;
+        let siso = self.p.nu() == 1 && self.p.ny() == 1;
+        let (gm_db, pm, bw) = if siso {
+            let m = self.margins()?;
+            let bw = m.all_gain_crossovers.iter().map(|g| g.0).reduce(f64::min);
+            (
+                m.gain_margin_db(),
+                m.phase_margin_deg,
+                bw.unwrap_or(f64::NAN),
+            )
+        } else {
+            (f64::NAN, f64::NAN, f64::NAN)
+        };
+        Ok(Summary {
+            stable,
+            closed_loop_radius: radius,
+            bandwidth_hz: bw,
+            sensitivity_peak_db: 20.0 * peak.log10(),
+            sensitivity_peak_hz: peak_hz,
+            gain_margin_db: gm_db,
+            phase_margin_deg: pm,
+            modulus_margin: 1.0 / peak,
+        })
+    }
+}
+
+fn sigma_max(g: &nalgebra::DMatrix<C>) -> f64 {
+    if g.nrows() == 1 && g.ncols() == 1 {
+        return g[(0, 0)].norm();
+    }
+    nalgebra::linalg::SVD::try_new(g.clone(), false, false, f64::EPSILON, 1000)
+        .map(|s| s.singular_values.iter().cloned().fold(0.0, f64::max))
+        .unwrap_or(f64::NAN)
+}
+
+/// Bisection on a sign change of `g` in [a, b].
+fn bisect(mut a: f64, mut b: f64, g: impl Fn(f64) -> f64) -> f64 {
+    let ga = g(a);
+    for _ in 0..tol::REFINE_STEPS {
+        let m = 0.5 * (a + b);
+        if m <= a || m >= b {
+            break;
+        }
+        if (g(m) > 0.0) == (ga > 0.0) {
+            a = m;
+        } else {
+            b = m;
+        }
+    }
+    0.5 * (a + b)
+}

@@ -1,0 +1,22 @@
+//! The one error type of `sd-analysis`.
+
+use sd_model::ModelError;
+use sd_multirate::MultirateError;
+
+/// Everything that can go wrong in `sd-analysis`. Each message says what to fix.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum AnalysisError {
+    /// An error of the model operations.
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    /// An error of the multirate operations.
+    #[error(transparent)]
+    Multirate(#[from] MultirateError),
+    /// An argument that is not usable (message says which and why).
+    #[error("{0}")]
+    InvalidArgument(String),
+}
+
+/// Result alias of this crate.
+pub type Result<T> = std::result::Result<T, AnalysisError>;
