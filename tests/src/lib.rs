@@ -42,40 +42,6 @@ pub fn rel_err(x: &DMatrix<f64>, y: &DMatrix<f64>) -> f64 {
 pub mod designs;
 pub mod gen;
 
-/// One-sided Welch power spectral density of a real signal sampled at `fs` Hz: Hann window,
-/// segments of `seg` samples, 50 % overlap, density in units²/Hz so that `Σ psd·Δf ≈ variance`.
-/// Returns `(freq_hz, psd)` for the bins 0…seg/2.
-pub fn welch_psd(x: &[f64], fs: f64, seg: usize) -> (Vec<f64>, Vec<f64>) {
-    use rustfft::{num_complex::Complex, FftPlanner};
-    let step = seg / 2;
-    let win: Vec<f64> = (0..seg)
-        .map(|i| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / seg as f64).cos())
-        .collect();
-    let wss: f64 = win.iter().map(|w| w * w).sum();
-    let fft = FftPlanner::<f64>::new().plan_fft_forward(seg);
-    let nb = seg / 2 + 1;
-    let mut acc = vec![0.0; nb];
-    let mut count = 0usize;
-    let mut start = 0;
-    let mut buf = vec![Complex::new(0.0, 0.0); seg];
-    while start + seg <= x.len() {
-        let mean = x[start..start + seg].iter().sum::<f64>() / seg as f64;
-        for i in 0..seg {
-            buf[i] = Complex::new((x[start + i] - mean) * win[i], 0.0);
-        }
-        fft.process(&mut buf);
-        for (k, a) in acc.iter_mut().enumerate() {
-            let two = if k == 0 || 2 * k == seg { 1.0 } else { 2.0 };
-            *a += two * buf[k].norm_sqr() / (fs * wss);
-        }
-        count += 1;
-        start += step;
-    }
-    assert!(count > 0, "signal shorter than one segment");
-    let f = (0..nb).map(|k| k as f64 * fs / seg as f64).collect();
-    (f, acc.into_iter().map(|a| a / count as f64).collect())
-}
-
 /// A PID-like controller (integrator, lead around the bandwidth, first-order roll-off) for a
 /// mass `m` with crossover near `bw_hz`, discretised by Tustin at `ts`:
 /// `K(s) = k (s/ω_z + 1)(s + ω_i) / (s (s/ω_p + 1))`, ω_z = ω_c/3, ω_p = 3ω_c, ω_i = ω_c/5,

@@ -5,7 +5,8 @@ use nalgebra::DMatrix;
 use sd_model::{c2d, connect::feedback, Discretization, StateSpace};
 use sd_multirate::MultirateLoop;
 use sd_tests::gen::{model, with_blocks, Rng};
-use sd_tests::{pid, welch_psd};
+use sd_analysis::{welch, Window};
+use sd_tests::pid;
 
 fn radius(sys: &StateSpace) -> f64 {
     sys.poles()
@@ -173,9 +174,11 @@ fn issue3_error_spectra_match_long_simulation() {
         .collect();
     // one-sided white densities at the fast rate
     let (phid, phin) = (2.0 * h * sd * sd, 2.0 * h * sn * sn);
-    let (ff, pf) = welch_psd(&z, 1.0 / h, 5000);
+    let wf = welch(&z, 1.0 / h, 5000, 0.5, Window::Hann).unwrap();
+    let (ff, pf) = (wf.freq_hz, wf.psd);
     let pred_f = l.error_spectrum_fast(&ff, &|_| phid, &|_| phin).unwrap();
-    let (fs, ps) = welch_psd(&y, 1.0 / (h * factor as f64), 1000);
+    let ws = welch(&y, 1.0 / (h * factor as f64), 1000, 0.5, Window::Hann).unwrap();
+    let (fs, ps) = (ws.freq_hz, ws.psd);
     let pred_s = l.error_spectrum_slow(&fs, &|_| phid, &|_| phin).unwrap();
     let fast = band_ratios(&ff, &pf, &pred_f, 100.0, 2500.0);
     let slow = band_ratios(&fs, &ps, &pred_s, 50.0, 500.0);
