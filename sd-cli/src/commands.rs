@@ -1,6 +1,8 @@
 //! Command definitions and their implementations.
 
-use crate::io::{emit, from_hinf, from_ident, from_model, from_multirate, read_model, CliError};
+use crate::io::{
+    emit, from_analysis, from_hinf, from_ident, from_model, from_multirate, read_model, CliError,
+};
 use clap::{Parser, Subcommand, ValueEnum};
 use sd_model::{c2d, d2c_with_aliases, Discretization, StateSpace};
 use serde_json::json;
@@ -189,6 +191,35 @@ enum Cmd {
         weighting: WeightingArg,
         #[arg(short, long)]
         output: Option<String>,
+    },
+    /// Closed loop of a plant and a controller (negative feedback): stability, bandwidth, |S| peak, margins.
+    Analyze {
+        #[arg(long)]
+        plant: String,
+        #[arg(long)]
+        controller: String,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Intersample analysis of a slow controller around a fast plant: predicted error spectra at both rates.
+    Intersample {
+        /// Fast discrete plant (period h).
+        #[arg(long)]
+        plant_fast: String,
+        /// Slow discrete controller (period F·h, F an integer).
+        #[arg(long)]
+        controller: String,
+        /// Force disturbance rms per fast sample (white).
+        #[arg(long, default_value_t = 0.05, allow_negative_numbers = true)]
+        force_rms: f64,
+        /// Sensor disturbance rms per fast sample (white).
+        #[arg(long, default_value_t = 3e-10, allow_negative_numbers = true)]
+        sensor_rms: f64,
+        /// Frequency points per band.
+        #[arg(long, default_value_t = 2000)]
+        points: usize,
+        #[arg(long)]
+        json: bool,
     },
     /// Loopshaping weights as model JSON (continuous unless --ts is given).
     Weight {
@@ -569,6 +600,117 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
                 100.0 * r.median_rel_error
             );
             emit(&model_json(&r.model)?, output.as_deref())
+        }
+        Cmd::Analyze {
+            plant,
+            controller,
+            json,
+        } => {
+            let p = read_model(&plant)?;
+            let k = read_model(&controller)?;
+            let cl =
+                sd_analysis::ClosedLoop::new(&p, &k).map_err(|e| from_analysis("analyze", e))?;
+            let s = cl.summary().map_err(|e| from_analysis("analyze", e))?;
+            if json {
+                let v = json!({
+                    "stable": s.stable,
+                    "closed_loop_radius": s.closed_loop_radius,
+                    "bandwidth_hz": s.bandwidth_hz,
+                    "sensitivity_peak_db": s.sensitivity_peak_db,
+                    "sensitivity_peak_hz": s.sensitivity_peak_hz,
+                    "gain_margin_db": s.gain_margin_db,
+                    "phase_margin_deg": s.phase_margin_deg,
+                    "modulus_margin": s.modulus_margin,
+                });
+                emit(&v.to_string(), None)
+            } else {
+                emit(
+                    &format!(
+                        "closed loop {} (spectral {} {:.6})\nbandwidth {:.3} Hz\n|S| peak {:.2} dB at {:.3} Hz (modulus margin {:.4})\ngain margin {:.2} dB, phase margin {:.2} deg",
+                        if s.stable { "stable" } else { "UNSTABLE" },
+                        if p.time().is_continuous() { "abscissa" } else { "radius" },
+                        s.closed_loop_radius,
+                        s.bandwidth_hz,
+                        s.sensitivity_peak_db,
+                        s.sensitivity_peak_hz,
+                        s.modulus_margin,
+                        s.gain_margin_db,
+                        s.phase_margin_deg
+                    ),
+                    None,
+                )
+            }
+        }
+        Cmd::Intersample {
+            plant_fast,
+            controller,
+            force_rms,
+            sensor_rms,
+            points,
+            json,
+        } => {
+            let p = read_model(&plant_fast)?;
+            let k = read_model(&controller)?;
+            let (h, t) = match (p.ts(), k.ts()) {
+                (Some(h), Some(t)) => (h, t),
+                _ => {
+                    return Err(CliError::input(
+                        "intersample needs discrete plant and controller models",
+                    ))
+                }
+            };
+            let ratio = t / h;
+            if !(ratio.is_finite() && ratio >= 1.0 && (ratio - ratio.round()).abs() <= 1e-9 * ratio)
+            {
+                return Err(CliError::input(format!(
+                    "the controller period {t} s must be an integer multiple of the plant period {h} s"
+                )));
+            }
+            for (v, what) in [(force_rms, "--force-rms"), (sensor_rms, "--sensor-rms")] {
+                if !(v.is_finite() && v >= 0.0) {
+                    return Err(CliError::input(format!(
+                        "{what} {v} must be finite and >= 0"
+                    )));
+                }
+            }
+            let (pd, pn) = (
+                2.0 * h * force_rms * force_rms,
+                2.0 * h * sensor_rms * sensor_rms,
+            );
+            let r =
+                sd_analysis::intersample(&p, &k, ratio.round() as usize, &|_| pd, &|_| pn, points)
+                    .map_err(|e| from_analysis("intersample", e))?;
+            let argmax = |f: &[f64], v: &[f64]| {
+                (0..v.len())
+                    .max_by(|&a, &b| v[a].total_cmp(&v[b]))
+                    .map(|i| f[i])
+                    .unwrap_or(f64::NAN)
+            };
+            let (df, ds, dk) = (
+                argmax(&r.fast_hz, &r.fast_psd),
+                argmax(&r.slow_hz, &r.slow_psd),
+                argmax(&r.slow_hz, &r.control_sensitivity),
+            );
+            if json {
+                let v = json!({
+                    "factor": ratio.round() as usize,
+                    "rms_fast": r.rms_fast, "rms_slow": r.rms_slow,
+                    "dominant_hz_fast": df, "dominant_hz_slow": ds,
+                    "control_sensitivity_peak_hz": dk,
+                    "fast_hz": r.fast_hz, "fast_psd": r.fast_psd,
+                    "slow_hz": r.slow_hz, "slow_psd": r.slow_psd,
+                    "control_sensitivity": r.control_sensitivity,
+                });
+                emit(&v.to_string(), None)
+            } else {
+                emit(
+                    &format!(
+                        "predicted error rms: fast rate {:.4e}, at the samples {:.4e}\ndominant frequency: fast {:.2} Hz, slow {:.2} Hz\n|K S| peaks at {:.2} Hz",
+                        r.rms_fast, r.rms_slow, df, ds, dk
+                    ),
+                    None,
+                )
+            }
         }
         Cmd::Weight { kind } => {
             let (w, output) = match kind {

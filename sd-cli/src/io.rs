@@ -79,6 +79,18 @@ pub fn from_ident(context: &str, e: sd_ident::IdentError) -> CliError {
     }
 }
 
+/// Maps an `sd-analysis` error.
+pub fn from_analysis(context: &str, e: sd_analysis::AnalysisError) -> CliError {
+    match e {
+        sd_analysis::AnalysisError::Model(m) => from_model(context, m),
+        sd_analysis::AnalysisError::Multirate(m) => from_multirate(context, m),
+        other => CliError {
+            code: 2,
+            message: format!("{context}: {other}"),
+        },
+    }
+}
+
 /// Reads a file (or stdin for "-") to a string.
 pub fn read_text(path: &str) -> Result<String, CliError> {
     let mut s = String::new();

@@ -446,3 +446,88 @@ fn issue5_frf_and_fit() {
     assert_input_error(&sdctl(&["frf", &manifest, "--experiment", "a"]), "line 3");
     assert_input_error(&sdctl(&["fit", &ct, "--order", "2"]), "frd");
 }
+
+#[test]
+fn issue6_analyze_and_intersample() {
+    let dir = tmpdir("issue6");
+    // the paper's stage at 5 kHz and 1 kHz, and a PID-like controller at 1 kHz
+    let stage = r#"{"type":"ss","ts":null,"a":[[0,1,0,0],[0,0,0,0],[0,0,0,1],[0,0,-16834268.0,-82.05]],"b":[[0],[0.05],[0],[0.1]],"c":[[1,0,1,0]],"d":[[0]]}"#;
+    let ct = write(&dir, "stage.json", stage);
+    let p1k = dir.join("p1k.json").to_string_lossy().into_owned();
+    let p5k = dir.join("p5k.json").to_string_lossy().into_owned();
+    assert!(sdctl(&["c2d", &ct, "--ts", "0.001", "-o", &p1k])
+        .status
+        .success());
+    assert!(sdctl(&["c2d", &ct, "--ts", "0.0002", "-o", &p5k])
+        .status
+        .success());
+    let k = sdctl(&[
+        "weight",
+        "pid",
+        "--bandwidth-hz",
+        "65",
+        "--mass",
+        "20",
+        "--ts",
+        "0.001",
+    ]);
+    let kf = write(&dir, "k.json", &String::from_utf8_lossy(&k.stdout));
+    let o = sdctl(&["analyze", "--plant", &p1k, "--controller", &kf, "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    for key in [
+        "stable",
+        "closed_loop_radius",
+        "bandwidth_hz",
+        "sensitivity_peak_db",
+        "sensitivity_peak_hz",
+        "gain_margin_db",
+        "phase_margin_deg",
+        "modulus_margin",
+    ] {
+        assert!(v.get(key).is_some(), "missing {key}");
+    }
+    assert_eq!(v["stable"], true);
+    assert!((v["bandwidth_hz"].as_f64().unwrap() - 65.0).abs() < 5.0);
+    assert!(String::from_utf8_lossy(
+        &sdctl(&["analyze", "--plant", &p1k, "--controller", &kf]).stdout
+    )
+    .contains("|S| peak"));
+    let o = sdctl(&[
+        "intersample",
+        "--plant-fast",
+        &p5k,
+        "--controller",
+        &kf,
+        "--json",
+        "--points",
+        "500",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["factor"], 5);
+    assert!(
+        v["rms_fast"].as_f64().unwrap() > 0.0 && v["fast_psd"].as_array().unwrap().len() == 500
+    );
+    // bad input
+    assert_input_error(
+        &sdctl(&["analyze", "--plant", &p1k, "--controller", &ct]),
+        "sample time",
+    );
+    assert_input_error(
+        &sdctl(&["intersample", "--plant-fast", &p1k, "--controller", &p5k]),
+        "multiple",
+    );
+    assert_input_error(
+        &sdctl(&[
+            "intersample",
+            "--plant-fast",
+            &p5k,
+            "--controller",
+            &kf,
+            "--force-rms",
+            "-1",
+        ]),
+        "force-rms",
+    );
+}

@@ -27,13 +27,21 @@ fn controller1() -> StateSpace {
 }
 
 fn plant(zeta: f64, ts: f64) -> StateSpace {
-    c2d(&sd_model::stage::paper_stage(zeta).unwrap(), ts, Discretization::Zoh).unwrap()
+    c2d(
+        &sd_model::stage::paper_stage(zeta).unwrap(),
+        ts,
+        Discretization::Zoh,
+    )
+    .unwrap()
 }
 
 #[test]
 fn issue6_paper_controllers_at_1khz() {
     let p = plant(0.01, TS);
-    let c2 = ClosedLoop::new(&p, &controller2()).unwrap().summary().unwrap();
+    let c2 = ClosedLoop::new(&p, &controller2())
+        .unwrap()
+        .summary()
+        .unwrap();
     let c1l = ClosedLoop::new(&p, &controller1()).unwrap();
     let c1 = c1l.summary().unwrap();
     let s347 = 20.0 * c1l.sensitivity_at(347.0).unwrap().log10();
@@ -79,17 +87,33 @@ fn issue6_multirate_standstill() {
     let v = DMatrix::from_fn(n, 1, |_, _| sn * rng.normal());
     let (phid, phin) = (2.0 * h * sd * sd, 2.0 * h * sn * sn);
     let mut rms_fast = Vec::new();
-    for (name, k) in [("Controller 2", controller2()), ("Controller 1", controller1())] {
+    for (name, k) in [
+        ("Controller 2", controller2()),
+        ("Controller 1", controller1()),
+    ] {
         let s = standstill_multirate(&p, &k, factor, &d, &v).unwrap();
         let skip = 25_000;
         let ef: Vec<f64> = s.error_fast.column(0).iter().skip(skip).cloned().collect();
-        let es: Vec<f64> = s.error_slow.column(0).iter().skip(skip / factor).cloned().collect();
+        let es: Vec<f64> = s
+            .error_slow
+            .column(0)
+            .iter()
+            .skip(skip / factor)
+            .cloned()
+            .collect();
         let wf = welch(&ef, 1.0 / h, 5000, 0.5, Window::Hann).unwrap();
         let ws = welch(&es, 1.0 / (h * factor as f64), 1000, 0.5, Window::Hann).unwrap();
         let l = sd_multirate::MultirateLoop::new(&p, &k, factor).unwrap();
-        let pf = l.error_spectrum_fast(&wf.freq_hz, &|_| phid, &|_| phin).unwrap();
-        let ps = l.error_spectrum_slow(&ws.freq_hz, &|_| phid, &|_| phin).unwrap();
-        let (bf, bs) = (worst_band(&wf.freq_hz, &wf.psd, &pf, 100.0), worst_band(&ws.freq_hz, &ws.psd, &ps, 50.0));
+        let pf = l
+            .error_spectrum_fast(&wf.freq_hz, &|_| phid, &|_| phin)
+            .unwrap();
+        let ps = l
+            .error_spectrum_slow(&ws.freq_hz, &|_| phid, &|_| phin)
+            .unwrap();
+        let (bf, bs) = (
+            worst_band(&wf.freq_hz, &wf.psd, &pf, 100.0),
+            worst_band(&ws.freq_hz, &ws.psd, &ps, 50.0),
+        );
         let pred = intersample(&p, &k, factor, &|_| phid, &|_| phin, 2000).unwrap();
         println!(
             "{name}: dominant slow {:.1} Hz, fast {:.1} Hz; rms slow {:.3e} (predicted {:.3e}), fast {:.3e} (predicted {:.3e}); worst band-median error fast {:.3}, slow {:.3}; max |KS| {:.3e}",
@@ -105,10 +129,23 @@ fn issue6_multirate_standstill() {
         );
         assert!(bf <= 0.10 && bs <= 0.10);
         if name == "Controller 2" {
-            assert!((ws.dominant_hz() - 347.0).abs() <= 10.0, "slow dominant {}", ws.dominant_hz());
-            assert!((wf.dominant_hz() - 653.0).abs() <= 10.0, "fast dominant {}", wf.dominant_hz());
+            assert!(
+                (ws.dominant_hz() - 347.0).abs() <= 10.0,
+                "slow dominant {}",
+                ws.dominant_hz()
+            );
+            assert!(
+                (wf.dominant_hz() - 653.0).abs() <= 10.0,
+                "fast dominant {}",
+                wf.dominant_hz()
+            );
         }
         rms_fast.push(wf.rms());
     }
-    assert!(rms_fast[1] < rms_fast[0], "Controller 1 fast rms {} not below Controller 2's {}", rms_fast[1], rms_fast[0]);
+    assert!(
+        rms_fast[1] < rms_fast[0],
+        "Controller 1 fast rms {} not below Controller 2's {}",
+        rms_fast[1],
+        rms_fast[0]
+    );
 }

@@ -2,10 +2,10 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use nalgebra::DMatrix;
+use sd_analysis::{welch, Window};
 use sd_model::{c2d, connect::feedback, Discretization, StateSpace};
 use sd_multirate::MultirateLoop;
 use sd_tests::gen::{model, with_blocks, Rng};
-use sd_analysis::{welch, Window};
 use sd_tests::pid;
 
 fn radius(sys: &StateSpace) -> f64 {
