@@ -91,6 +91,17 @@ pub fn from_analysis(context: &str, e: sd_analysis::AnalysisError) -> CliError {
     }
 }
 
+/// Maps an `sd-testbed` error.
+pub fn from_testbed(context: &str, e: sd_testbed::TestbedError) -> CliError {
+    match e {
+        sd_testbed::TestbedError::Model(m) => from_model(context, m),
+        other => CliError {
+            code: 2,
+            message: format!("{context}: {other}"),
+        },
+    }
+}
+
 /// Reads a file (or stdin for "-") to a string.
 pub fn read_text(path: &str) -> Result<String, CliError> {
     let mut s = String::new();

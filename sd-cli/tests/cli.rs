@@ -531,3 +531,55 @@ fn issue6_analyze_and_intersample() {
         "force-rms",
     );
 }
+
+#[test]
+fn issue7_testbed() {
+    let dir = tmpdir("issue7");
+    let out = dir.join("run").to_string_lossy().into_owned();
+    let cfg = write(
+        &dir,
+        "stage.toml",
+        "seed = 3\n[truth]\nmass = 20.0\n[[truth.mode]]\nfreq_hz = 653.0\nzeta = 0.01\nresidue = 2.0\n[nonideal]\nhold_delay = 0.2\n\
+         [[experiment]]\nname = \"id\"\nrate_hz = 1000.0\npid_bandwidth_hz = 15.0\nperiod = 1000\nperiods = 3\ninjection = \"input\"\nrole = \"model\"\n\
+         [[experiment]]\nkind = \"standstill\"\nname = \"ss\"\nrate_hz = 1000.0\npid_bandwidth_hz = 40.0\nfactor = 5\nsamples = 5000\n",
+    );
+    let o = sdctl(&["testbed", "--config", &cfg, "--out", &out]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for f in [
+        "experiments.toml",
+        "id.csv",
+        "ss_fast.csv",
+        "ss_slow.csv",
+        "truth.json",
+    ] {
+        assert!(std::path::Path::new(&out).join(f).exists(), "{f}");
+    }
+    let manifest = std::path::Path::new(&out).join("experiments.toml");
+    let o = sdctl(&["frf", &manifest.to_string_lossy(), "--experiment", "id"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let truth = sd_model::read_model(
+        std::fs::File::open(std::path::Path::new(&out).join("truth.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(truth.n(), 4);
+    // bad configurations: exit 2, one line
+    let bad = write(&dir, "bad.toml", "[truth]\nmass = -1\n");
+    assert_input_error(
+        &sdctl(&["testbed", "--config", &bad, "--out", &out]),
+        "mass",
+    );
+    let bad = write(
+        &dir,
+        "bad2.toml",
+        "[[experiment]]\nname = \"x\"\nrate_hz = 1000.0\npid_bandwidth_hz = 400.0\n",
+    );
+    assert_input_error(
+        &sdctl(&["testbed", "--config", &bad, "--out", &out]),
+        "stabilize",
+    );
+    let bad = write(&dir, "bad3.toml", "[[experiment\n");
+    assert_input_error(
+        &sdctl(&["testbed", "--config", &bad, "--out", &out]),
+        "configuration",
+    );
+}

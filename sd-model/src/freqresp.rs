@@ -46,10 +46,16 @@ pub struct FreqRespEvaluator {
 impl FreqRespEvaluator {
     /// Reduces the model once (O(n³)).
     pub fn new(sys: &StateSpace) -> Result<Self> {
+        // exact power-of-two diagonal balancing first (as LAPACK does before an eigenvalue
+        // problem): D⁻¹AD, D⁻¹B, CD leave G unchanged and keep the split bound meaningful for
+        // models whose states have very different scales (registers next to positions)
+        let (ab, d) = crate::linalg::expm::balance_diag(sys.a());
+        let bb = DMatrix::from_fn(sys.n(), sys.nu(), |i, j| sys.b()[(i, j)] / d[i]);
+        let cb = DMatrix::from_fn(sys.ny(), sys.n(), |i, j| sys.c()[(i, j)] * d[j]);
         let bd: BlockDiagonal = block_diagonalize(
-            &to_complex(sys.a()),
-            &to_complex(sys.b()),
-            &to_complex(sys.c()),
+            &to_complex(&ab),
+            &to_complex(&bb),
+            &to_complex(&cb),
             SPLIT_BOUND,
         )?;
         let blocks = bd

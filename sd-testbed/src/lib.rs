@@ -1,3 +1,22 @@
-//! A virtual wafer stage: continuous-time truth with optional non-idealities, producing measured experiments. Owned by issue #7.
+//! `sd-testbed`: a virtual wafer stage that produces measured data.
 //!
-//! This crate has no public API yet: nothing here pretends to work before its issue lands.
+//! A continuous-time truth ([`Truth`]: rigid body, lightly damped modes, optional amplifier
+//! pole, sensor filters, cubic stiffness and Coulomb friction) is simulated exactly when linear
+//! and by an exponential integrator when not ([`PlantSim`]), with rate-tied non-idealities
+//! (hold delay, averaging sampler), sample-clock error and quantization; experiments
+//! ([`run_identification`], [`run_standstill`]) give DESIGN §4 data, seeded and reproducible.
+
+pub mod config;
+pub mod error;
+pub mod experiments;
+pub mod sim;
+pub mod truth;
+
+pub use config::{parse_config, run_config, TestbedConfig};
+pub use error::{Result, TestbedError};
+pub use experiments::{
+    manifest, run_identification, run_standstill, truth_model, ExperimentData, Identification,
+    Injection, Noise, Standstill,
+};
+pub use sim::{default_substeps, NonIdealities, PlantSim};
+pub use truth::{ModeSpec, Truth};

@@ -1,0 +1,302 @@
+//! The testbed configuration file (`sdctl testbed --config STAGE.toml`), documented in the
+//! README. Every table and key is optional; missing ones take the DESIGN §6 defaults.
+//!
+//! ```toml
+//! seed = 1                         # default seed of every experiment's noise
+//! [truth]
+//! mass = 20.0                      # kg
+//! amplifier_hz = 4000.0            # optional amplifier pole
+//! viscous = 0.0                    # N·s/m
+//! coulomb = 0.0                    # N (smoothed by tanh(v / coulomb_velocity))
+//! coulomb_velocity = 1e-6          # m/s
+//! [[truth.mode]]                   # default: 653 Hz (ζ 0.01, r 2) and 1650 Hz (ζ 0.005, r 0.3)
+//! freq_hz = 653.0
+//! zeta = 0.01
+//! residue = 2.0
+//! cubic = 0.0                      # cubic stiffness κ (1/m²)
+//! [nonideal]                       # tied to each experiment's own sample period
+//! hold_delay = 0.0                 # fraction of the period
+//! averaging = 0.0                  # fraction of the period
+//! clock_error = 0.0                # true period = nominal·(1 + clock_error)
+//! quantization = 0.0               # sensor step (m)
+//! [[experiment]]
+//! kind = "identification"          # or "standstill"
+//! name = "fast"
+//! rate_hz = 5000.0                 # controller rate
+//! role = "model"                   # identification only; default "validation"
+//! pid_bandwidth_hz = 30.0          # PID-like controller (integrator, lead) for the mass
+//! pid_lowpass_hz = 1000.0          # optional second-order low-pass in the controller
+//! notch_hz = 653.0                 # optional notch in the controller (ζ 0.02 / 0.3)
+//! period = 10000                   # samples per multisine period
+//! periods = 6                      # periods recorded
+//! transient_periods = 1
+//! f_min = 1.0                      # excited band (Hz)
+//! f_max = 2400.0
+//! rms = 1.0                        # excitation rms (N)
+//! multisine = "random"             # "random", "schroeder" or "random-odd"
+//! injection = "reference"          # or "input"
+//! force_noise = 0.05               # rms per sample (N)
+//! sensor_noise = 3e-10             # rms per sample (m)
+//! factor = 5                       # standstill: plant simulated at factor·rate_hz
+//! samples = 70000                  # standstill: fast samples
+//! ```
+
+use crate::error::{Result, TestbedError};
+use crate::experiments::{
+    run_identification, run_standstill, ExperimentData, Identification, Injection, Noise,
+    Standstill,
+};
+use crate::sim::NonIdealities;
+use crate::truth::{ModeSpec, Truth};
+use sd_ident::{Lines, MultisineSpec, Phases, Role};
+use sd_model::connect::series;
+use sd_model::StateSpace;
+
+/// A parsed configuration.
+#[derive(Debug, Clone)]
+pub struct TestbedConfig {
+    /// The truth.
+    pub truth: Truth,
+    /// Non-idealities.
+    pub nonideal: NonIdealities,
+    /// Identification experiments.
+    pub identification: Vec<Identification>,
+    /// Standstill experiments.
+    pub standstill: Vec<Standstill>,
+}
+
+fn err(m: String) -> TestbedError {
+    TestbedError::Config(m)
+}
+
+fn num(t: &toml::Table, key: &str, default: f64) -> Result<f64> {
+    match t.get(key) {
+        None => Ok(default),
+        Some(v) => v
+            .as_float()
+            .or_else(|| v.as_integer().map(|i| i as f64))
+            .ok_or_else(|| err(format!("`{key}` must be a number"))),
+    }
+}
+
+fn opt_num(t: &toml::Table, key: &str) -> Result<Option<f64>> {
+    match t.get(key) {
+        None => Ok(None),
+        Some(_) => num(t, key, 0.0).map(Some),
+    }
+}
+
+fn int(t: &toml::Table, key: &str, default: usize) -> Result<usize> {
+    match t.get(key) {
+        None => Ok(default),
+        Some(v) => match v.as_integer() {
+            Some(i) if i >= 0 => Ok(i as usize),
+            _ => Err(err(format!("`{key}` must be a non-negative integer"))),
+        },
+    }
+}
+
+fn text<'a>(t: &'a toml::Table, key: &str, default: &'a str) -> Result<&'a str> {
+    match t.get(key) {
+        None => Ok(default),
+        Some(v) => v
+            .as_str()
+            .ok_or_else(|| err(format!("`{key}` must be a string"))),
+    }
+}
+
+/// PID-like controller (sd-hinf weight) with optional low-pass and notch, at period `ts`.
+fn controller(t: &toml::Table, mass: f64, ts: f64) -> Result<StateSpace> {
+    let bw = num(t, "pid_bandwidth_hz", 30.0)?;
+    let mut opt = sd_hinf::weights::PidOptions::default();
+    if let Some(lp) = opt_num(t, "pid_lowpass_hz")? {
+        opt.lowpass_ratio = lp / bw;
+    }
+    let mut k = sd_hinf::weights::pid(bw, mass, Some(ts), &opt)?;
+    if let Some(f) = opt_num(t, "notch_hz")? {
+        k = series(&k, &sd_hinf::weights::notch(f, 0.02, 0.3, Some(ts))?)?;
+    }
+    Ok(k)
+}
+
+/// Parses a configuration (module documentation).
+///
+/// # Errors
+/// TOML syntax, wrong types, invalid values (with the experiment and key named).
+pub fn parse_config(source: &str) -> Result<TestbedConfig> {
+    let doc: toml::Table = source
+        .parse()
+        .map_err(|e: toml::de::Error| err(e.to_string().replace('\n', " ")))?;
+    let empty = toml::Table::new();
+    let seed = int(&doc, "seed", 1)? as u64;
+    let tt = match doc.get("truth") {
+        Some(v) => v
+            .as_table()
+            .ok_or_else(|| err("[truth] must be a table".into()))?,
+        None => &empty,
+    };
+    let mut truth = Truth {
+        mass: num(tt, "mass", 20.0)?,
+        amplifier_hz: opt_num(tt, "amplifier_hz")?,
+        viscous: num(tt, "viscous", 0.0)?,
+        coulomb: num(tt, "coulomb", 0.0)?,
+        coulomb_velocity: num(tt, "coulomb_velocity", 1e-6)?,
+        ..Truth::default()
+    };
+    if let Some(modes) = tt.get("mode") {
+        let arr = modes
+            .as_array()
+            .ok_or_else(|| err("[[truth.mode]] must be an array of tables".into()))?;
+        truth.modes = arr
+            .iter()
+            .enumerate()
+            .map(|(i, m)| {
+                let m = m
+                    .as_table()
+                    .ok_or_else(|| err(format!("truth.mode {} is not a table", i + 1)))?;
+                Ok(ModeSpec {
+                    freq_hz: num(m, "freq_hz", f64::NAN)?,
+                    zeta: num(m, "zeta", 0.01)?,
+                    residue: num(m, "residue", 1.0)?,
+                    cubic: num(m, "cubic", 0.0)?,
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
+    }
+    truth.validate()?;
+    let nt = match doc.get("nonideal") {
+        Some(v) => v
+            .as_table()
+            .ok_or_else(|| err("[nonideal] must be a table".into()))?,
+        None => &empty,
+    };
+    let nonideal = NonIdealities {
+        hold_delay: num(nt, "hold_delay", 0.0)?,
+        averaging: num(nt, "averaging", 0.0)?,
+        clock_error: num(nt, "clock_error", 0.0)?,
+        quantization: num(nt, "quantization", 0.0)?,
+    };
+    let mut identification = Vec::new();
+    let mut standstill = Vec::new();
+    let exps = match doc.get("experiment") {
+        Some(v) => v
+            .as_array()
+            .ok_or_else(|| err("[[experiment]] must be an array".into()))?
+            .clone(),
+        None => Vec::new(),
+    };
+    for (i, e) in exps.iter().enumerate() {
+        let e = e
+            .as_table()
+            .ok_or_else(|| err(format!("experiment {} is not a table", i + 1)))?;
+        let ctx = |m: TestbedError| err(format!("experiment {}: {m}", i + 1));
+        let name = text(e, "name", "")?.to_string();
+        if name.is_empty() {
+            return Err(err(format!("experiment {} needs a `name`", i + 1)));
+        }
+        let rate = num(e, "rate_hz", f64::NAN)?;
+        if !(rate.is_finite() && rate > 0.0) {
+            return Err(err(format!("experiment `{name}`: `rate_hz` must be > 0")));
+        }
+        let noise = Noise {
+            force_rms: num(e, "force_noise", 0.05)?,
+            sensor_rms: num(e, "sensor_noise", 3e-10)?,
+            seed: int(e, "seed", seed as usize)? as u64,
+        };
+        let k = controller(e, truth.mass, 1.0 / rate).map_err(ctx)?;
+        match text(e, "kind", "identification")? {
+            "identification" => {
+                let period = int(e, "period", (rate as usize).max(16))?;
+                let lines = match text(e, "multisine", "random")? {
+                    "random" | "schroeder" => Lines::Full,
+                    "random-odd" => Lines::RandomOdd {
+                        group: 3,
+                        seed: noise.seed ^ 0x5eed,
+                    },
+                    other => {
+                        return Err(err(format!(
+                            "experiment `{name}`: unknown multisine `{other}`"
+                        )))
+                    }
+                };
+                let phases = match text(e, "multisine", "random")? {
+                    "schroeder" => Phases::Schroeder,
+                    _ => Phases::Random {
+                        seed: noise.seed.wrapping_add(7),
+                    },
+                };
+                let excitation = sd_ident::design(&MultisineSpec {
+                    fs: rate,
+                    period,
+                    f_min: num(e, "f_min", rate / period as f64)?,
+                    f_max: num(e, "f_max", 0.45 * rate)?,
+                    lines,
+                    phases,
+                    rms: num(e, "rms", 1.0)?,
+                    fold_rate_hz: None,
+                })
+                .map_err(|x| ctx(x.into()))?;
+                let injection = match text(e, "injection", "reference")? {
+                    "reference" => Injection::Reference,
+                    "input" => Injection::Input,
+                    other => {
+                        return Err(err(format!(
+                            "experiment `{name}`: unknown injection `{other}`"
+                        )))
+                    }
+                };
+                let role = match text(e, "role", "validation")? {
+                    "model" => Role::Model,
+                    "validation" => Role::Validation,
+                    other => {
+                        return Err(err(format!("experiment `{name}`: unknown role `{other}`")))
+                    }
+                };
+                identification.push(Identification {
+                    name,
+                    controller: k,
+                    excitation,
+                    periods: int(e, "periods", 6)?,
+                    transient_periods: int(e, "transient_periods", 1)?,
+                    injection,
+                    noise,
+                    nonideal,
+                    role,
+                    substeps: None,
+                });
+            }
+            "standstill" => standstill.push(Standstill {
+                name,
+                controller: k,
+                factor: int(e, "factor", 5)?.max(1),
+                samples: int(e, "samples", 70_000)?,
+                noise,
+                nonideal,
+            }),
+            other => return Err(err(format!("experiment `{name}`: unknown kind `{other}`"))),
+        }
+    }
+    Ok(TestbedConfig {
+        truth,
+        nonideal,
+        identification,
+        standstill,
+    })
+}
+
+/// Runs every experiment of a configuration, in order (identification, then standstill).
+///
+/// # Errors
+/// As the experiments.
+pub fn run_config(cfg: &TestbedConfig) -> Result<Vec<ExperimentData>> {
+    let mut out = Vec::new();
+    for e in &cfg.identification {
+        out.push(run_identification(&cfg.truth, e)?);
+    }
+    for s in &cfg.standstill {
+        let (f, sl) = run_standstill(&cfg.truth, s)?;
+        out.push(f);
+        out.push(sl);
+    }
+    Ok(out)
+}

@@ -1,0 +1,205 @@
+//! Issue #7 acceptance: the virtual stage.
+//! - LTI experiments are exact: a noise-free closed-loop experiment's FRF equals the truth's
+//!   exact discretization (sd-multirate) to 1e-9, with the ideal, delayed and averaging samplers.
+//! - The nonlinear integrator with the nonlinearity off equals the exact LTI result to 1e-8;
+//!   halving its step changes a nonlinear experiment's output by < 1e-9 relative.
+//! - Speed: 70 000 samples at 5 kHz, LTI and nonlinear (printed; bounds with margin for CI).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use sd_ident::{frf_periodic, Lines, MultisineSpec, PeriodicOptions, Phases, Role};
+use sd_multirate::{c2d_nonideal, NonIdeal};
+use sd_testbed::{
+    run_identification, Identification, Injection, Noise, NonIdealities, PlantSim, Truth,
+};
+
+fn experiment(
+    rate: f64,
+    period: usize,
+    periods: usize,
+    ni: NonIdealities,
+    noise: f64,
+) -> Identification {
+    experiment_skip(rate, period, periods, 2, ni, noise)
+}
+
+fn experiment_skip(
+    rate: f64,
+    period: usize,
+    periods: usize,
+    skip: usize,
+    ni: NonIdealities,
+    noise: f64,
+) -> Identification {
+    let k = sd_hinf::weights::pid(20.0, 20.0, Some(1.0 / rate), &Default::default()).unwrap();
+    let excitation = sd_ident::design(&MultisineSpec {
+        fs: rate,
+        period,
+        f_min: rate / period as f64,
+        f_max: 0.45 * rate,
+        lines: Lines::Full,
+        phases: Phases::Random { seed: 3 },
+        rms: 1.0,
+        fold_rate_hz: None,
+    })
+    .unwrap();
+    Identification {
+        name: "x".into(),
+        controller: k,
+        excitation,
+        periods,
+        transient_periods: skip,
+        injection: Injection::Input,
+        noise: Noise {
+            force_rms: noise,
+            sensor_rms: noise * 1e-8,
+            seed: 1,
+        },
+        nonideal: ni,
+        role: Role::Model,
+        substeps: None,
+    }
+}
+
+#[test]
+fn issue7_lti_experiments_are_exact() {
+    let truth = Truth::default();
+    let lin = truth.linear_model().unwrap();
+    let rate = 5000.0;
+    for (a, b) in [(0.0, 0.0), (0.3, 0.0), (0.0, 0.5), (0.25, 0.8)] {
+        let ni = NonIdealities {
+            hold_delay: a,
+            averaging: b,
+            ..Default::default()
+        };
+        // 6 transient periods (3 s): the closed loop's slowest pole (the PID integrator) must
+        // have died out to 1e-10
+        let data = run_identification(&truth, &experiment_skip(rate, 2500, 9, 6, ni, 0.0)).unwrap();
+        let est = frf_periodic(
+            rate,
+            data.r.as_deref(),
+            &data.u,
+            &data.y,
+            &PeriodicOptions::new(2500, 6),
+        )
+        .unwrap();
+        let exact = c2d_nonideal(
+            &lin,
+            1.0 / rate,
+            NonIdeal {
+                hold_delay: a,
+                averaging: b,
+            },
+        )
+        .unwrap();
+        // reference: dense LU solves of (zI − A) per line (backward stable; the block-diagonal
+        // evaluator is within 5e-9 of it on the delayed-and-averaged model, see the note)
+        let worst = (0..est.frd.len())
+            .map(|i| {
+                let z = num_complex::Complex64::from_polar(
+                    1.0,
+                    2.0 * std::f64::consts::PI * est.frd.freq_hz()[i] / rate,
+                );
+                let y = exact.eval_direct(z).unwrap()[(0, 0)];
+                let x = est.frd.response()[i][(0, 0)];
+                (x - y).norm() / y.norm()
+            })
+            .fold(0.0, f64::max);
+        println!("α = {a}, β = {b}: noise-free FRF vs exact discretization, worst relative error {worst:.2e} over {} lines", est.frd.len());
+        assert!(worst <= 1e-9);
+    }
+}
+
+#[test]
+fn issue7_nonlinear_integrator_checks() {
+    // 1. nonlinearity off: the integrator equals the exact LTI route
+    let truth = Truth::default();
+    let ni = NonIdealities {
+        hold_delay: 0.3,
+        averaging: 0.4,
+        ..Default::default()
+    };
+    let h = 2e-4;
+    let mut lti = PlantSim::new(&truth, h, &ni, None, false).unwrap();
+    let mut nl = PlantSim::new(&truth, h, &ni, Some(8), true).unwrap();
+    let mut rng = sd_tests::gen::Rng::new(2);
+    let (mut num, mut den) = (0.0, 0.0);
+    for _ in 0..3000 {
+        let (a, b) = (lti.measure(), nl.measure());
+        num += (a - b) * (a - b);
+        den += a * a;
+        let u = rng.normal();
+        lti.step(u);
+        nl.step(u);
+    }
+    let e = (num / den).sqrt();
+    println!("integrator with the nonlinearity off vs exact LTI: {e:.2e}");
+    assert!(e <= 1e-8);
+    // 2. a nonlinear truth: halving the step changes the output by < 1e-9 relative
+    let mut t2 = Truth::default();
+    t2.modes[0].cubic = 4e12; // q³ term comparable to q at 0.5 µm of modal deflection
+    t2.coulomb = 0.5;
+    t2.coulomb_velocity = 1e-4;
+    let rate = 5000.0;
+    let mut outs = Vec::new();
+    for sub in [16, 32] {
+        let mut e = experiment(rate, 5000, 3, NonIdealities::default(), 0.05);
+        e.substeps = Some(sub);
+        outs.push(run_identification(&t2, &e).unwrap().y);
+    }
+    let (num, den): (f64, f64) = outs[0]
+        .iter()
+        .zip(&outs[1])
+        .fold((0.0, 0.0), |(n, d), (a, b)| {
+            (n + (a - b) * (a - b), d + b * b)
+        });
+    let change = (num / den).sqrt();
+    // the nonlinearity is not negligible: compare with the linear truth's output
+    let mut e = experiment(rate, 5000, 3, NonIdealities::default(), 0.05);
+    e.substeps = Some(32);
+    let ylin = run_identification(&Truth::default(), &e).unwrap().y;
+    let (n2, d2): (f64, f64) = ylin
+        .iter()
+        .zip(&outs[1])
+        .fold((0.0, 0.0), |(n, d), (a, b)| {
+            (n + (a - b) * (a - b), d + b * b)
+        });
+    println!("nonlinear truth: halving the step changes y by {change:.2e}; the nonlinearity changes it by {:.2e}", (n2 / d2).sqrt());
+    assert!(change < 1e-9);
+    assert!((n2 / d2).sqrt() > 1e-4);
+}
+
+#[test]
+fn issue7_speed() {
+    let rate = 5000.0;
+    let t0 = std::time::Instant::now();
+    let d = run_identification(
+        &Truth::default(),
+        &experiment(
+            rate,
+            10_000,
+            7,
+            NonIdealities {
+                hold_delay: 0.2,
+                ..Default::default()
+            },
+            0.05,
+        ),
+    )
+    .unwrap();
+    let t_lti = t0.elapsed().as_secs_f64();
+    assert_eq!(d.y.len(), 70_000);
+    let mut t2 = Truth::default();
+    t2.modes[0].cubic = 4e12;
+    t2.coulomb = 0.5;
+    t2.coulomb_velocity = 1e-4;
+    let t0 = std::time::Instant::now();
+    let d = run_identification(
+        &t2,
+        &experiment(rate, 10_000, 7, NonIdealities::default(), 0.05),
+    )
+    .unwrap();
+    let t_nl = t0.elapsed().as_secs_f64();
+    assert_eq!(d.y.len(), 70_000);
+    println!("70 000 samples at 5 kHz: LTI {t_lti:.3} s, nonlinear {t_nl:.3} s (requirements 0.5 s and 5 s)");
+    assert!(t_lti <= 1.0 && t_nl <= 10.0);
+}
