@@ -321,7 +321,7 @@ pub fn loopshape(
             w2.nu()
         )));
     }
-    let gs = series(&series(&w1, plant)?, &w2)?;
+    let gs = balance_states(&series(&series(&w1, plant)?, &w2)?)?;
     let mut riccati = Vec::new();
     let (gamma_min_v, gamma, ks) = match time {
         SampleTime::Continuous => {
@@ -383,6 +383,26 @@ pub fn loopshape(
         closed_loop_pole,
         riccati,
     })
+}
+
+/// A diagonal (power-of-two) state scaling that balances `[A B; C 0]` (as MATLAB's `ssbal`):
+/// the transfer function is unchanged, and the Riccati equations of the loopshaping problem do
+/// not see the scale disparity of, e.g., a plant in metres driven in newtons.
+fn balance_states(g: &StateSpace) -> Result<StateSpace> {
+    let (n, nu, ny) = (g.n(), g.nu(), g.ny());
+    let m = n + nu.max(ny);
+    let mut big = DMatrix::<f64>::zeros(m, m);
+    big.view_mut((0, 0), (n, n)).copy_from(g.a());
+    big.view_mut((0, n), (n, nu)).copy_from(g.b());
+    big.view_mut((n, 0), (ny, n)).copy_from(g.c());
+    let (_, d) = sd_model::linalg::expm::balance_diag(&big);
+    // keep only the state part of the scaling, relative to the input/output one
+    let du = d.get(n).cloned().unwrap_or(1.0);
+    let dx: Vec<f64> = d[..n].iter().map(|v| v / du).collect();
+    let a = DMatrix::from_fn(n, n, |i, j| g.a()[(i, j)] * dx[j] / dx[i]);
+    let b = DMatrix::from_fn(n, nu, |i, j| g.b()[(i, j)] / dx[i]);
+    let c = DMatrix::from_fn(ny, n, |i, j| g.c()[(i, j)] * dx[j]);
+    Ok(StateSpace::new(a, b, c, g.d().clone(), g.time())?)
 }
 
 fn negate(k: &StateSpace) -> Result<StateSpace> {

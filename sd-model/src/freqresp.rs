@@ -41,6 +41,8 @@ pub struct FreqRespEvaluator {
     blocks: Vec<Block>,
     d: DMatrix<C>,
     time: SampleTime,
+    /// `(A, B, C)` when the block form failed its accuracy check: dense solves per point.
+    dense: Option<(DMatrix<C>, DMatrix<C>, DMatrix<C>)>,
 }
 
 impl FreqRespEvaluator {
@@ -77,11 +79,54 @@ impl FreqRespEvaluator {
                 }
             })
             .collect();
-        Ok(FreqRespEvaluator {
+        let mut ev = FreqRespEvaluator {
             blocks,
             d: to_complex(sys.d()),
             time: sys.time(),
-        })
+            dense: None,
+        };
+        // Accuracy check against dense LU solves next to every eigenvalue, on the stability
+        // boundary where responses are evaluated. A defective multiple pole formed by a series
+        // connection (a rigid body times an integrator) can make the reduced form lose accuracy
+        // there; the evaluator then falls back to a dense solve per point (O(n³), exact to
+        // backward stability) rather than return a wrong response.
+        let eigs: Vec<C> = (0..bd.t.nrows()).map(|i| bd.t[(i, i)]).collect();
+        let mut worst: f64 = 0.0;
+        for lam in eigs {
+            for delta in [1e-3, 1e-2] {
+                let sp = match ev.time {
+                    SampleTime::Continuous => {
+                        C::new(0.0, lam.im) + C::new(1.0, 1.0) * (delta * lam.norm().max(1.0))
+                    }
+                    SampleTime::Discrete { .. } => {
+                        let ang = if lam.norm() > 0.0 { lam.arg() } else { 0.0 };
+                        C::from_polar(1.0, ang + delta)
+                    }
+                };
+                let Ok(reference) = sys.eval_direct(sp) else {
+                    continue;
+                };
+                let rn = reference.norm();
+                if !(rn.is_finite() && rn > 0.0) {
+                    continue;
+                }
+                let got = ev.eval_at(sp);
+                worst = worst.max((got - &reference).norm() / rn);
+            }
+        }
+        if !(worst <= 1e-8) {
+            ev.dense = Some((
+                to_complex(sys.a()),
+                to_complex(sys.b()),
+                to_complex(sys.c()),
+            ));
+        }
+        Ok(ev)
+    }
+
+    /// True when the evaluator fell back to dense solves (see [`FreqRespEvaluator::new`]).
+    pub fn is_dense(&self) -> bool {
+        self.dense.is_some()
     }
 
     /// Adds `Σ_b C̃_b (sI − T_b)⁻¹ B̃_b` to `g` (column-major ny×nu), without allocating for
@@ -112,6 +157,18 @@ impl FreqRespEvaluator {
 
     /// `G(s)` at a point of the complex plane (s for CT, z for DT).
     pub fn eval_at(&self, s: C) -> DMatrix<C> {
+        if let Some((a, b, c)) = &self.dense {
+            let n = a.nrows();
+            let m = DMatrix::<C>::identity(n, n) * s - a;
+            return match m.lu().solve(b) {
+                Some(x) => c * x + &self.d,
+                None => DMatrix::from_element(
+                    self.d.nrows(),
+                    self.d.ncols(),
+                    C::new(f64::INFINITY, 0.0),
+                ),
+            };
+        }
         let mut g = self.d.clone();
         let ny = g.nrows();
         self.accumulate(s, g.as_mut_slice(), ny);

@@ -19,6 +19,38 @@ pub fn magnitude_plot(
     fmax: f64,
     marks: &[(f64, &str)],
 ) -> Result<(), String> {
+    if fmax / fmin < 3.0 {
+        // a narrow band reads better on a linear axis (a log axis has no ticks there)
+        let clipped: Vec<(Vec<f64>, Vec<f64>)> = curves
+            .iter()
+            .map(|c| {
+                c.freq_hz
+                    .iter()
+                    .zip(c.db)
+                    .filter(|(f, _)| **f >= fmin && **f <= fmax)
+                    .map(|(f, d)| (*f, *d))
+                    .unzip()
+            })
+            .collect();
+        let lines: Vec<Line<'_>> = curves
+            .iter()
+            .zip(&clipped)
+            .map(|(c, (x, y))| Line {
+                label: c.label,
+                x,
+                y,
+                color: c.color,
+            })
+            .collect();
+        return line_plot(
+            path,
+            title,
+            "frequency [Hz]",
+            "magnitude [dB]",
+            &lines,
+            false,
+        );
+    }
     let root = SVGBackend::new(path, (900, 560)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| e.to_string())?;
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
@@ -87,6 +119,105 @@ pub fn magnitude_plot(
         .position(SeriesLabelPosition::LowerLeft)
         .draw()
         .map_err(|e| e.to_string())?;
+    root.present().map_err(|e| e.to_string())?;
+    Ok(())
+}
+
+/// One curve of a generic line plot.
+pub struct Line<'a> {
+    pub label: &'a str,
+    pub x: &'a [f64],
+    pub y: &'a [f64],
+    pub color: RGBColor,
+}
+
+/// A line plot with linear axes (or a logarithmic x axis when `xlog`).
+pub fn line_plot(
+    path: &str,
+    title: &str,
+    x_desc: &str,
+    y_desc: &str,
+    lines: &[Line<'_>],
+    xlog: bool,
+) -> Result<(), String> {
+    let root = SVGBackend::new(path, (900, 560)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let finite = |v: &f64| v.is_finite();
+    let xs = lines
+        .iter()
+        .flat_map(|l| l.x.iter().cloned())
+        .filter(|v| finite(v) && (!xlog || *v > 0.0));
+    let (xmin, xmax) = xs.fold((f64::INFINITY, f64::NEG_INFINITY), |a, v| {
+        (a.0.min(v), a.1.max(v))
+    });
+    let ys = lines
+        .iter()
+        .flat_map(|l| l.y.iter().cloned())
+        .filter(finite);
+    let (ymin, ymax) = ys.fold((f64::INFINITY, f64::NEG_INFINITY), |a, v| {
+        (a.0.min(v), a.1.max(v))
+    });
+    if !(xmin.is_finite() && ymin.is_finite()) || xmax <= xmin {
+        return Err(format!("{title}: nothing to plot"));
+    }
+    let pad = 0.05 * (ymax - ymin).abs().max(1e-300);
+    let (ylo, yhi) = (ymin - pad, ymax + pad);
+    let mut builder = ChartBuilder::on(&root);
+    builder
+        .caption(title, ("sans-serif", 22))
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(80);
+    macro_rules! draw {
+        ($chart:expr) => {{
+            let mut chart = $chart;
+            chart
+                .configure_mesh()
+                .x_desc(x_desc)
+                .y_desc(y_desc)
+                .y_label_formatter(&|v| {
+                    if v.abs() >= 1e-3 && v.abs() < 1e4 {
+                        format!("{v:.1}")
+                    } else {
+                        format!("{v:.1e}")
+                    }
+                })
+                .draw()
+                .map_err(|e| e.to_string())?;
+            for l in lines {
+                let pts: Vec<(f64, f64)> =
+                    l.x.iter()
+                        .zip(l.y)
+                        .filter(|(x, y)| x.is_finite() && y.is_finite() && (!xlog || **x > 0.0))
+                        .map(|(x, y)| (*x, *y))
+                        .collect();
+                let color = l.color;
+                chart
+                    .draw_series(LineSeries::new(pts, color.stroke_width(2)))
+                    .map_err(|e| e.to_string())?
+                    .label(l.label)
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+                    });
+            }
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .position(SeriesLabelPosition::UpperLeft)
+                .draw()
+                .map_err(|e| e.to_string())?;
+        }};
+    }
+    if xlog {
+        draw!(builder
+            .build_cartesian_2d((xmin..xmax).log_scale(), ylo..yhi)
+            .map_err(|e| e.to_string())?);
+    } else {
+        draw!(builder
+            .build_cartesian_2d(xmin..xmax, ylo..yhi)
+            .map_err(|e| e.to_string())?);
+    }
     root.present().map_err(|e| e.to_string())?;
     Ok(())
 }
