@@ -313,16 +313,18 @@ impl ClosedLoop {
     /// A MIMO loop.
     pub fn margins(&self) -> Result<Margins> {
         self.require_siso()?;
-        let ev = FreqRespEvaluator::new(&self.l)?;
-        let lval = |f: f64| ev.eval_hz(f)[(0, 0)];
+        // L(f) = P(f)·K(f) factor by factor: the series model of L can carry defective poles
+        // (a rigid body times an integrator) that make a single-model evaluation ill-conditioned
+        let lval = |f: f64| (self.ev_p.eval_hz(f) * self.ev_k.eval_hz(f))[(0, 0)];
+        let lat = |z: C| (self.ev_p.eval_at(z) * self.ev_k.eval_at(z))[(0, 0)];
         let f = self.grid()?;
         let vals: Vec<C> = f.iter().map(|&x| lval(x)).collect();
         let mut phase_x: Vec<(f64, f64)> = Vec::new();
         let mut gain_x: Vec<(f64, f64)> = Vec::new();
         // ω = 0 (if L is finite there) and the Nyquist frequency: real values of L
         let at_zero = match self.l.time() {
-            SampleTime::Continuous => ev.eval_at(C::new(0.0, 0.0))[(0, 0)],
-            SampleTime::Discrete { .. } => ev.eval_at(C::new(1.0, 0.0))[(0, 0)],
+            SampleTime::Continuous => lat(C::new(0.0, 0.0)),
+            SampleTime::Discrete { .. } => lat(C::new(1.0, 0.0)),
         };
         if at_zero.is_finite() && at_zero.re <= 0.0 && at_zero.im.abs() <= 1e-12 * at_zero.norm() {
             phase_x.push((0.0, 1.0 / at_zero.norm()));
@@ -348,7 +350,7 @@ impl ClosedLoop {
         }
         if let SampleTime::Discrete { ts } = self.l.time() {
             let nyq = 0.5 / ts;
-            let ln = ev.eval_at(C::new(-1.0, 0.0))[(0, 0)];
+            let ln = lat(C::new(-1.0, 0.0));
             if ln.is_finite()
                 && ln.re <= 0.0
                 && !phase_x.iter().any(|&(w, _)| (w - nyq).abs() < 1e-9 * nyq)

@@ -114,7 +114,7 @@ impl FreqRespEvaluator {
                 worst = worst.max((got - &reference).norm() / rn);
             }
         }
-        if !(worst <= 1e-8) {
+        if worst.is_nan() || worst > 1e-8 {
             ev.dense = Some((
                 to_complex(sys.a()),
                 to_complex(sys.b()),

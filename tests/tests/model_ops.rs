@@ -279,3 +279,27 @@ fn issue2_simulation_zoh_matches_discretisation() {
     }
     assert!(p.simulate(&u, None).is_err());
 }
+
+#[test]
+fn issue7_freqresp_of_a_series_with_coincident_defective_poles() {
+    // a fitted-style rigid body (Jordan block at z = 1, tiny gains) in series with a PID's
+    // integrator: the block form fails its accuracy check and the evaluator falls back to dense
+    // solves; the response must equal the product of the factors' responses
+    use sd_model::connect::series;
+    let ts = 1e-3;
+    // the 1 kHz design model of `cargo xtask paper` (a 5 kHz fit with its rigid body fixed at
+    // z = 1, downsampled by Lemma 6), saved in test_data
+    let rigid = sd_model::model_from_json_str(
+        &std::fs::read_to_string(sd_tests::test_data("defective_series_plant.json")).unwrap(),
+    )
+    .unwrap();
+    let k = sd_tests::pid(65.0, 20.0, ts);
+    let l = series(&k, &rigid).unwrap();
+    assert!(sd_model::FreqRespEvaluator::new(&l).unwrap().is_dense());
+    for f in [0.5, 1.0, 10.0, 100.0, 400.0] {
+        let g = l.freqresp(&[f]).unwrap().response()[0][(0, 0)];
+        let pk = rigid.freqresp(&[f]).unwrap().response()[0][(0, 0)]
+            * k.freqresp(&[f]).unwrap().response()[0][(0, 0)];
+        assert!((g - pk).norm() <= 1e-8 * pk.norm(), "f {f}: {g} vs {pk}");
+    }
+}
