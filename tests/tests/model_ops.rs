@@ -293,7 +293,7 @@ fn issue7_freqresp_of_a_series_with_coincident_defective_poles() {
         &std::fs::read_to_string(sd_tests::test_data("defective_series_plant.json")).unwrap(),
     )
     .unwrap();
-    let k = sd_tests::pid(65.0, 20.0, ts);
+    let k = sd_hinf::weights::pid(65.0, 20.0, Some(ts), &Default::default()).unwrap();
     let l = series(&k, &rigid).unwrap();
     assert!(sd_model::FreqRespEvaluator::new(&l).unwrap().is_dense());
     for f in [0.5, 1.0, 10.0, 100.0, 400.0] {
