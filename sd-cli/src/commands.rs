@@ -231,6 +231,14 @@ enum Cmd {
         #[arg(long)]
         out: String,
     },
+    /// Diagnose slower experiments against the model experiment (model-free Lemma 6, rate-tied causes).
+    Diagnose {
+        /// Experiment manifest (TOML, DESIGN §4).
+        manifest: String,
+        /// Output folder for diagnosis.json and report.md.
+        #[arg(long)]
+        out: String,
+    },
     /// Loopshaping weights as model JSON (continuous unless --ts is given).
     Weight {
         #[command(subcommand)]
@@ -721,6 +729,55 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
                     None,
                 )
             }
+        }
+        Cmd::Diagnose { manifest, out } => {
+            let text = crate::io::read_text(&manifest)?;
+            let specs = sd_ident::parse_manifest(&text).map_err(|e| from_ident(&manifest, e))?;
+            let base = std::path::Path::new(&manifest)
+                .parent()
+                .map(|p| p.to_path_buf())
+                .unwrap_or_default();
+            let mut exps = Vec::new();
+            for spec in specs {
+                let path = base.join(&spec.file);
+                let file = std::fs::File::open(&path)
+                    .map_err(|e| CliError::input(format!("cannot open {}: {e}", path.display())))?;
+                exps.push(
+                    sd_ident::Experiment::from_reader(spec, std::io::BufReader::new(file))
+                        .map_err(|e| from_ident(&manifest, e))?,
+                );
+            }
+            let d = sd_diagnose::diagnose(&exps)
+                .map_err(|e| CliError::input(format!("{manifest}: {e}")))?;
+            std::fs::create_dir_all(&out)
+                .map_err(|e| CliError::input(format!("cannot create {out}: {e}")))?;
+            let dir = std::path::Path::new(&out);
+            let js = serde_json::to_string_pretty(&d.to_json())
+                .map_err(|e| CliError::numerical(format!("diagnosis JSON: {e}")))?;
+            emit(&js, Some(&dir.join("diagnosis.json").to_string_lossy()))?;
+            let mut md = format!(
+                "# Diagnosis of {manifest}\n\nVerdict: **{}**, cause: **{}**, parameters: `{}`.\n\n| test | statistic | threshold | passed |\n|---|---|---|---|\n",
+                d.verdict, d.cause, d.parameters
+            );
+            for e in &d.evidence {
+                md.push_str(&format!(
+                    "| {} | {:.3} | {:.3} | {} |\n",
+                    e.test, e.statistic, e.threshold, e.passed
+                ));
+            }
+            md.push_str("\n| hypothesis | statistic (1 = noise level) |\n|---|---|\n");
+            for r in &d.ranking {
+                md.push_str(&format!("| {} | {:.3} |\n", r.0, r.1));
+            }
+            md.push_str(&format!(
+                "\nHeld-out gain: {:.3} before, {:.3} after the extension ({}).\n",
+                d.gain_before,
+                d.gain_after,
+                d.held_out.join(", ")
+            ));
+            emit(&md, Some(&dir.join("report.md").to_string_lossy()))?;
+            eprintln!("[diagnose] {} / {} {}", d.verdict, d.cause, d.parameters);
+            Ok(())
         }
         Cmd::Testbed { config, out } => {
             let text = match &config {

@@ -583,3 +583,41 @@ fn issue7_testbed() {
         "configuration",
     );
 }
+
+#[test]
+fn issue8_testbed_then_diagnose() {
+    let dir = tmpdir("issue8");
+    let cfg = write(
+        &dir,
+        "stage.toml",
+        "[nonideal]\naveraging = 0.8\n\
+         [[experiment]]\nname = \"fast\"\nrate_hz = 5000.0\nrole = \"model\"\npid_bandwidth_hz = 30.0\npid_lowpass_hz = 1000.0\nperiod = 10000\nperiods = 6\nf_min = 0.5\nf_max = 2499.5\ninjection = \"input\"\nrms = 2.0\n\
+         [[experiment]]\nname = \"slow\"\nrate_hz = 1000.0\npid_bandwidth_hz = 20.0\nperiod = 2000\nperiods = 6\nf_min = 0.5\nf_max = 499.5\ninjection = \"input\"\nrms = 2.0\n",
+    );
+    let data = dir.join("data").to_string_lossy().into_owned();
+    assert!(sdctl(&["testbed", "--config", &cfg, "--out", &data])
+        .status
+        .success());
+    let out = dir.join("diag").to_string_lossy().into_owned();
+    let manifest = dir
+        .join("data")
+        .join("experiments.toml")
+        .to_string_lossy()
+        .into_owned();
+    let o = sdctl(&["diagnose", &manifest, "--out", &out]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.join("diag").join("diagnosis.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(v["verdict"], "discrepancy");
+    assert_eq!(v["cause"], "averaging_sampler");
+    assert!((v["parameters"]["window_frac"].as_f64().unwrap() - 0.8).abs() < 0.1);
+    assert!(v["gain"]["ratio"].as_f64().unwrap() >= 3.0);
+    assert!(std::fs::read_to_string(dir.join("diag").join("report.md"))
+        .unwrap()
+        .contains("averaging_sampler"));
+    // a manifest with one experiment cannot be diagnosed: exit 2
+    let one = write(&dir, "one.toml", "[[experiment]]\nname = \"fast\"\nfile = \"data/fast.csv\"\nsample_rate_hz = 5000.0\nperiod_samples = 10000\ninput = \"u\"\noutput = \"y\"\n");
+    assert_input_error(&sdctl(&["diagnose", &one, "--out", &out]), "validation");
+}

@@ -99,11 +99,26 @@ impl Diagnosis {
     }
 }
 
+/// A rate-tied extension of the Lemma 6 prediction.
 #[derive(Clone, Copy, Debug, PartialEq)]
-enum Hyp {
+pub enum Hyp {
+    /// Plain Lemma 6.
     None,
+    /// The hold switches this fraction of each period late.
     Delay(f64),
+    /// The sensor averages over this fraction of each period.
     Average(f64),
+}
+
+/// The model-free Lemma 6 prediction (with an extension) of the response at `freq_hz` of an
+/// experiment `factor` times slower than the one that measured `fast` (period `h`); `None`
+/// where a fold frequency is not on the fast grid.
+pub fn predict(fast: &Frd, h: f64, factor: usize, freq_hz: &[f64], hyp: Hyp) -> Vec<Option<C>> {
+    let pair = Pair { fast, factor, h };
+    freq_hz
+        .iter()
+        .map(|&f| pair.predict(f, hyp).map(|p| p.0))
+        .collect()
 }
 
 struct Pair<'a> {
