@@ -170,3 +170,301 @@ fn issue8_hidden_effects() {
         }
     }
 }
+
+/// One seeded case: a random plant, rates and noise, one hidden effect. Returns (effect,
+/// diagnosed cause, parameter error or NaN, gain ratio).
+fn random_case(seed: u64) -> (String, String, f64, f64) {
+    // plants whose identification loop the low-bandwidth controller cannot stabilize are
+    // redrawn (the test is about the diagnosis, not about the controller)
+    for attempt in 0..20 {
+        let out = random_case_attempt(seed, attempt);
+        if out.1 != "unstable setup" {
+            return out;
+        }
+    }
+    random_case_attempt(seed, 20)
+}
+
+fn random_case_attempt(seed: u64, attempt: u64) -> (String, String, f64, f64) {
+    let mut r = sd_tests::gen::Rng::new(seed * 7919 + 1 + attempt * 104_729);
+    let fast_rate = [4000.0, 5000.0, 6000.0][(r.uniform() * 3.0) as usize % 3];
+    let factor = 2 + (r.uniform() * 4.0) as usize % 4; // 2..5
+    let slow_rate = fast_rate / factor as f64;
+    let mass = r.range(5.0, 50.0);
+    let nmodes = 1 + (r.uniform() * 2.0) as usize % 2;
+    let modes: Vec<sd_testbed::ModeSpec> = (0..nmodes)
+        .map(|_| sd_testbed::ModeSpec {
+            freq_hz: r.range(0.6 * slow_rate, 0.4 * fast_rate),
+            zeta: r.range(0.005, 0.03),
+            residue: r.range(0.3, 2.0),
+            cubic: 0.0,
+        })
+        .collect();
+    let mut truth = Truth {
+        mass,
+        modes,
+        ..Truth::default()
+    };
+    let noise = r.range(0.3, 3.0);
+    let effect = [
+        "none",
+        "filter",
+        "hold_delay",
+        "averaging",
+        "cubic",
+        "clock",
+    ][(seed % 6) as usize];
+    let mut ni = NonIdealities::default();
+    let mut truth_param = f64::NAN;
+    match effect {
+        "filter" => truth.sensor_filters.push(
+            sd_model::TransferFunction::new(
+                vec![1.0],
+                vec![
+                    1.0 / (2.0 * std::f64::consts::PI * r.range(0.3, 0.45) * fast_rate),
+                    1.0,
+                ],
+                sd_model::SampleTime::Continuous,
+            )
+            .unwrap()
+            .to_ss()
+            .unwrap(),
+        ),
+        "hold_delay" => {
+            ni.hold_delay = r.range(0.2, 0.8);
+            truth_param = ni.hold_delay;
+        }
+        "averaging" => {
+            ni.averaging = r.range(0.5, 1.0);
+            truth_param = ni.averaging;
+        }
+        "cubic" => {
+            let m0 = &truth.modes[0];
+            // modal deflection at the high level ~ r·F/(m ω² 2ζ)·(fraction of power near the mode)
+            let w = 2.0 * std::f64::consts::PI * m0.freq_hz;
+            let q = m0.residue * 4.0 / (mass * w * w * 2.0 * m0.zeta) * 0.05;
+            truth.modes[0].cubic = 0.3 / (q * q);
+        }
+        "clock" => {
+            ni.clock_error = r.range(0.005, 0.02) * if r.uniform() < 0.5 { -1.0 } else { 1.0 }
+        }
+        _ => {}
+    }
+    let mk = |name: &str,
+              rate: f64,
+              ni: NonIdealities,
+              rms: f64,
+              s: u64,
+              role: Role|
+     -> Option<Experiment> {
+        let ts = 1.0 / rate;
+        let opt = sd_hinf::weights::PidOptions {
+            lowpass_ratio: (0.2 * rate) / 10.0,
+            ..Default::default()
+        };
+        let k = sd_hinf::weights::pid(10.0, mass, Some(ts), &opt).ok()?;
+        let period = (2.0 * rate) as usize;
+        let excitation = sd_ident::design(&MultisineSpec {
+            fs: rate,
+            period,
+            f_min: 0.5,
+            f_max: 0.5 * rate - 0.5,
+            lines: Lines::Full,
+            phases: Phases::Random { seed: s },
+            rms,
+            fold_rate_hz: Some(slow_rate),
+        })
+        .ok()?;
+        let d = run_identification(
+            &truth,
+            &Identification {
+                name: name.into(),
+                controller: k,
+                excitation,
+                periods: 7,
+                transient_periods: 1,
+                injection: Injection::Input,
+                noise: Noise {
+                    force_rms: 0.02 * noise * rms * (rate / 5000.0).sqrt(),
+                    sensor_rms: 0.1e-9 * noise * (rate / 5000.0).sqrt(),
+                    seed: s + 1000,
+                },
+                nonideal: ni,
+                role,
+                substeps: None,
+            },
+        )
+        .ok()?;
+        Some(Experiment {
+            spec: ExperimentSpec {
+                name: name.into(),
+                file: format!("{name}.csv"),
+                sample_rate_hz: rate,
+                period_samples: d.period,
+                skip_periods: 1,
+                reference: Some("r".into()),
+                input: "u".into(),
+                output: "y".into(),
+                role,
+            },
+            r: d.r,
+            u: d.u,
+            y: d.y,
+        })
+    };
+    let fast_ni = NonIdealities {
+        clock_error: 0.0,
+        ..ni
+    };
+    let mut exps = Vec::new();
+    let low = 0.5;
+    exps.push(mk(
+        "fast",
+        fast_rate,
+        fast_ni,
+        low,
+        seed * 3 + 1,
+        Role::Model,
+    ));
+    exps.push(mk(
+        "slow",
+        slow_rate,
+        ni,
+        low,
+        seed * 3 + 2,
+        Role::Validation,
+    ));
+    if effect == "cubic" {
+        exps.push(mk(
+            "fast_high",
+            fast_rate,
+            fast_ni,
+            4.0,
+            seed * 3 + 3,
+            Role::Validation,
+        ));
+    }
+    let exps: Option<Vec<Experiment>> = exps.into_iter().collect();
+    let Some(exps) = exps else {
+        return (effect.into(), "unstable setup".into(), f64::NAN, f64::NAN);
+    };
+    let d = diagnose(&exps).unwrap();
+    if std::env::var("DIAG_VERBOSE").is_ok() {
+        println!(
+            "  seed {seed}: {effect} F {factor} fast {fast_rate} modes {:?} -> ranking {:?}",
+            truth
+                .modes
+                .iter()
+                .map(|m| m.freq_hz.round())
+                .collect::<Vec<_>>(),
+            d.ranking
+                .iter()
+                .map(|r| (r.0.clone(), (r.1 * 100.0).round() / 100.0))
+                .collect::<Vec<_>>()
+        );
+    }
+    let perr = match d.cause.as_str() {
+        // relative for the delay (within 10 %), absolute for the window (within 0.1)
+        "hold_delay" => {
+            (d.parameters["delay_frac"].as_f64().unwrap() - truth_param).abs() / truth_param
+        }
+        "averaging_sampler" => (d.parameters["window_frac"].as_f64().unwrap() - truth_param).abs(),
+        _ => f64::NAN,
+    };
+    (
+        effect.into(),
+        d.cause,
+        perr,
+        d.gain_before / d.gain_after.max(f64::MIN_POSITIVE),
+    )
+}
+
+fn expected(effect: &str) -> &'static str {
+    match effect {
+        "none" | "filter" => "none",
+        "hold_delay" => "hold_delay",
+        "averaging" => "averaging_sampler",
+        "cubic" => "nonlinearity",
+        _ => "unexplained",
+    }
+}
+
+fn run_cases(n: u64) -> Vec<(String, String, f64, f64)> {
+    (0..n).map(random_case).collect()
+}
+
+fn check_and_print(cases: &[(String, String, f64, f64)]) -> usize {
+    let mut wrong = 0;
+    for (i, (effect, cause, perr, gain)) in cases.iter().enumerate() {
+        let want = expected(effect);
+        let ok = cause == want
+            && match effect.as_str() {
+                "hold_delay" => *perr <= 0.1 && *gain >= 3.0,
+                "averaging" => *perr <= 0.1 && *gain >= 3.0,
+                "cubic" => *gain >= 3.0,
+                _ => true,
+            };
+        if !ok {
+            wrong += 1;
+        }
+        println!(
+            "case {i:3}: {effect:<10} -> {cause:<18} param err {perr:.3} gain {gain:.1}{}",
+            if ok { "" } else { "   WRONG" }
+        );
+    }
+    wrong
+}
+
+#[test]
+fn issue8_seeded_random_cases() {
+    let cases = run_cases(24);
+    let wrong = check_and_print(&cases);
+    // never a wrong named cause: consistent plants stay consistent, the unknown effect is never
+    // given a catalogued name, nonlinearity is found
+    for (effect, cause, _, _) in &cases {
+        let named =
+            cause == "hold_delay" || cause == "averaging_sampler" || cause == "nonlinearity";
+        assert!(
+            !named || cause == expected(effect),
+            "{effect} diagnosed as {cause}"
+        );
+    }
+    // Known limitation (issue #8 stays open): the hold-delay extension treats the fast FRF as
+    // the plant between samples, so on some plants its α is 10–16 % off (case 2 of these 24:
+    // 13.7 %); `issue8_confusion_matrix_100` lists them all.
+    assert!(wrong <= 1, "{wrong} of {} cases misdiagnosed", cases.len());
+}
+
+/// The confusion matrix over 100 seeded cases:
+/// `cargo test --release -p sd-tests --test diagnose_hidden -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn issue8_confusion_matrix_100() {
+    let cases = run_cases(100);
+    let wrong = check_and_print(&cases);
+    let effects = [
+        "none",
+        "filter",
+        "hold_delay",
+        "averaging",
+        "cubic",
+        "clock",
+    ];
+    let causes = [
+        "none",
+        "hold_delay",
+        "averaging_sampler",
+        "nonlinearity",
+        "unexplained",
+        "unstable setup",
+    ];
+    println!("\neffect \\ diagnosed: {causes:?}");
+    for e in effects {
+        let row: Vec<usize> = causes
+            .iter()
+            .map(|c| cases.iter().filter(|x| x.0 == e && x.1 == *c).count())
+            .collect();
+        println!("{e:<12} {row:?}");
+    }
+    println!("misdiagnosed: {wrong} of {}", cases.len());
+}
