@@ -289,6 +289,26 @@ impl ExperimentData {
         s
     }
 
+    /// The experiment as `sd-ident` reads it from this data's manifest entry and CSV.
+    pub fn to_experiment(&self) -> sd_ident::Experiment {
+        sd_ident::Experiment {
+            spec: sd_ident::ExperimentSpec {
+                name: self.name.clone(),
+                file: format!("{}.csv", self.name),
+                sample_rate_hz: self.rate_hz,
+                period_samples: self.period,
+                skip_periods: self.skip_periods,
+                reference: self.r.as_ref().map(|_| "r".to_string()),
+                input: "u".into(),
+                output: "y".into(),
+                role: self.role,
+            },
+            r: self.r.clone(),
+            u: self.u.clone(),
+            y: self.y.clone(),
+        }
+    }
+
     /// The `[[experiment]]` table of the manifest (file `<name>.csv`).
     pub fn manifest_entry(&self) -> String {
         let mut s = String::new();

@@ -2,7 +2,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use sd_diagnose::diagnose;
-use sd_ident::{Experiment, ExperimentSpec, Lines, MultisineSpec, Phases, Role};
+use sd_ident::{Experiment, Lines, MultisineSpec, Phases, Role};
 use sd_testbed::{run_identification, Identification, Injection, Noise, NonIdealities, Truth};
 
 fn experiment(
@@ -57,22 +57,7 @@ fn experiment(
         },
     )
     .unwrap();
-    Experiment {
-        spec: ExperimentSpec {
-            name: name.into(),
-            file: format!("{name}.csv"),
-            sample_rate_hz: rate,
-            period_samples: d.period,
-            skip_periods: 1,
-            reference: Some("r".into()),
-            input: "u".into(),
-            output: "y".into(),
-            role,
-        },
-        r: d.r,
-        u: d.u,
-        y: d.y,
-    }
+    d.to_experiment()
 }
 
 fn run(truth: &Truth, ni: NonIdealities, seed: u64) -> sd_diagnose::Diagnosis {
@@ -295,22 +280,7 @@ fn random_case_attempt(seed: u64, attempt: u64) -> (String, String, f64, f64) {
             },
         )
         .ok()?;
-        Some(Experiment {
-            spec: ExperimentSpec {
-                name: name.into(),
-                file: format!("{name}.csv"),
-                sample_rate_hz: rate,
-                period_samples: d.period,
-                skip_periods: 1,
-                reference: Some("r".into()),
-                input: "u".into(),
-                output: "y".into(),
-                role,
-            },
-            r: d.r,
-            u: d.u,
-            y: d.y,
-        })
+        Some(d.to_experiment())
     };
     let fast_ni = NonIdealities {
         clock_error: 0.0,

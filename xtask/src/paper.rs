@@ -184,23 +184,7 @@ pub fn run(out: &str, quick: bool) -> Result<(), String> {
         2,
         "diagnosis: the 1 kHz data against the model-free Lemma 6 prediction from the 5 kHz data",
     );
-    let as_exp = |d: &sd_testbed::ExperimentData| sd_ident::Experiment {
-        spec: sd_ident::ExperimentSpec {
-            name: d.name.clone(),
-            file: format!("{}.csv", d.name),
-            sample_rate_hz: d.rate_hz,
-            period_samples: d.period,
-            skip_periods: d.skip_periods,
-            reference: d.r.as_ref().map(|_| "r".to_string()),
-            input: "u".into(),
-            output: "y".into(),
-            role: d.role,
-        },
-        r: d.r.clone(),
-        u: d.u.clone(),
-        y: d.y.clone(),
-    };
-    let diag = sd_diagnose::diagnose(&[as_exp(&fast), as_exp(&slow)]).map_err(s)?;
+    let diag = sd_diagnose::diagnose(&[fast.to_experiment(), slow.to_experiment()]).map_err(s)?;
     let gain_ratio = diag.gain_before / diag.gain_after.max(f64::MIN_POSITIVE);
     eprintln!(
         "  diagnosis: {} / {} {} (gain ×{gain_ratio:.1})",
