@@ -27,6 +27,9 @@
 //! approximation per level (its gain judged on held-out periods of that level). Slower
 //! experiments at another level are then not used for the rate-tied hypotheses.
 //!
+//! Non-periodic experiments are estimated by the local polynomial method (closed loop through
+//! the reference when there is one); their held-out halves are the halves of the record.
+//!
 //! **Gain** is measured on held-out data: the validation experiment's steady periods are split in
 //! two halves, the parameter is fitted on the first and the statistic compared on the second.
 
@@ -234,12 +237,26 @@ fn fit_param(pair: &Pair<'_>, val: &Frd, make: fn(f64) -> Hyp) -> (f64, f64) {
 }
 
 fn estimate(e: &Experiment, first: Option<bool>) -> Result<Frd> {
-    let period = e.spec.period_samples.ok_or_else(|| {
-        DiagnoseError::Setup(format!(
-            "experiment `{}` is not periodic (period_samples missing): the diagnosis needs periodic data",
-            e.spec.name
-        ))
-    })?;
+    let Some(period) = e.spec.period_samples else {
+        // non-periodic data: the local polynomial method (transients handled); the halves for
+        // the held-out gain are the two halves of the record
+        let n = e.u.len();
+        let (lo, hi) = match first {
+            None => (0, n),
+            Some(true) => (0, n / 2),
+            Some(false) => (n / 2, n),
+        };
+        let opt = sd_ident::LpmOptions::default();
+        let fs = e.spec.sample_rate_hz;
+        return Ok(match &e.r {
+            Some(r) => sd_ident::lpm_closed_loop(fs, &r[lo..hi], &e.u[lo..hi], &e.y[lo..hi], &opt)?,
+            None => {
+                let x = nalgebra::DMatrix::from_column_slice(hi - lo, 1, &e.u[lo..hi]);
+                let z = nalgebra::DMatrix::from_column_slice(hi - lo, 1, &e.y[lo..hi]);
+                sd_ident::lpm(fs, &x, &z, &opt)?.frd
+            }
+        });
+    };
     let skip = e.spec.skip_periods;
     let total = e.u.len() / period;
     let steady = total.saturating_sub(skip);
