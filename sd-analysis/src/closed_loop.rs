@@ -257,10 +257,13 @@ impl ClosedLoop {
                 } else {
                     (wmin / (2.0 * PI) * 1e-3, wmax / (2.0 * PI) * 1e3)
                 };
-                // a high gain moves the crossover above the poles: extend until |L| ≪ 1
-                let ev = FreqRespEvaluator::new(&self.l)?;
+                // a high gain moves the crossover above the poles: extend until |L − L(∞)| ≪ 1
+                let l_inf = (self.p.d() * self.k.d())[(0, 0)];
                 let mut guard = 0;
-                while guard < 30 && (ev.eval_hz(hi)[(0, 0)] - self.l.d()[(0, 0)]).norm() > 1e-3 {
+                while guard < 30
+                    && ((self.ev_p.eval_hz(hi) * self.ev_k.eval_hz(hi))[(0, 0)] - l_inf).norm()
+                        > 1e-3
+                {
                     hi *= 10.0;
                     guard += 1;
                 }

@@ -5,38 +5,41 @@ use sd_diagnose::diagnose;
 use sd_ident::{Experiment, Lines, MultisineSpec, Phases, Role};
 use sd_testbed::{run_identification, Identification, Injection, Noise, NonIdealities, Truth};
 
-fn experiment(
+/// One closed-loop identification experiment on the virtual stage, as the diagnosis reads it:
+/// a PID-like controller (bandwidth `bw`, low-pass at `lowpass` Hz or none), a full random-phase
+/// multisine on the 0.5 Hz grid up to just below Nyquist, 7 periods (1 transient), white force
+/// and sensor noise. `None` when the controller does not stabilize the stage.
+#[allow(clippy::too_many_arguments)]
+fn identify(
     truth: &Truth,
     name: &str,
     rate: f64,
+    bw: f64,
+    lowpass: Option<f64>,
+    rms: f64,
+    noise: (f64, f64),
+    fold_rate: f64,
     ni: NonIdealities,
     seed: u64,
     role: Role,
-) -> Experiment {
+) -> Option<Experiment> {
     let ts = 1.0 / rate;
-    let mut opt = sd_hinf::weights::PidOptions::default();
-    if rate > 2000.0 {
-        opt.lowpass_ratio = 1000.0 / 30.0;
-    }
-    let k = sd_hinf::weights::pid(
-        if rate > 2000.0 { 30.0 } else { 20.0 },
-        truth.mass,
-        Some(ts),
-        &opt,
-    )
-    .unwrap();
-    let period = (2.0 * rate) as usize;
+    let opt = sd_hinf::weights::PidOptions {
+        lowpass_ratio: lowpass.map(|f| f / bw).unwrap_or(0.0),
+        ..Default::default()
+    };
+    let k = sd_hinf::weights::pid(bw, truth.mass, Some(ts), &opt).ok()?;
     let excitation = sd_ident::design(&MultisineSpec {
         fs: rate,
-        period,
+        period: (2.0 * rate) as usize,
         f_min: 0.5,
         f_max: 0.5 * rate - 0.5,
         lines: Lines::Full,
         phases: Phases::Random { seed },
-        rms: 2.0,
-        fold_rate_hz: Some(1000.0),
+        rms,
+        fold_rate_hz: Some(fold_rate),
     })
-    .unwrap();
+    .ok()?;
     let d = run_identification(
         truth,
         &Identification {
@@ -47,17 +50,43 @@ fn experiment(
             transient_periods: 1,
             injection: Injection::Input,
             noise: Noise {
-                force_rms: 0.05 * (rate / 5000.0).sqrt(),
-                sensor_rms: 0.3e-9 * (rate / 5000.0).sqrt(),
-                seed: seed + 100,
+                force_rms: noise.0,
+                sensor_rms: noise.1,
+                seed: seed + 1000,
             },
             nonideal: ni,
             role,
             substeps: None,
         },
     )
-    .unwrap();
-    d.to_experiment()
+    .ok()?;
+    Some(d.to_experiment())
+}
+
+fn experiment(
+    truth: &Truth,
+    name: &str,
+    rate: f64,
+    ni: NonIdealities,
+    seed: u64,
+    role: Role,
+) -> Experiment {
+    let fast = rate > 2000.0;
+    let scale = (rate / 5000.0).sqrt();
+    identify(
+        truth,
+        name,
+        rate,
+        if fast { 30.0 } else { 20.0 },
+        if fast { Some(1000.0) } else { None },
+        2.0,
+        (0.05 * scale, 0.3e-9 * scale),
+        1000.0,
+        ni,
+        seed,
+        role,
+    )
+    .unwrap()
 }
 
 fn run(truth: &Truth, ni: NonIdealities, seed: u64) -> sd_diagnose::Diagnosis {
@@ -235,52 +264,21 @@ fn random_case_attempt(seed: u64, attempt: u64) -> (String, String, f64, f64) {
         }
         _ => {}
     }
-    let mk = |name: &str,
-              rate: f64,
-              ni: NonIdealities,
-              rms: f64,
-              s: u64,
-              role: Role|
-     -> Option<Experiment> {
-        let ts = 1.0 / rate;
-        let opt = sd_hinf::weights::PidOptions {
-            lowpass_ratio: (0.2 * rate) / 10.0,
-            ..Default::default()
-        };
-        let k = sd_hinf::weights::pid(10.0, mass, Some(ts), &opt).ok()?;
-        let period = (2.0 * rate) as usize;
-        let excitation = sd_ident::design(&MultisineSpec {
-            fs: rate,
-            period,
-            f_min: 0.5,
-            f_max: 0.5 * rate - 0.5,
-            lines: Lines::Full,
-            phases: Phases::Random { seed: s },
-            rms,
-            fold_rate_hz: Some(slow_rate),
-        })
-        .ok()?;
-        let d = run_identification(
+    let mk = |name: &str, rate: f64, ni: NonIdealities, rms: f64, s: u64, role: Role| {
+        let scale = (rate / 5000.0).sqrt();
+        identify(
             &truth,
-            &Identification {
-                name: name.into(),
-                controller: k,
-                excitation,
-                periods: 7,
-                transient_periods: 1,
-                injection: Injection::Input,
-                noise: Noise {
-                    force_rms: 0.02 * noise * rms * (rate / 5000.0).sqrt(),
-                    sensor_rms: 0.1e-9 * noise * (rate / 5000.0).sqrt(),
-                    seed: s + 1000,
-                },
-                nonideal: ni,
-                role,
-                substeps: None,
-            },
+            name,
+            rate,
+            10.0,
+            Some(0.2 * rate),
+            rms,
+            (0.02 * noise * rms * scale, 0.1e-9 * noise * scale),
+            slow_rate,
+            ni,
+            s,
+            role,
         )
-        .ok()?;
-        Some(d.to_experiment())
     };
     let fast_ni = NonIdealities {
         clock_error: 0.0,
