@@ -179,6 +179,16 @@ fn issue2_bad_inputs_exit_2_with_one_line() {
     );
 }
 
+/// The JSON a successful command printed, with each of `keys` present.
+fn json_with_keys(o: &Output, keys: &[&str]) -> serde_json::Value {
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    for key in keys {
+        assert!(v.get(key).is_some(), "missing {key}");
+    }
+    v
+}
+
 fn model_of(o: &Output) -> sd_model::StateSpace {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     sd_model::model_from_json_str(&String::from_utf8_lossy(&o.stdout)).unwrap()
@@ -327,18 +337,17 @@ fn issue4_weight_and_loopshape() {
     assert_eq!(k.ts(), Some(0.01));
     // --json object with the contract keys
     let o = sdctl(&["loopshape", &p, "--w1", &w1, "--json", "--strictly-proper"]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    for key in [
-        "gamma_min",
-        "gamma",
-        "controller",
-        "shaped_controller",
-        "closed_loop_stable",
-        "riccati",
-    ] {
-        assert!(v.get(key).is_some(), "missing {key}");
-    }
+    let v = json_with_keys(
+        &o,
+        &[
+            "gamma_min",
+            "gamma",
+            "controller",
+            "shaped_controller",
+            "closed_loop_stable",
+            "riccati",
+        ],
+    );
     assert_eq!(v["closed_loop_stable"], true);
     let g = v["gamma"].as_f64().unwrap() / v["gamma_min"].as_f64().unwrap();
     assert!((g - 1.1).abs() < 1e-12);
@@ -473,20 +482,19 @@ fn issue6_analyze_and_intersample() {
     ]);
     let kf = write(&dir, "k.json", &String::from_utf8_lossy(&k.stdout));
     let o = sdctl(&["analyze", "--plant", &p1k, "--controller", &kf, "--json"]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    for key in [
-        "stable",
-        "closed_loop_radius",
-        "bandwidth_hz",
-        "sensitivity_peak_db",
-        "sensitivity_peak_hz",
-        "gain_margin_db",
-        "phase_margin_deg",
-        "modulus_margin",
-    ] {
-        assert!(v.get(key).is_some(), "missing {key}");
-    }
+    let v = json_with_keys(
+        &o,
+        &[
+            "stable",
+            "closed_loop_radius",
+            "bandwidth_hz",
+            "sensitivity_peak_db",
+            "sensitivity_peak_hz",
+            "gain_margin_db",
+            "phase_margin_deg",
+            "modulus_margin",
+        ],
+    );
     assert_eq!(v["stable"], true);
     assert!((v["bandwidth_hz"].as_f64().unwrap() - 65.0).abs() < 5.0);
     assert!(String::from_utf8_lossy(
@@ -503,8 +511,7 @@ fn issue6_analyze_and_intersample() {
         "--points",
         "500",
     ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let v = json_with_keys(&o, &[]);
     assert_eq!(v["factor"], 5);
     assert!(
         v["rms_fast"].as_f64().unwrap() > 0.0 && v["fast_psd"].as_array().unwrap().len() == 500

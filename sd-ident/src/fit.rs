@@ -208,6 +208,16 @@ fn rigid_basis(m: usize, z: C, out: &mut Vec<C>) {
     }
 }
 
+/// One row of the numerator basis at `z`: free poles, rigid-body terms, feedthrough.
+fn numerator_basis(real: &[f64], pairs: &[C], m: usize, feed: bool, z: C, row: &mut Vec<C>) {
+    row.clear();
+    free_basis(real, pairs, z, row);
+    rigid_basis(m, z, row);
+    if feed {
+        row.push(C::new(1.0, 0.0));
+    }
+}
+
 /// Residues and d for given poles (the linear step).
 fn residues(data: &Data, real: &[f64], pairs: &[C], m: usize, feed: bool) -> Result<Pf> {
     let nf = real.len() + 2 * pairs.len();
@@ -217,12 +227,7 @@ fn residues(data: &Data, real: &[f64], pairs: &[C], m: usize, feed: bool) -> Res
     let mut b = Mat::<f64>::zeros(2 * k, 1);
     let mut row = Vec::with_capacity(ncol);
     for (i, ((&z, &g), &w)) in data.z.iter().zip(&data.g).zip(&data.w).enumerate() {
-        row.clear();
-        free_basis(real, pairs, z, &mut row);
-        rigid_basis(m, z, &mut row);
-        if feed {
-            row.push(C::new(1.0, 0.0));
-        }
+        numerator_basis(real, pairs, m, feed, z, &mut row);
         for (j, v) in row.iter().enumerate() {
             a[(2 * i, j)] = w * v.re;
             a[(2 * i + 1, j)] = w * v.im;
@@ -266,21 +271,14 @@ fn relocate(
     let mut a = Mat::<f64>::zeros(2 * k, ncol);
     let mut b = Mat::<f64>::zeros(2 * k, 1);
     let mut row = Vec::with_capacity(nn);
-    let mut srow = Vec::with_capacity(nf);
     for (i, ((&z, &g), &w)) in data.z.iter().zip(&data.g).zip(&data.w).enumerate() {
-        row.clear();
-        free_basis(real, pairs, z, &mut row);
-        rigid_basis(m, z, &mut row);
-        if feed {
-            row.push(C::new(1.0, 0.0));
-        }
-        srow.clear();
-        free_basis(real, pairs, z, &mut srow);
+        numerator_basis(real, pairs, m, feed, z, &mut row);
         for (j, v) in row.iter().enumerate() {
             a[(2 * i, j)] = w * v.re;
             a[(2 * i + 1, j)] = w * v.im;
         }
-        for (j, v) in srow.iter().enumerate() {
+        // σ's basis is the free part of the numerator's (its first nf columns)
+        for (j, v) in row[..nf].iter().enumerate() {
             let t = -g * v * w;
             a[(2 * i, nn + j)] = t.re;
             a[(2 * i + 1, nn + j)] = t.im;

@@ -355,19 +355,28 @@ impl MultirateLoop {
         p * phi_d(fa) + phi_n(fa)
     }
 
+    /// `Σ_{k=from}^{F−1} Φ_v(f − k/T)`: the spectrum at the frequencies the slow sampler folds onto f.
+    fn phi_v_shifted(
+        &self,
+        f: f64,
+        from: usize,
+        phi_d: &dyn Fn(f64) -> f64,
+        phi_n: &dyn Fn(f64) -> f64,
+    ) -> f64 {
+        (from..self.factor)
+            .map(|k| self.phi_v(f - k as f64 / self.t, phi_d, phi_n))
+            .sum()
+    }
+
     fn fast_at(
         &self,
         f: f64,
         phi_d: &dyn Fn(f64) -> f64,
         phi_n: &dyn Fn(f64) -> f64,
     ) -> Result<f64> {
-        let tinv = 1.0 / self.t;
         let g = self.g_over_f(f)?[(0, 0)];
         let own = (C::new(1.0, 0.0) - g).norm_sqr() * self.phi_v(f, phi_d, phi_n);
-        let folded: f64 = (1..self.factor)
-            .map(|k| self.phi_v(f - k as f64 * tinv, phi_d, phi_n))
-            .sum();
-        Ok(own + g.norm_sqr() * folded)
+        Ok(own + g.norm_sqr() * self.phi_v_shifted(f, 1, phi_d, phi_n))
     }
 
     fn slow_at(
@@ -376,12 +385,8 @@ impl MultirateLoop {
         phi_d: &dyn Fn(f64) -> f64,
         phi_n: &dyn Fn(f64) -> f64,
     ) -> Result<f64> {
-        let tinv = 1.0 / self.t;
         let s = self.sensitivity_slow(f)?[(0, 0)].norm_sqr();
-        let sum: f64 = (0..self.factor)
-            .map(|k| self.phi_v(f - k as f64 * tinv, phi_d, phi_n))
-            .sum();
-        Ok(s * sum)
+        Ok(s * self.phi_v_shifted(f, 0, phi_d, phi_n))
     }
 
     /// Evaluates a spectrum; where a folded frequency hits a pole of the plant on the unit

@@ -199,6 +199,15 @@ fn random_case(seed: u64) -> (String, String, f64, f64) {
     random_case_attempt(seed, 20)
 }
 
+/// The hidden effects of the random cases, drawn in turn by seed.
+const EFFECTS: [&str; 6] = [
+    "none",
+    "filter",
+    "hold_delay",
+    "averaging",
+    "cubic",
+    "clock",
+];
 fn random_case_attempt(seed: u64, attempt: u64) -> (String, String, f64, f64) {
     let mut r = sd_tests::gen::Rng::new(seed * 7919 + 1 + attempt * 104_729);
     let fast_rate = [4000.0, 5000.0, 6000.0][(r.uniform() * 3.0) as usize % 3];
@@ -220,14 +229,7 @@ fn random_case_attempt(seed: u64, attempt: u64) -> (String, String, f64, f64) {
         ..Truth::default()
     };
     let noise = r.range(0.3, 3.0);
-    let effect = [
-        "none",
-        "filter",
-        "hold_delay",
-        "averaging",
-        "cubic",
-        "clock",
-    ][(seed % 6) as usize];
+    let effect = EFFECTS[(seed % EFFECTS.len() as u64) as usize];
     let mut ni = NonIdealities::default();
     let mut truth_param = f64::NAN;
     match effect {
@@ -410,14 +412,6 @@ fn issue8_seeded_random_cases() {
 fn issue8_confusion_matrix_100() {
     let cases = run_cases(100);
     let wrong = check_and_print(&cases);
-    let effects = [
-        "none",
-        "filter",
-        "hold_delay",
-        "averaging",
-        "cubic",
-        "clock",
-    ];
     let causes = [
         "none",
         "hold_delay",
@@ -427,7 +421,7 @@ fn issue8_confusion_matrix_100() {
         "unstable setup",
     ];
     println!("\neffect \\ diagnosed: {causes:?}");
-    for e in effects {
+    for e in EFFECTS {
         let row: Vec<usize> = causes
             .iter()
             .map(|c| cases.iter().filter(|x| x.0 == e && x.1 == *c).count())

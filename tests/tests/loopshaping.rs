@@ -166,28 +166,17 @@ fn issue4_paper_design_dips_at_the_aliased_mode() {
 
 #[test]
 fn issue4_shaped_plant_with_feedthrough() {
-    // a discrete shaped plant with D ≠ 0: handled by the R = I + DᵀD, S = CᵀD forms
-    let (g, w) = sp93_discrete();
-    let gd = StateSpace::new(
-        g.a().clone(),
-        g.b().clone(),
-        g.c().clone(),
-        DMatrix::from_element(1, 1, 0.3),
-        g.time(),
-    )
-    .unwrap();
-    let d = loopshape(&gd, Some(&w), None, &LoopshapeOptions::default()).unwrap();
-    check("S&P 9.3 discrete with D = 0.3", &d, None);
-    // and in continuous time
-    let (g, w) = sp93();
-    let gc = StateSpace::new(
-        g.a().clone(),
-        g.b().clone(),
-        g.c().clone(),
-        DMatrix::from_element(1, 1, 0.3),
-        g.time(),
-    )
-    .unwrap();
-    let d = loopshape(&gc, Some(&w), None, &LoopshapeOptions::default()).unwrap();
-    check("S&P 9.3 continuous with D = 0.3", &d, None);
+    // a shaped plant with D ≠ 0: handled by the R = I + DᵀD, S = CᵀD forms, in both domains
+    for (name, (g, w)) in [("discrete", sp93_discrete()), ("continuous", sp93())] {
+        let gd = StateSpace::new(
+            g.a().clone(),
+            g.b().clone(),
+            g.c().clone(),
+            DMatrix::from_element(1, 1, 0.3),
+            g.time(),
+        )
+        .unwrap();
+        let d = loopshape(&gd, Some(&w), None, &LoopshapeOptions::default()).unwrap();
+        check(&format!("S&P 9.3 {name} with D = 0.3"), &d, None);
+    }
 }

@@ -293,7 +293,7 @@ pub fn run(quick: bool) -> Result<(), String> {
     let mut fr_entry = json!({"name": "freqresp", "size": format!("60 states, {nfreq} frequencies"),
                               "ours_library_s": t_fr_lib, "ours_sdctl_process_s": t_fr_proc});
 
-    if python_peers_available() {
+    let python = if python_peers_available() {
         eprintln!("[bench] python-control / scipy on the same inputs...");
         let cases = json!({
             "c2d": {"model": ct_path, "ts": 2e-4, "repeats": reps * 10},
@@ -382,37 +382,23 @@ pub fn run(quick: bool) -> Result<(), String> {
             (pl["gamma_min"].as_f64().unwrap_or(f64::NAN) - design.gamma_min).abs()
                 / design.gamma_min
         );
-        entries.push(c2d_entry);
-        entries.push(fr_entry);
-        entries.push(ds_entry);
         let pf = &py["frf_numpy_periodic_average"];
         frf_entry["peer"] = json!({"numpy_fft_period_average": pf});
         frf_entry["ratio_numpy_over_ours"] =
             json!(pf["median_s"].as_f64().unwrap_or(f64::NAN) / t_frf);
-        entries.push(dare_entry);
-        entries.push(ls_entry);
-        entries.push(frf_entry);
-        entries.push(fit_entry);
-        entries.push(tb_entry);
-        entries.push(diag_entry);
-        let res = json!({"quick": quick, "python": py["versions"], "entries": entries});
-        finish(&dir, res)
+        py["versions"].clone()
     } else {
         eprintln!("[bench] python-control/slycot not importable: peers skipped (pip install control slycot scipy)");
-        entries.push(c2d_entry);
-        entries.push(fr_entry);
-        entries.push(ds_entry);
-        entries.push(dare_entry);
-        entries.push(ls_entry);
-        entries.push(frf_entry);
-        entries.push(fit_entry);
-        entries.push(tb_entry);
-        entries.push(diag_entry);
-        finish(
-            &dir,
-            json!({"quick": quick, "python": null, "entries": entries}),
-        )
-    }
+        Value::Null
+    };
+    entries.extend([
+        c2d_entry, fr_entry, ds_entry, dare_entry, ls_entry, frf_entry, fit_entry, tb_entry,
+        diag_entry,
+    ]);
+    finish(
+        &dir,
+        json!({"quick": quick, "python": python, "entries": entries}),
+    )
 }
 
 fn finish(dir: &Path, res: Value) -> Result<(), String> {
