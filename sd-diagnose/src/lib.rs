@@ -1,62 +1,115 @@
 //! `sd-diagnose`: what a model gets wrong on measured data, why, and how much an extension gains.
 //!
-//! **Model-free check (Lemma 6 on measured FRFs).** For a validation experiment at the slow rate
-//! `1/T` and the model experiment at `F/T`, the folding identity of Lemma 6 holds exactly for
-//! any LTI plant, filters and delays common to both rates included:
-//! `P_T(f) = Σ_{k<F} P_h(f_k) H_F(f_k)/F`, `f_k = f − k/T`. With a fold-aware excitation grid
-//! (f₀ divides the slow rate) every `f_k` is a measured line, so the prediction needs no model,
-//! and its variance `Σ_k |H_F/F|² var P_h(f_k)` is known. The discrepancy statistic is
-//! `V/K = (1/K) Σ_lines |P_meas − P_pred|²/(var_meas + var_pred)`, ≈ 1 (± 1/√K) for a consistent
-//! pair; above `1 + 5/√K` it is a discrepancy.
+//! **Inputs.** One model experiment (its rate `1/h`) and validation experiments at the same
+//! rate or an integer fraction `1/T = 1/(F h)`, each estimated as an FRF with variances
+//! (periodic: averaged periods; non-periodic: local polynomial method).
 //!
-//! **Rate-tied hypotheses** (one parameter each, fitted by a grid and golden-section search):
-//! - `hold_delay` α: the hold switches α of each rate's own period late, so the slow data carry
-//!   an extra delay `α(T − h)` on every fold: `P_T(f) = Σ_k P_h(f_k) H_F(f_k)/F · e^{−j2πf_kα(T−h)}`;
-//! - `averaging_sampler` β: the sensor averages over β of each period:
-//!   `… · A_{βT}(f_k)/A_{βh}(f_k)`, `A_L(f) = (1 − e^{−j2πfL})/(j2πfL)`.
+//! **The model** is fitted to the model experiment's FRF ([`sd_ident::fit`], orders chosen by
+//! Akaike's FPE, rigid-body poles from the low-frequency slope) or given. Its simulation of a
+//! slower experiment is Lemma 6 ([`sd_multirate::downsample`]); in the frequency domain it is
+//! compared line by line, in the time domain the measured input period goes through it
+//! ([`timedomain`]).
 //!
-//! Both use the fast FRF as the plant between its samples, which neglects the fast experiment's
-//! own aliasing (exact for plants without dynamics above the fast Nyquist frequency), so they
-//! need not reach the noise level exactly. A cause is named only when its fitted extension
-//! lowers the statistic at least 10× and at least 1.5× below any other extension; otherwise the
-//! verdict is a discrepancy with cause `unexplained`.
+//! **Model-free check (Lemma 6 on measured FRFs).** The folding identity
+//! `P_T(f) = Σ_{k<F} P_h(f_k) H_F(f_k)/F`, `f_k = f − k/T`, holds exactly for any LTI plant,
+//! filters and delays common to both rates included. With a fold-aware excitation grid every
+//! `f_k` is a measured line, so the slow FRF is predicted without a model, with variance
+//! `Σ_k |H_F/F|² var P_h(f_k)`.
 //!
-//! **Nonlinearity**: a validation experiment at the model experiment's own rate but another
-//! excitation level (> 20 % apart) whose FRF differs significantly cannot be explained by
-//! anything rate-tied; the cause is `nonlinearity`, and the extension is a best linear
-//! approximation per level (its gain judged on held-out periods of that level). Slower
-//! experiments at another level are then not used for the rate-tied hypotheses.
+//! **Statistic.** `V/K = (1/K) Σ_lines |P_meas − P_pred|²/(var_meas + var_pred)`, ≈ 1 ± 1/√K for
+//! a consistent pair; above `1 + 5/√K` it is a discrepancy. The model's prediction is judged with
+//! the model-free prediction's variance (a model that fits the fast data to their noise level
+//! predicts the slow data to the propagated noise level).
 //!
-//! Non-periodic experiments are estimated by the local polynomial method (closed loop through
-//! the reference when there is one); their held-out halves are the halves of the record.
+//! **Verdict and cause.**
+//! - both predictions consistent: `consistent`, cause `none`;
+//! - the model-free prediction consistent, the model's not: the model is wrong at the folding
+//!   frequencies, cause `fast_model_error`; the extension is the fast FRF itself through Lemma 6;
+//! - a same-rate experiment at another excitation level (> 20 % apart) whose FRF differs
+//!   significantly: cause `nonlinearity`; the extension is one best linear approximation per
+//!   level, judged on held-out periods of that level;
+//! - the model-free prediction inconsistent: the rate-tied hypotheses, each a one-parameter
+//!   extension of a continuous modal model built from the fitted model's poles ([`modal`]):
+//!   `hold_delay` α (the hold switches α of each experiment's own period late) and
+//!   `averaging_sampler` β (the sensor averages over β of each period), each discretised
+//!   exactly at each experiment's period ([`sd_multirate::c2d_nonideal`]). For a trial
+//!   parameter the modal residues are fitted to the fast FRF, then the slow FRFs are predicted;
+//!   the parameter minimizing the slow statistic is found by a grid and golden section. A cause
+//!   is named only when its extension lowers the statistic at least 10× below the plain modal
+//!   model's and at least 1.5× below the other extension's; otherwise `unexplained`.
 //!
-//! **Gain** is measured on held-out data: the validation experiment's steady periods are split in
-//! two halves, the parameter is fitted on the first and the statistic compared on the second.
+//! **Gain** is measured on held-out data: each validation experiment's steady periods (or its
+//! record) are split in two halves; the extension's parameter is fitted with the first and the
+//! model's and the extension's statistics are compared on the second.
+
+mod lemma6;
+pub mod modal;
+pub mod timedomain;
+
+mod diagnose;
+
+pub use diagnose::{diagnose, diagnose_with_progress};
+pub use lemma6::predict;
+pub use timedomain::AveragedPeriod;
 
 use num_complex::Complex64 as C;
-use sd_ident::{frf_periodic, Experiment, PeriodicOptions, Role};
-use sd_model::Frd;
-use sd_multirate::hold_weight;
+use sd_model::StateSpace;
 use serde_json::json;
-use std::f64::consts::PI;
 
 /// Errors of the diagnosis.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum DiagnoseError {
-    /// FRF estimation or data reading.
+    /// FRF estimation, model fit or data reading.
     #[error(transparent)]
     Ident(#[from] sd_ident::IdentError),
     /// Model operations.
     #[error(transparent)]
     Model(#[from] sd_model::ModelError),
-    /// Experiments that cannot be diagnosed together (message says why).
+    /// Multirate operations.
+    #[error(transparent)]
+    Multirate(#[from] sd_multirate::MultirateError),
+    /// Experiments or a model that cannot be diagnosed together (message says why).
     #[error("{0}")]
     Setup(String),
 }
 
 /// Result alias of this crate.
 pub type Result<T> = std::result::Result<T, DiagnoseError>;
+
+/// Settings of a diagnosis.
+#[derive(Debug, Clone)]
+pub struct DiagnoseOptions {
+    /// A given model of the plant (SISO; discrete at the model experiment's period, or
+    /// continuous and then ZOH-discretised there). `None`: fitted to the model experiment.
+    pub model: Option<StateSpace>,
+    /// Highest order tried when fitting (FPE picks one).
+    pub max_order: usize,
+}
+
+impl Default for DiagnoseOptions {
+    fn default() -> Self {
+        DiagnoseOptions {
+            model: None,
+            max_order: 20,
+        }
+    }
+}
+
+/// The extension of the model that the diagnosis settled on.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Hyp {
+    /// No extension.
+    None,
+    /// The hold switches this fraction of each period late.
+    Delay(f64),
+    /// The sensor averages over this fraction of each period.
+    Average(f64),
+    /// The fast FRF itself replaces the model at the folding frequencies.
+    FastFrf,
+    /// One best linear approximation per excitation level.
+    PerLevel,
+}
 
 /// One test of the evidence list.
 #[derive(Debug, Clone)]
@@ -71,12 +124,91 @@ pub struct Evidence {
     pub passed: bool,
 }
 
+/// A band of lines where a prediction misses the data beyond the noise.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Band {
+    /// Lowest frequency (Hz).
+    pub f_lo: f64,
+    /// Highest frequency (Hz).
+    pub f_hi: f64,
+    /// The line with the largest normalized residual (Hz).
+    pub worst_hz: f64,
+    /// `20 log10 |P_meas/P_pred|` there (dB).
+    pub worst_db: f64,
+    /// Where the model's response that folds onto `worst_hz` mostly comes from (Hz, fast band).
+    pub from_fast_hz: f64,
+    /// Share of the whole statistic that this band carries.
+    pub share: f64,
+}
+
+/// Measured and predicted FRFs of one experiment, on its lines.
+#[derive(Debug, Clone, Default)]
+pub struct Curves {
+    /// Frequencies (Hz).
+    pub freq_hz: Vec<f64>,
+    /// Measured FRF.
+    pub measured: Vec<C>,
+    /// The noise variance the residual is judged against (measured plus prediction).
+    pub noise_var: Vec<f64>,
+    /// The model's simulation (Lemma 6 at a slower rate).
+    pub model: Vec<C>,
+    /// The extended model's simulation, when there is an extension.
+    pub extended: Option<Vec<C>>,
+}
+
+/// The time-domain comparison of one periodic experiment (one averaged steady period).
+#[derive(Debug, Clone)]
+pub struct TimeDomain {
+    /// Sample rate (Hz).
+    pub rate_hz: f64,
+    /// Measured averaged output period.
+    pub measured: Vec<f64>,
+    /// The model's periodic response to the measured input.
+    pub model: Vec<f64>,
+    /// The extended model's, when there is an extension.
+    pub extended: Option<Vec<f64>>,
+    /// Rms of the output around its mean.
+    pub output_rms: f64,
+    /// Rms noise of the averaged output.
+    pub noise_rms: f64,
+    /// Rms of measured − model.
+    pub error_rms_model: f64,
+    /// Rms of measured − extended model.
+    pub error_rms_extended: Option<f64>,
+}
+
+/// What the diagnosis found on one experiment.
+#[derive(Debug, Clone)]
+pub struct ExperimentReport {
+    /// Experiment name.
+    pub name: String,
+    /// "model" or "validation".
+    pub role: String,
+    /// Sample rate (Hz).
+    pub rate_hz: f64,
+    /// Model rate / this rate.
+    pub factor: usize,
+    /// Model-free Lemma 6 statistic and its line count (validation experiments).
+    pub model_free: Option<(f64, usize)>,
+    /// The model's statistic and its line count.
+    pub model_stat: (f64, usize),
+    /// The extended model's statistic, when there is an extension.
+    pub extended_stat: Option<f64>,
+    /// Where the model misses beyond the noise (largest share first, at most 5).
+    pub bands: Vec<Band>,
+    /// The FRFs.
+    pub curves: Curves,
+    /// The time-domain comparison (periodic experiments).
+    pub time_domain: Option<TimeDomain>,
+}
+
 /// The outcome.
 #[derive(Debug, Clone)]
 pub struct Diagnosis {
     /// "consistent" or "discrepancy".
     pub verdict: String,
-    /// "none", "hold_delay", "averaging_sampler" or "unexplained".
+    /// "none", "hold_delay", "averaging_sampler", "nonlinearity", "fast_model_error" or
+    /// "unexplained".
     pub cause: String,
     /// Fitted parameters (JSON object, DESIGN §4).
     pub parameters: serde_json::Value,
@@ -84,16 +216,24 @@ pub struct Diagnosis {
     pub evidence: Vec<Evidence>,
     /// Hypotheses ranked by cost `(cause, cost per line, parameters)`.
     pub ranking: Vec<(String, f64, usize)>,
-    /// Held-out statistic before and after the extension.
+    /// Held-out statistic before the extension.
     pub gain_before: f64,
     /// After.
     pub gain_after: f64,
     /// Experiments whose data were held out for the gain.
     pub held_out: Vec<String>,
+    /// The extension.
+    pub extension: Hyp,
+    /// The model used (discrete, at the model experiment's period).
+    pub model: StateSpace,
+    /// "fitted (order n, FPE)" or "given".
+    pub model_source: String,
+    /// Per experiment (the model experiment first).
+    pub experiments: Vec<ExperimentReport>,
 }
 
 impl Diagnosis {
-    /// `diagnosis.json` (DESIGN §4).
+    /// `diagnosis.json` (DESIGN §4, with the per-experiment findings added).
     pub fn to_json(&self) -> serde_json::Value {
         json!({
             "verdict": self.verdict,
@@ -102,417 +242,23 @@ impl Diagnosis {
             "evidence": self.evidence.iter().map(|e| json!({"test": e.test, "statistic": e.statistic, "threshold": e.threshold, "passed": e.passed})).collect::<Vec<_>>(),
             "ranking": self.ranking.iter().map(|r| json!({"cause": r.0, "cost": r.1, "n_params": r.2})).collect::<Vec<_>>(),
             "gain": {"metric": "mean |P_meas − P_pred|²/var per line (1 = noise level)", "before": self.gain_before,
-                     "after": self.gain_after, "ratio": self.gain_before / self.gain_after.max(f64::MIN_POSITIVE),
-                     "held_out": self.held_out},
+                     "after": self.gain_after, "ratio": self.gain_ratio(), "held_out": self.held_out},
+            "model": {"source": self.model_source, "order": self.model.n(), "ts": self.model.ts()},
+            "experiments": self.experiments.iter().map(|x| json!({
+                "name": x.name, "role": x.role, "rate_hz": x.rate_hz, "factor": x.factor,
+                "model_free_statistic": x.model_free.map(|m| m.0),
+                "model_statistic": x.model_stat.0, "lines": x.model_stat.1,
+                "extended_statistic": x.extended_stat,
+                "bands": x.bands.iter().map(|b| json!({"f_lo_hz": b.f_lo, "f_hi_hz": b.f_hi, "worst_hz": b.worst_hz,
+                    "worst_db": b.worst_db, "from_fast_hz": b.from_fast_hz, "share": b.share})).collect::<Vec<_>>(),
+                "time_domain": x.time_domain.as_ref().map(|t| json!({"output_rms": t.output_rms, "noise_rms": t.noise_rms,
+                    "error_rms_model": t.error_rms_model, "error_rms_extended": t.error_rms_extended})),
+            })).collect::<Vec<_>>(),
         })
     }
-}
 
-/// A rate-tied extension of the Lemma 6 prediction.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Hyp {
-    /// Plain Lemma 6.
-    None,
-    /// The hold switches this fraction of each period late.
-    Delay(f64),
-    /// The sensor averages over this fraction of each period.
-    Average(f64),
-}
-
-/// The model-free Lemma 6 prediction (with an extension) of the response at `freq_hz` of an
-/// experiment `factor` times slower than the one that measured `fast` (period `h`); `None`
-/// where a fold frequency is not on the fast grid.
-pub fn predict(fast: &Frd, h: f64, factor: usize, freq_hz: &[f64], hyp: Hyp) -> Vec<Option<C>> {
-    let pair = Pair { fast, factor, h };
-    freq_hz
-        .iter()
-        .map(|&f| pair.predict(f, hyp).map(|p| p.0))
-        .collect()
-}
-
-struct Pair<'a> {
-    fast: &'a Frd,
-    factor: usize,
-    h: f64,
-}
-
-impl Pair<'_> {
-    fn fast_at(&self, f: f64) -> Option<(C, f64)> {
-        let fs = 1.0 / self.h;
-        let g = f - fs * (f / fs).round();
-        let fa = g.abs();
-        let freq = self.fast.freq_hz();
-        let i = freq.partition_point(|&x| x < fa - 1e-9 * fs);
-        if i < freq.len() && (freq[i] - fa).abs() <= 1e-6 * fs / self.fast.len().max(1) as f64 {
-            let v = self.fast.response()[i][(0, 0)];
-            let var = self.fast.variance().map(|v| v[i][(0, 0)]).unwrap_or(0.0);
-            Some((if g < 0.0 { v.conj() } else { v }, var))
-        } else {
-            None
-        }
+    /// Held-out statistic before / after.
+    pub fn gain_ratio(&self) -> f64 {
+        self.gain_before / self.gain_after.max(f64::MIN_POSITIVE)
     }
-
-    /// Prediction and its variance at slow frequency f under a hypothesis.
-    fn predict(&self, f: f64, hyp: Hyp) -> Option<(C, f64)> {
-        let t = self.h * self.factor as f64;
-        let mut sum = C::new(0.0, 0.0);
-        let mut var = 0.0;
-        for k in 0..self.factor {
-            let fk = f - k as f64 / t;
-            let (p, v) = self.fast_at(fk)?;
-            let w = hold_weight(2.0 * PI * fk * self.h, self.factor);
-            let corr = match hyp {
-                Hyp::None => C::new(1.0, 0.0),
-                Hyp::Delay(a) => C::from_polar(1.0, -2.0 * PI * fk * a * (t - self.h)),
-                Hyp::Average(b) => avg(fk, b * t) / avg(fk, b * self.h),
-            };
-            let c = w * corr;
-            sum += p * c;
-            var += c.norm_sqr() * v;
-        }
-        Some((sum, var))
-    }
-}
-
-/// Frequency response of a window average over the last L seconds.
-fn avg(f: f64, l: f64) -> C {
-    let x = 2.0 * PI * f * l;
-    if x.abs() < 1e-12 {
-        return C::new(1.0, 0.0);
-    }
-    (C::new(1.0, 0.0) - C::from_polar(1.0, -x)) / C::new(0.0, x)
-}
-
-/// Mean normalized squared residual over the validation lines (and the line count).
-fn stat(pair: &Pair<'_>, val: &Frd, hyp: Hyp) -> (f64, usize) {
-    let var = val.variance();
-    let mut sum = 0.0;
-    let mut k = 0usize;
-    for (i, &f) in val.freq_hz().iter().enumerate() {
-        if let Some((p, vp)) = pair.predict(f, hyp) {
-            let vm = var.map(|v| v[i][(0, 0)]).unwrap_or(0.0);
-            let d = vm + vp;
-            if d > 0.0 {
-                sum += (val.response()[i][(0, 0)] - p).norm_sqr() / d;
-                k += 1;
-            }
-        }
-    }
-    if k == 0 {
-        (f64::INFINITY, 0)
-    } else {
-        (sum / k as f64, k)
-    }
-}
-
-/// Fits the one parameter of a hypothesis on [0, 1] (grid, then golden section).
-fn fit_param(pair: &Pair<'_>, val: &Frd, make: fn(f64) -> Hyp) -> (f64, f64) {
-    let cost = |p: f64| stat(pair, val, make(p)).0;
-    let (mut best, mut bc) = (0.0, f64::INFINITY);
-    for i in 0..=50 {
-        let p = i as f64 / 50.0;
-        let c = cost(p);
-        if c < bc {
-            bc = c;
-            best = p;
-        }
-    }
-    let (mut a, mut b) = ((best - 0.02f64).max(0.0), (best + 0.02f64).min(1.0));
-    let r = 0.5 * (5f64.sqrt() - 1.0);
-    for _ in 0..40 {
-        let (x1, x2) = (b - r * (b - a), a + r * (b - a));
-        if cost(x1) < cost(x2) {
-            b = x2;
-        } else {
-            a = x1;
-        }
-    }
-    let p = 0.5 * (a + b);
-    let c = cost(p);
-    if c < bc {
-        (p, c)
-    } else {
-        (best, bc)
-    }
-}
-
-fn estimate(e: &Experiment, first: Option<bool>) -> Result<Frd> {
-    let Some(period) = e.spec.period_samples else {
-        // non-periodic data: the local polynomial method (transients handled); the halves for
-        // the held-out gain are the two halves of the record
-        let n = e.u.len();
-        let (lo, hi) = match first {
-            None => (0, n),
-            Some(true) => (0, n / 2),
-            Some(false) => (n / 2, n),
-        };
-        let opt = sd_ident::LpmOptions::default();
-        let fs = e.spec.sample_rate_hz;
-        return Ok(match &e.r {
-            Some(r) => sd_ident::lpm_closed_loop(fs, &r[lo..hi], &e.u[lo..hi], &e.y[lo..hi], &opt)?,
-            None => {
-                let x = nalgebra::DMatrix::from_column_slice(hi - lo, 1, &e.u[lo..hi]);
-                let z = nalgebra::DMatrix::from_column_slice(hi - lo, 1, &e.y[lo..hi]);
-                sd_ident::lpm(fs, &x, &z, &opt)?.frd
-            }
-        });
-    };
-    let skip = e.spec.skip_periods;
-    let total = e.u.len() / period;
-    let steady = total.saturating_sub(skip);
-    let (lo, hi) = match first {
-        None => (skip, total),
-        Some(true) => (skip, skip + steady / 2),
-        Some(false) => (skip + steady / 2, total),
-    };
-    let cut = |x: &[f64]| x[lo * period..hi * period].to_vec();
-    let r = e.r.as_ref().map(|r| cut(r));
-    Ok(frf_periodic(
-        e.spec.sample_rate_hz,
-        r.as_deref(),
-        &cut(&e.u),
-        &cut(&e.y),
-        &PeriodicOptions::new(period, 0),
-    )?
-    .frd)
-}
-
-/// Rms of the excitation (reference, or input without one) over the steady periods.
-fn level(e: &Experiment) -> f64 {
-    let x = e.r.as_ref().unwrap_or(&e.u);
-    let start = e.spec.skip_periods * e.spec.period_samples.unwrap_or(0);
-    let s = &x[start.min(x.len())..];
-    (s.iter().map(|v| v * v).sum::<f64>() / s.len().max(1) as f64).sqrt()
-}
-
-/// Diagnoses one model experiment against the slower validation experiments (module
-/// documentation).
-///
-/// # Errors
-/// No periodic model experiment, rates that are not integer fractions, experiments without
-/// enough periods for variances.
-pub fn diagnose(experiments: &[Experiment]) -> Result<Diagnosis> {
-    if experiments.len() < 2 {
-        return Err(DiagnoseError::Setup(
-            "a diagnosis needs a model experiment and at least one validation experiment".into(),
-        ));
-    }
-    let model = experiments
-        .iter()
-        .find(|e| e.spec.role == Role::Model)
-        .or_else(|| {
-            experiments
-                .iter()
-                .max_by(|a, b| a.spec.sample_rate_hz.total_cmp(&b.spec.sample_rate_hz))
-        })
-        .ok_or_else(|| DiagnoseError::Setup("no model experiment".into()))?;
-    let fast = estimate(model, None)?;
-    let h = 1.0 / model.spec.sample_rate_hz;
-    let mut evidence = Vec::new();
-    let mut totals = [(0.0, 0usize); 3];
-    let mut params = [0.0f64; 2];
-    let mut held = Vec::new();
-    let (mut before, mut after) = (0.0, 0.0);
-    let vals: Vec<&Experiment> = experiments
-        .iter()
-        .filter(|e| !std::ptr::eq(*e, model))
-        .collect();
-    let mut nonlinear: Vec<(String, f64, f64, f64)> = Vec::new();
-    let lm = level(model);
-    for v in &vals {
-        let ratio = model.spec.sample_rate_hz / v.spec.sample_rate_hz;
-        let factor = ratio.round() as usize;
-        if factor < 1 || (ratio - ratio.round()).abs() > 1e-9 * ratio {
-            return Err(DiagnoseError::Setup(format!(
-                "`{}` runs at {} Hz, not an integer fraction of the model experiment's {} Hz",
-                v.spec.name, v.spec.sample_rate_hz, model.spec.sample_rate_hz
-            )));
-        }
-        let pair = Pair {
-            fast: &fast,
-            factor,
-            h,
-        };
-        let vf = estimate(v, None)?;
-        let (s0, k) = stat(&pair, &vf, Hyp::None);
-        if k == 0 {
-            return Err(DiagnoseError::Setup(format!(
-                "no line of `{}` has all its fold frequencies on the model experiment's grid: the \
-                 model experiment's f₀ must divide {} Hz",
-                v.spec.name, v.spec.sample_rate_hz
-            )));
-        }
-        let thr = 1.0 + 5.0 / (k as f64).sqrt();
-        evidence.push(Evidence {
-            test: format!(
-                "Lemma 6 prediction of `{}` from `{}` (model-free)",
-                v.spec.name, model.spec.name
-            ),
-            statistic: s0,
-            threshold: thr,
-            passed: s0 <= thr,
-        });
-        let lv = level(v);
-        let other_level = (lv / lm - 1.0).abs() > 0.2;
-        if factor == 1 {
-            // same rate: nothing rate-tied can differ; a different excitation level that
-            // changes the FRF is a nonlinearity
-            evidence.push(Evidence {
-                test: format!(
-                    "`{}` at {:.3}× the model experiment's excitation level",
-                    v.spec.name,
-                    lv / lm
-                ),
-                statistic: lv / lm,
-                threshold: 1.2,
-                passed: !other_level,
-            });
-            if s0 > thr && other_level {
-                // extension: a best linear approximation per level, judged on held-out periods
-                let (mut b, mut a) = (s0, s0);
-                if let (Ok(v1), Ok(v2)) = (estimate(v, Some(true)), estimate(v, Some(false))) {
-                    if v1.variance().is_some() && v2.variance().is_some() {
-                        b = stat(&pair, &v2, Hyp::None).0;
-                        a = stat(
-                            &Pair {
-                                fast: &v1,
-                                factor: 1,
-                                h,
-                            },
-                            &v2,
-                            Hyp::None,
-                        )
-                        .0;
-                        held.push(format!("{} (second half)", v.spec.name));
-                    }
-                }
-                nonlinear.push((v.spec.name.clone(), lv / lm, b, a));
-            }
-            totals[0].0 += s0 * k as f64;
-            totals[0].1 += k;
-            continue;
-        }
-        if other_level {
-            // a slower experiment at another level mixes rate and level: not used for the
-            // rate-tied hypotheses
-            continue;
-        }
-        totals[0].0 += s0 * k as f64;
-        totals[0].1 += k;
-        let (a, sa) = fit_param(&pair, &vf, Hyp::Delay);
-        let (b, sb) = fit_param(&pair, &vf, Hyp::Average);
-        totals[1].0 += sa * k as f64;
-        totals[1].1 += k;
-        totals[2].0 += sb * k as f64;
-        totals[2].1 += k;
-        params = [a, b];
-        // held-out gain: fit on the first half of the periods, judge on the second
-        if let (Ok(v1), Ok(v2)) = (estimate(v, Some(true)), estimate(v, Some(false))) {
-            if v1.variance().is_some() && v2.variance().is_some() {
-                let best_is_delay = sa <= sb;
-                let p1 = if best_is_delay {
-                    fit_param(&pair, &v1, Hyp::Delay).0
-                } else {
-                    fit_param(&pair, &v1, Hyp::Average).0
-                };
-                let hyp = if best_is_delay {
-                    Hyp::Delay(p1)
-                } else {
-                    Hyp::Average(p1)
-                };
-                before += stat(&pair, &v2, Hyp::None).0;
-                after += stat(&pair, &v2, hyp).0;
-                held.push(format!("{} (second half)", v.spec.name));
-            }
-        }
-    }
-    let mean = |t: (f64, usize)| {
-        if t.1 > 0 {
-            t.0 / t.1 as f64
-        } else {
-            f64::INFINITY
-        }
-    };
-    let k_all = totals[0].1;
-    let thr = 1.0 + 5.0 / (k_all.max(1) as f64).sqrt();
-    let s0 = mean(totals[0]);
-    let mut ranking = vec![("none".to_string(), s0, 0usize)];
-    if totals[1].1 > 0 {
-        ranking.push(("hold_delay".into(), mean(totals[1]), 1));
-        ranking.push(("averaging_sampler".into(), mean(totals[2]), 1));
-    }
-    ranking.sort_by(|a, b| a.1.total_cmp(&b.1));
-    if !nonlinear.is_empty() {
-        let (b, a): (f64, f64) = nonlinear
-            .iter()
-            .fold((0.0, 0.0), |acc, n| (acc.0 + n.2, acc.1 + n.3));
-        let n = nonlinear.len() as f64;
-        let levels: serde_json::Map<String, serde_json::Value> = nonlinear
-            .iter()
-            .map(|x| (x.0.clone(), json!(x.1)))
-            .collect();
-        ranking.insert(0, ("nonlinearity".into(), a / n, 1));
-        return Ok(Diagnosis {
-            verdict: "discrepancy".into(),
-            cause: "nonlinearity".into(),
-            parameters: json!({"relative_levels": levels}),
-            evidence,
-            ranking,
-            gain_before: b / n,
-            gain_after: a / n,
-            held_out: held,
-        });
-    }
-    let (verdict, cause) = if s0 <= thr {
-        ("consistent", "none".to_string())
-    } else {
-        // a cause is named when its extension explains most of the discrepancy (≥ 10× lower
-        // statistic) and clearly better than any other (≥ 1.5× below the runner-up); the
-        // extensions use the fast FRF as the plant between samples, so they need not reach
-        // the noise level exactly (the fast data's own aliasing is neglected)
-        let best = &ranking[0];
-        let second = ranking
-            .iter()
-            .skip(1)
-            .find(|r| r.0 != "none")
-            .map(|r| r.1)
-            .unwrap_or(f64::INFINITY);
-        if best.0 != "none" && best.1 * 10.0 <= s0 && best.1 * 1.5 <= second {
-            ("discrepancy", best.0.clone())
-        } else {
-            ("discrepancy", "unexplained".to_string())
-        }
-    };
-    evidence.push(Evidence {
-        test: "best extension brings the statistic under the threshold".into(),
-        statistic: ranking[0].1,
-        threshold: thr,
-        passed: ranking[0].1 <= thr,
-    });
-    let mut parameters = json!({});
-    if cause == "hold_delay" {
-        let delays: serde_json::Map<String, serde_json::Value> = experiments
-            .iter()
-            .map(|e| {
-                (
-                    e.spec.name.clone(),
-                    json!(params[0] / e.spec.sample_rate_hz),
-                )
-            })
-            .collect();
-        parameters = json!({"delay_frac": params[0], "delay_s": delays});
-    } else if cause == "averaging_sampler" {
-        parameters = json!({"window_frac": params[1]});
-    }
-    let nheld = held.len().max(1) as f64;
-    Ok(Diagnosis {
-        verdict: verdict.into(),
-        cause,
-        parameters,
-        evidence,
-        ranking,
-        gain_before: before / nheld,
-        gain_after: after / nheld,
-        held_out: held,
-    })
 }

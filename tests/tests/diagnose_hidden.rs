@@ -99,7 +99,7 @@ fn run(truth: &Truth, ni: NonIdealities, seed: u64) -> sd_diagnose::Diagnosis {
     };
     let fast = experiment(truth, "fast", 5000.0, fast_ni, seed, Role::Model);
     let slow = experiment(truth, "slow", 1000.0, ni, seed + 1, Role::Validation);
-    diagnose(&[fast, slow]).unwrap()
+    diagnose(&[fast, slow], &Default::default()).unwrap()
 }
 
 #[test]
@@ -318,7 +318,7 @@ fn random_case_attempt(seed: u64, attempt: u64) -> (String, String, f64, f64) {
     let Some(exps) = exps else {
         return (effect.into(), "unstable setup".into(), f64::NAN, f64::NAN);
     };
-    let d = diagnose(&exps).unwrap();
+    let d = diagnose(&exps, &Default::default()).unwrap();
     if std::env::var("DIAG_VERBOSE").is_ok() {
         println!(
             "  seed {seed}: {effect} F {factor} fast {fast_rate} modes {:?} -> ranking {:?}",

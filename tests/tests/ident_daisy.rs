@@ -156,7 +156,7 @@ fn issue8_daisy_robot_arm_halves_are_consistent() {
         half("first", 0, 512, sd_ident::Role::Model),
         half("second", 512, 1024, sd_ident::Role::Validation),
     ];
-    let dg = sd_diagnose::diagnose(&exps).unwrap();
+    let dg = sd_diagnose::diagnose(&exps, &Default::default()).unwrap();
     println!(
         "DaISy robot arm, two halves: {} / {} (statistic {:.3}, threshold {:.3})",
         dg.verdict, dg.cause, dg.evidence[0].statistic, dg.evidence[0].threshold
@@ -168,7 +168,7 @@ fn issue8_daisy_robot_arm_halves_are_consistent() {
     // negative control: a 10 % gain change in the second half must be seen
     let mut changed = exps.clone();
     changed[1].y.iter_mut().for_each(|v| *v *= 1.1);
-    let dc = sd_diagnose::diagnose(&changed).unwrap();
+    let dc = sd_diagnose::diagnose(&changed, &Default::default()).unwrap();
     println!(
         "  with the second half's output scaled by 1.1: {} (statistic {:.1})",
         dc.verdict, dc.evidence[0].statistic

@@ -246,7 +246,9 @@ pub fn run(quick: bool) -> Result<(), String> {
         data_fast2.to_experiment(),
         data_slow.to_experiment(),
     ];
-    let (t_diag, diag) = time_it(if quick { 1 } else { 3 }, || sd_diagnose::diagnose(&exps));
+    let (t_diag, diag) = time_it(if quick { 1 } else { 3 }, || {
+        sd_diagnose::diagnose(&exps, &Default::default())
+    });
     let diag = diag.map_err(|x| x.to_string())?;
     let tb_entry = json!({"name": "virtual_stage", "size": "70 000 samples at 5 kHz (LTI, averaging sensor) / nonlinear (cubic + Coulomb)",
         "ours_lti_s": t_tb, "ours_nonlinear_s": t_nl, "peer": "none (no virtual stage in python-control or scipy)"});

@@ -1,0 +1,112 @@
+//! The model-free Lemma 6 prediction and the line-by-line comparison of a prediction with a
+//! measured FRF.
+
+use num_complex::Complex64 as C;
+use sd_model::Frd;
+use sd_multirate::hold_weight;
+use std::f64::consts::PI;
+
+/// The model-free Lemma 6 prediction of the response at `freq_hz` of an experiment `factor`
+/// times slower than the one that measured `fast` (period `h`):
+/// `P_T(f) = Σ_{k<F} P_h(f − k/T) H_F(f − k/T)/F`; `None` where a fold frequency is not on the
+/// fast grid.
+pub fn predict(fast: &Frd, h: f64, factor: usize, freq_hz: &[f64]) -> Vec<Option<C>> {
+    let pair = Pair { fast, factor, h };
+    freq_hz
+        .iter()
+        .map(|&f| pair.predict(f).map(|p| p.0))
+        .collect()
+}
+
+/// A fast FRF and the factor to a slower experiment.
+pub(crate) struct Pair<'a> {
+    pub(crate) fast: &'a Frd,
+    pub(crate) factor: usize,
+    pub(crate) h: f64,
+}
+
+impl Pair<'_> {
+    /// The fast FRF (and its variance) at a signed frequency folded into the fast band.
+    fn fast_at(&self, f: f64) -> Option<(C, f64)> {
+        let fs = 1.0 / self.h;
+        let g = f - fs * (f / fs).round();
+        let fa = g.abs();
+        let freq = self.fast.freq_hz();
+        let i = freq.partition_point(|&x| x < fa - 1e-9 * fs);
+        if i < freq.len() && (freq[i] - fa).abs() <= 1e-6 * fs / self.fast.len().max(1) as f64 {
+            let v = self.fast.response()[i][(0, 0)];
+            let var = self.fast.variance().map(|v| v[i][(0, 0)]).unwrap_or(0.0);
+            Some((if g < 0.0 { v.conj() } else { v }, var))
+        } else {
+            None
+        }
+    }
+
+    /// Prediction and its variance `Σ_k |H_F/F|² var P_h(f_k)` at slow frequency f.
+    pub(crate) fn predict(&self, f: f64) -> Option<(C, f64)> {
+        let t = self.h * self.factor as f64;
+        let mut sum = C::new(0.0, 0.0);
+        let mut var = 0.0;
+        for k in 0..self.factor {
+            let fk = f - k as f64 / t;
+            let (p, v) = self.fast_at(fk)?;
+            let w = hold_weight(2.0 * PI * fk * self.h, self.factor);
+            sum += p * w;
+            var += w.norm_sqr() * v;
+        }
+        Some((sum, var))
+    }
+}
+
+/// One line of a comparison.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Line {
+    pub(crate) f: f64,
+    pub(crate) meas: C,
+    pub(crate) pred: C,
+    /// Measured variance plus the prediction's.
+    pub(crate) var: f64,
+}
+
+impl Line {
+    pub(crate) fn chi2(&self) -> f64 {
+        (self.meas - self.pred).norm_sqr() / self.var
+    }
+}
+
+/// The lines of `val` where `pred` (line index, frequency) gives a prediction with its variance
+/// and the total variance is positive.
+pub(crate) fn compare(val: &Frd, pred: impl Fn(usize, f64) -> Option<(C, f64)>) -> Vec<Line> {
+    let var = val.variance();
+    val.freq_hz()
+        .iter()
+        .enumerate()
+        .filter_map(|(i, &f)| {
+            let (p, vp) = pred(i, f)?;
+            let vm = var.map(|v| v[i][(0, 0)]).unwrap_or(0.0);
+            let v = vm + vp;
+            (v > 0.0).then_some(Line {
+                f,
+                meas: val.response()[i][(0, 0)],
+                pred: p,
+                var: v,
+            })
+        })
+        .collect()
+}
+
+/// Mean normalized squared residual over the lines (≈ 1 ± 1/√K at the noise level) and K.
+pub(crate) fn stat(lines: &[Line]) -> (f64, usize) {
+    if lines.is_empty() {
+        return (f64::INFINITY, 0);
+    }
+    (
+        lines.iter().map(Line::chi2).sum::<f64>() / lines.len() as f64,
+        lines.len(),
+    )
+}
+
+/// The detection threshold for K lines: `1 + 5/√K`.
+pub(crate) fn threshold(k: usize) -> f64 {
+    1.0 + 5.0 / (k.max(1) as f64).sqrt()
+}
