@@ -231,11 +231,16 @@ enum Cmd {
         #[arg(long)]
         out: String,
     },
-    /// Diagnose slower experiments against the model experiment (model-free Lemma 6, rate-tied causes).
+    /// What the model's simulation gets wrong on the validation experiments, its cause, the
+    /// extended model and its gain on held-out data.
     Diagnose {
         /// Experiment manifest (TOML, DESIGN §4).
         manifest: String,
-        /// Output folder for diagnosis.json and report.md.
+        /// A given model (model JSON; discrete at the model experiment's rate, or continuous).
+        /// Absent: fitted to the model experiment.
+        #[arg(long)]
+        model: Option<String>,
+        /// Output folder for diagnosis.json, report.md and the SVG figures.
         #[arg(long)]
         out: String,
     },
@@ -730,7 +735,11 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
                 )
             }
         }
-        Cmd::Diagnose { manifest, out } => {
+        Cmd::Diagnose {
+            manifest,
+            model,
+            out,
+        } => {
             let text = crate::io::read_text(&manifest)?;
             let specs = sd_ident::parse_manifest(&text).map_err(|e| from_ident(&manifest, e))?;
             let base = std::path::Path::new(&manifest)
@@ -747,36 +756,35 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
                         .map_err(|e| from_ident(&manifest, e))?,
                 );
             }
-            let d = sd_diagnose::diagnose(&exps)
-                .map_err(|e| CliError::input(format!("{manifest}: {e}")))?;
+            let opt = sd_diagnose::DiagnoseOptions {
+                model: model.as_deref().map(read_model).transpose()?,
+                ..Default::default()
+            };
+            // progress for a person at a terminal; scripts get one line (or one error line)
+            let start = std::time::Instant::now();
+            let tty = std::io::IsTerminal::is_terminal(&std::io::stderr());
+            let d = sd_diagnose::diagnose_with_progress(&exps, &opt, &mut |m| {
+                if tty {
+                    eprintln!("[diagnose {:6.2} s] {m}", start.elapsed().as_secs_f64())
+                }
+            })
+            .map_err(|e| CliError::input(format!("{manifest}: {e}")))?;
             std::fs::create_dir_all(&out)
                 .map_err(|e| CliError::input(format!("cannot create {out}: {e}")))?;
             let dir = std::path::Path::new(&out);
             let js = serde_json::to_string_pretty(&d.to_json())
                 .map_err(|e| CliError::numerical(format!("diagnosis JSON: {e}")))?;
             emit(&js, Some(&dir.join("diagnosis.json").to_string_lossy()))?;
-            let mut md = format!(
-                "# Diagnosis of {manifest}\n\nVerdict: **{}**, cause: **{}**, parameters: `{}`.\n\n| test | statistic | threshold | passed |\n|---|---|---|---|\n",
-                d.verdict, d.cause, d.parameters
+            let figs = sd_report::diagnosis::write(dir, &d, &manifest)
+                .map_err(|e| CliError::input(e.to_string()))?;
+            eprintln!(
+                "[diagnose] {} / {} {} (gain ×{:.1}); report.md and {} figures in {out}",
+                d.verdict,
+                d.cause,
+                d.parameters,
+                d.gain_ratio(),
+                figs.len()
             );
-            for e in &d.evidence {
-                md.push_str(&format!(
-                    "| {} | {:.3} | {:.3} | {} |\n",
-                    e.test, e.statistic, e.threshold, e.passed
-                ));
-            }
-            md.push_str("\n| hypothesis | statistic (1 = noise level) |\n|---|---|\n");
-            for r in &d.ranking {
-                md.push_str(&format!("| {} | {:.3} |\n", r.0, r.1));
-            }
-            md.push_str(&format!(
-                "\nHeld-out gain: {:.3} before, {:.3} after the extension ({}).\n",
-                d.gain_before,
-                d.gain_after,
-                d.held_out.join(", ")
-            ));
-            emit(&md, Some(&dir.join("report.md").to_string_lossy()))?;
-            eprintln!("[diagnose] {} / {} {}", d.verdict, d.cause, d.parameters);
             Ok(())
         }
         Cmd::Testbed { config, out } => {

@@ -621,9 +621,40 @@ fn issue8_testbed_then_diagnose() {
     assert_eq!(v["cause"], "averaging_sampler");
     assert!((v["parameters"]["window_frac"].as_f64().unwrap() - 0.8).abs() < 0.1);
     assert!(v["gain"]["ratio"].as_f64().unwrap() >= 3.0);
-    assert!(std::fs::read_to_string(dir.join("diag").join("report.md"))
-        .unwrap()
-        .contains("averaging_sampler"));
+    assert!((v["parameters"]["window_frac"].as_f64().unwrap() - 0.8).abs() < 0.02);
+    let report = std::fs::read_to_string(dir.join("diag").join("report.md")).unwrap();
+    assert!(report.contains("averaging_sampler"));
+    // per experiment: statistics, bands, the time-domain comparison, and the figures
+    let slow = &v["experiments"][1];
+    assert_eq!(slow["name"], "slow");
+    assert!(slow["model_statistic"].as_f64().unwrap() > 10.0);
+    assert!(slow["extended_statistic"].as_f64().unwrap() < 3.0);
+    assert!(!slow["bands"].as_array().unwrap().is_empty());
+    let td = &slow["time_domain"];
+    assert!(td["error_rms_extended"].as_f64().unwrap() < td["error_rms_model"].as_f64().unwrap());
+    for f in [
+        "frf_slow.svg",
+        "residual_slow.svg",
+        "time_slow.svg",
+        "frf_fast.svg",
+    ] {
+        let svg = std::fs::read_to_string(dir.join("diag").join(f)).unwrap();
+        assert!(svg.starts_with("<svg") && svg.len() > 2000, "{f}");
+        assert!(report.contains(f), "{f} not linked from the report");
+    }
+    // a given model that is not a model, or not SISO at the right rate: exit 2
+    let junk = write(&dir, "junk.json", "{\"A\": 1}");
+    let o = sdctl(&["diagnose", &manifest, "--model", &junk, "--out", &out]);
+    assert_eq!(o.status.code(), Some(2));
+    let wrong_rate = write(
+        &dir,
+        "wrong_rate.json",
+        r#"{"type":"ss","ts":0.01,"a":[[0.5]],"b":[[1.0]],"c":[[2.0]],"d":[[0.0]]}"#,
+    );
+    assert_input_error(
+        &sdctl(&["diagnose", &manifest, "--model", &wrong_rate, "--out", &out]),
+        "model experiment",
+    );
     // a manifest with one experiment cannot be diagnosed: exit 2
     let one = write(&dir, "one.toml", "[[experiment]]\nname = \"fast\"\nfile = \"data/fast.csv\"\nsample_rate_hz = 5000.0\nperiod_samples = 10000\ninput = \"u\"\noutput = \"y\"\n");
     assert_input_error(&sdctl(&["diagnose", &one, "--out", &out]), "validation");

@@ -71,17 +71,22 @@ fn level(e: &Experiment) -> f64 {
     (s.iter().map(|v| v * v).sum::<f64>() / s.len().max(1) as f64).sqrt()
 }
 
-/// Rigid-body poles suggested by the low-frequency slope of |G| (−2: two, −1: one).
+/// Rigid-body poles suggested by the low-frequency slope of |G| (−2: two, −1: one), over the
+/// lowest octave pair of lines measured well (|G| above 3σ: a stiff loop leaves the lowest
+/// lines in the noise).
 fn rigid_body_count(frd: &Frd) -> usize {
     let f = frd.freq_hz();
-    let Some(&f0) = f.iter().find(|&&x| x > 0.0) else {
+    let good = |i: usize| {
+        let g = frd.response()[i][(0, 0)].norm();
+        let v = frd.variance().map(|v| v[i][(0, 0)]).unwrap_or(0.0);
+        f[i] > 0.0 && g > 0.0 && g * g > 9.0 * v
+    };
+    let Some(f0) = (0..f.len()).find(|&i| good(i)).map(|i| f[i]) else {
         return 0;
     };
-    let pts: Vec<(f64, f64)> = f
-        .iter()
-        .zip(frd.response())
-        .filter(|(x, g)| **x > 0.0 && **x <= 4.0 * f0 && g[(0, 0)].norm() > 0.0)
-        .map(|(x, g)| (x.ln(), g[(0, 0)].norm().ln()))
+    let pts: Vec<(f64, f64)> = (0..f.len())
+        .filter(|&i| f[i] <= 4.0 * f0 && good(i))
+        .map(|i| (f[i].ln(), frd.response()[i][(0, 0)].norm().ln()))
         .collect();
     if pts.len() < 3 {
         return 0;
@@ -135,10 +140,11 @@ fn model_for(
         rigid_body: rigid,
         feedthrough: true,
         weighting: Weighting::Variance,
+        lm_iterations: 0,
         ..Default::default()
     };
     let neq = 2.0 * fast.len() as f64;
-    let mut best: Option<(f64, usize, StateSpace)> = None;
+    let mut best: Option<(f64, usize, StateSpace, f64)> = None;
     for order in rigid + 1..=opt.max_order.max(rigid + 1) {
         if let Some(b) = &best {
             // FPE has not improved for 4 orders: stop
@@ -162,11 +168,27 @@ fn model_for(
         }
         let fpe = r.cost * (1.0 + p / neq) / (1.0 - p / neq);
         if best.as_ref().map(|b| fpe < b.0).unwrap_or(true) {
-            best = Some((fpe, order, r.model));
+            best = Some((fpe, order, r.model, r.cost));
+        }
+    }
+    // the scan uses SK only; the chosen order is refined by Levenberg–Marquardt
+    if let Some(b) = &mut best {
+        progress(&format!("refining order {}", b.1));
+        if let Ok(r) = sd_ident::fit(
+            fast,
+            &FitOptions {
+                order: b.1,
+                lm_iterations: FitOptions::default().lm_iterations,
+                ..base.clone()
+            },
+        ) {
+            if r.cost <= b.3 {
+                b.2 = r.model;
+            }
         }
     }
     match best {
-        Some((_, order, m)) => Ok((
+        Some((_, order, m, _)) => Ok((
             m,
             format!(
                 "fitted to the model experiment (order {order} by FPE, {rigid} rigid-body poles)"
@@ -390,7 +412,8 @@ fn time_domain(
         return Ok(None);
     };
     let bins = per.bins_hz();
-    let sim = per.simulate(&responses(model, &bins)?)?;
+    let resp = responses(model, &bins)?;
+    let sim = per.simulate(&resp)?;
     let ext = match extended {
         Some(f) => Some(per.simulate(&f(&bins)?)?),
         None => None,
@@ -398,7 +421,7 @@ fn time_domain(
     Ok(Some(TimeDomain {
         rate_hz: per.rate_hz,
         output_rms: per.output_rms(),
-        noise_rms: per.noise_rms,
+        noise_rms: per.noise_rms(&resp),
         error_rms_model: per.error_rms(&sim),
         error_rms_extended: ext.as_ref().map(|s| per.error_rms(s)),
         measured: per.y.clone(),
@@ -746,6 +769,7 @@ pub fn diagnose_with_progress(
         }
     };
     let ex_report = |e: &Experiment,
+                     frd: &Frd,
                      factor: usize,
                      lines: Vec<Line>,
                      model_at: &StateSpace,
@@ -765,16 +789,13 @@ pub fn diagnose_with_progress(
             ),
             _ => None,
         };
-        let extended_stat = extended.as_ref().map(|x| {
-            stat(
-                &lines
-                    .iter()
-                    .zip(x)
-                    .map(|(l, &pred)| Line { pred, ..*l })
-                    .collect::<Vec<_>>(),
-            )
-            .0
-        });
+        // the extension judged as in the ranking: the modal model with its own prediction
+        // variance, the model-free prediction with its propagated variance
+        let extended_stat = match (&ext_res, extension) {
+            (Some(r), _) => Some(stat(&modal.lines(r, extension, factor, frd)?).0),
+            (None, Hyp::FastFrf) if factor > 1 => Some(stat(&free_lines(&p, frd)).0),
+            _ => None,
+        };
         let ext_fn = |bins: &[f64]| -> Result<Vec<C>> {
             match (&em, extension) {
                 (Some(m), _) => responses(m, bins),
@@ -822,6 +843,7 @@ pub fn diagnose_with_progress(
     };
     reports.push(ex_report(
         model_exp,
+        &fast,
         1,
         fast_model_lines.clone(),
         &model,
@@ -831,7 +853,14 @@ pub fn diagnose_with_progress(
         let p = pair(v.factor);
         let ml = model_lines(&p, &v.model, &v.whole)?;
         let free = stat(&free_lines(&p, &v.whole));
-        reports.push(ex_report(v.exp, v.factor, ml, &v.model, Some(free))?);
+        reports.push(ex_report(
+            v.exp,
+            &v.whole,
+            v.factor,
+            ml,
+            &v.model,
+            Some(free),
+        )?);
     }
     Ok(Diagnosis {
         verdict: verdict.into(),

@@ -169,7 +169,7 @@ pub struct TimeDomain {
     pub extended: Option<Vec<f64>>,
     /// Rms of the output around its mean.
     pub output_rms: f64,
-    /// Rms noise of the averaged output.
+    /// Rms noise of the comparison (spread of the per-period residual of the model).
     pub noise_rms: f64,
     /// Rms of measured − model.
     pub error_rms_model: f64,

@@ -1,7 +1,7 @@
-//! Issue #8 (partial): hide an effect in virtual-stage data and require the diagnosis to find it.
+//! Issue #8: hide an effect in virtual-stage data and require the diagnosis to find it.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-use sd_diagnose::diagnose;
+use sd_diagnose::{diagnose, DiagnoseOptions};
 use sd_ident::{Experiment, Lines, MultisineSpec, Phases, Role};
 use sd_testbed::{run_identification, Identification, Injection, Noise, NonIdealities, Truth};
 
@@ -399,10 +399,73 @@ fn issue8_seeded_random_cases() {
             "{effect} diagnosed as {cause}"
         );
     }
-    // Known limitation (issue #8 stays open): the hold-delay extension treats the fast FRF as
-    // the plant between samples, so on some plants its α is 10–16 % off (case 2 of these 24:
-    // 13.7 %); `issue8_confusion_matrix_100` lists them all.
-    assert!(wrong <= 1, "{wrong} of {} cases misdiagnosed", cases.len());
+    assert_eq!(wrong, 0, "{wrong} of {} cases misdiagnosed", cases.len());
+}
+
+/// A given model that is wrong at a folding frequency (its 1.65 kHz mode placed at 1.55 kHz;
+/// 1.65 kHz folds onto 350 Hz at 1 kHz) while the data are consistent with each other: the
+/// cause is `fast_model_error`, the model-free Lemma 6 prediction is the extension, and the
+/// report points at the band around 350 Hz and its fast origin.
+#[test]
+fn issue8_wrong_given_model_is_a_fast_model_error() {
+    let truth = Truth::default();
+    let fast = experiment(&truth, "fast", 5000.0, Default::default(), 71, Role::Model);
+    let slow = experiment(
+        &truth,
+        "slow",
+        1000.0,
+        Default::default(),
+        72,
+        Role::Validation,
+    );
+    let exps = [fast, slow];
+    // the right model: consistent
+    let right = truth.linear_model().unwrap();
+    let d = diagnose(
+        &exps,
+        &DiagnoseOptions {
+            model: Some(right),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(
+        (d.verdict.as_str(), d.cause.as_str()),
+        ("consistent", "none")
+    );
+    assert_eq!(d.model_source, "given");
+    // the wrong one
+    let mut wrong_truth = truth.clone();
+    wrong_truth.modes[1].freq_hz = 1550.0;
+    let d = diagnose(
+        &exps,
+        &DiagnoseOptions {
+            model: Some(wrong_truth.linear_model().unwrap()),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    println!("{}", serde_json::to_string_pretty(&d.to_json()).unwrap());
+    assert_eq!(
+        (d.verdict.as_str(), d.cause.as_str()),
+        ("discrepancy", "fast_model_error")
+    );
+    assert!(d.gain_ratio() >= 3.0, "{}", d.gain_ratio());
+    let slow = &d.experiments[1];
+    let band = &slow.bands[0];
+    assert!(
+        band.worst_hz > 300.0 && band.worst_hz < 500.0,
+        "worst line {} Hz",
+        band.worst_hz
+    );
+    assert!(
+        (band.from_fast_hz - 1550.0).abs() < 150.0,
+        "folds from {} Hz",
+        band.from_fast_hz
+    );
+    // the time-domain simulation shows it as well
+    let td = slow.time_domain.as_ref().unwrap();
+    assert!(td.error_rms_extended.unwrap() * 2.0 < td.error_rms_model);
 }
 
 /// The confusion matrix over 100 seeded cases:

@@ -8,7 +8,6 @@
 
 mod bench;
 mod paper;
-mod plot;
 
 use std::process::ExitCode;
 

@@ -4,9 +4,13 @@ use plotters::prelude::*;
 
 /// One curve: label, frequencies (Hz), magnitudes (dB).
 pub struct Curve<'a> {
+    /// Legend entry.
     pub label: &'a str,
+    /// Frequencies (Hz).
     pub freq_hz: &'a [f64],
+    /// Magnitudes (dB).
     pub db: &'a [f64],
+    /// Colour.
     pub color: RGBColor,
 }
 
@@ -18,7 +22,7 @@ pub fn magnitude_plot(
     fmin: f64,
     fmax: f64,
     marks: &[(f64, &str)],
-) -> Result<(), String> {
+) -> crate::Result<()> {
     if fmax / fmin < 3.0 {
         // a narrow band reads better on a linear axis (a log axis has no ticks there)
         let clipped: Vec<(Vec<f64>, Vec<f64>)> = curves
@@ -52,7 +56,7 @@ pub fn magnitude_plot(
         );
     }
     let root = SVGBackend::new(path, (900, 560)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    root.fill(&WHITE).map_err(crate::plot_err)?;
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     for c in curves {
         for (f, d) in c.freq_hz.iter().zip(c.db) {
@@ -63,7 +67,9 @@ pub fn magnitude_plot(
         }
     }
     if !lo.is_finite() {
-        return Err(format!("{title}: nothing to plot"));
+        return Err(crate::ReportError::Plot(format!(
+            "{title}: nothing to plot"
+        )));
     }
     let (lo, hi) = (
         (lo / 10.0).floor() * 10.0 - 5.0,
@@ -75,14 +81,14 @@ pub fn magnitude_plot(
         .x_label_area_size(45)
         .y_label_area_size(60)
         .build_cartesian_2d((fmin..fmax).log_scale(), lo..hi)
-        .map_err(|e| e.to_string())?;
+        .map_err(crate::plot_err)?;
     chart
         .configure_mesh()
         .x_desc("frequency [Hz]")
         .y_desc("magnitude [dB]")
         .x_label_formatter(&|v| format!("{v:.0}"))
         .draw()
-        .map_err(|e| e.to_string())?;
+        .map_err(crate::plot_err)?;
     for c in curves {
         let pts: Vec<(f64, f64)> = c
             .freq_hz
@@ -94,7 +100,7 @@ pub fn magnitude_plot(
         let color = c.color;
         chart
             .draw_series(LineSeries::new(pts, color.stroke_width(2)))
-            .map_err(|e| e.to_string())?
+            .map_err(crate::plot_err)?
             .label(c.label)
             .legend(move |(x, y)| {
                 PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
@@ -103,14 +109,14 @@ pub fn magnitude_plot(
     for (f, label) in marks {
         chart
             .draw_series(LineSeries::new(vec![(*f, lo), (*f, hi)], BLACK.mix(0.35)))
-            .map_err(|e| e.to_string())?;
+            .map_err(crate::plot_err)?;
         chart
             .draw_series(std::iter::once(Text::new(
                 label.to_string(),
                 (*f * 1.02, hi - 4.0),
                 ("sans-serif", 14),
             )))
-            .map_err(|e| e.to_string())?;
+            .map_err(crate::plot_err)?;
     }
     chart
         .configure_series_labels()
@@ -118,16 +124,20 @@ pub fn magnitude_plot(
         .border_style(BLACK)
         .position(SeriesLabelPosition::LowerLeft)
         .draw()
-        .map_err(|e| e.to_string())?;
-    root.present().map_err(|e| e.to_string())?;
+        .map_err(crate::plot_err)?;
+    root.present().map_err(crate::plot_err)?;
     Ok(())
 }
 
 /// One curve of a generic line plot.
 pub struct Line<'a> {
+    /// Legend entry.
     pub label: &'a str,
+    /// Abscissae.
     pub x: &'a [f64],
+    /// Ordinates.
     pub y: &'a [f64],
+    /// Colour.
     pub color: RGBColor,
 }
 
@@ -139,9 +149,9 @@ pub fn line_plot(
     y_desc: &str,
     lines: &[Line<'_>],
     xlog: bool,
-) -> Result<(), String> {
+) -> crate::Result<()> {
     let root = SVGBackend::new(path, (900, 560)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    root.fill(&WHITE).map_err(crate::plot_err)?;
     let finite = |v: &f64| v.is_finite();
     let xs = lines
         .iter()
@@ -158,7 +168,9 @@ pub fn line_plot(
         (a.0.min(v), a.1.max(v))
     });
     if !(xmin.is_finite() && ymin.is_finite()) || xmax <= xmin {
-        return Err(format!("{title}: nothing to plot"));
+        return Err(crate::ReportError::Plot(format!(
+            "{title}: nothing to plot"
+        )));
     }
     let pad = 0.05 * (ymax - ymin).abs().max(1e-300);
     let (ylo, yhi) = (ymin - pad, ymax + pad);
@@ -183,7 +195,7 @@ pub fn line_plot(
                     }
                 })
                 .draw()
-                .map_err(|e| e.to_string())?;
+                .map_err(crate::plot_err)?;
             for l in lines {
                 let pts: Vec<(f64, f64)> =
                     l.x.iter()
@@ -194,7 +206,7 @@ pub fn line_plot(
                 let color = l.color;
                 chart
                     .draw_series(LineSeries::new(pts, color.stroke_width(2)))
-                    .map_err(|e| e.to_string())?
+                    .map_err(crate::plot_err)?
                     .label(l.label)
                     .legend(move |(x, y)| {
                         PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
@@ -206,18 +218,18 @@ pub fn line_plot(
                 .border_style(BLACK)
                 .position(SeriesLabelPosition::UpperLeft)
                 .draw()
-                .map_err(|e| e.to_string())?;
+                .map_err(crate::plot_err)?;
         }};
     }
     if xlog {
         draw!(builder
             .build_cartesian_2d((xmin..xmax).log_scale(), ylo..yhi)
-            .map_err(|e| e.to_string())?);
+            .map_err(crate::plot_err)?);
     } else {
         draw!(builder
             .build_cartesian_2d(xmin..xmax, ylo..yhi)
-            .map_err(|e| e.to_string())?);
+            .map_err(crate::plot_err)?);
     }
-    root.present().map_err(|e| e.to_string())?;
+    root.present().map_err(crate::plot_err)?;
     Ok(())
 }

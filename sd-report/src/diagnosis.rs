@@ -1,0 +1,375 @@
+//! The diagnosis as a person reads it: `report.md` and SVG figures.
+//!
+//! Figures per experiment: `frf_<name>.svg` (measured FRF against the model's simulation and
+//! the extended model's, with the noise level), `residual_<name>.svg` (|measured − simulated|
+//! before and after the extension against the noise level σ), and for periodic experiments
+//! `time_<name>.svg` (one averaged steady period: the measured output and the errors of both
+//! simulations).
+
+use crate::plot::{line_plot, magnitude_plot, Curve, Line};
+use crate::{ReportError, Result};
+use num_complex::Complex64 as C;
+use plotters::style::RGBColor;
+use sd_diagnose::{Diagnosis, ExperimentReport, Hyp};
+use std::fmt::Write as _;
+use std::path::Path;
+
+const MEASURED: RGBColor = RGBColor(0, 0, 0);
+const MODEL: RGBColor = RGBColor(200, 30, 30);
+const EXTENDED: RGBColor = RGBColor(20, 110, 200);
+const NOISE: RGBColor = RGBColor(150, 150, 150);
+
+fn db(x: &[C]) -> Vec<f64> {
+    x.iter().map(|v| 20.0 * v.norm().log10()).collect()
+}
+
+/// A file-name-safe version of an experiment name.
+fn slug(name: &str) -> String {
+    name.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+/// What the extension is, in words.
+pub fn describe(h: Hyp) -> String {
+    match h {
+        Hyp::None => "none".into(),
+        Hyp::Delay(a) => format!("hold switching {a:.3} of each sample period late"),
+        Hyp::Average(b) => format!("sensor averaging over {b:.3} of each sample period"),
+        Hyp::FastFrf => "the measured fast FRF in place of the model (model-free Lemma 6)".into(),
+        Hyp::PerLevel => "one best linear approximation per excitation level".into(),
+    }
+}
+
+/// Writes the figures of one experiment into `dir`; returns their file names.
+fn figures(dir: &Path, x: &ExperimentReport, ext_label: &str) -> Result<Vec<String>> {
+    let c = &x.curves;
+    let mut out = Vec::new();
+    if c.freq_hz.is_empty() {
+        return Ok(out);
+    }
+    let (fmin, fmax) = (c.freq_hz[0], c.freq_hz[c.freq_hz.len() - 1]);
+    let s = slug(&x.name);
+    let meas = db(&c.measured);
+    let model = db(&c.model);
+    let ext = c.extended.as_deref().map(db);
+    let sigma: Vec<f64> = c.noise_var.iter().map(|v| 10.0 * v.log10()).collect();
+    let sim_label = if x.factor > 1 {
+        format!("model, Lemma 6 to 1/{}", x.factor)
+    } else {
+        "model".to_string()
+    };
+    let mut curves = vec![
+        Curve {
+            label: "measured",
+            freq_hz: &c.freq_hz,
+            db: &meas,
+            color: MEASURED,
+        },
+        Curve {
+            label: &sim_label,
+            freq_hz: &c.freq_hz,
+            db: &model,
+            color: MODEL,
+        },
+    ];
+    if let Some(e) = &ext {
+        curves.push(Curve {
+            label: ext_label,
+            freq_hz: &c.freq_hz,
+            db: e,
+            color: EXTENDED,
+        });
+    }
+    curves.push(Curve {
+        label: "noise level σ",
+        freq_hz: &c.freq_hz,
+        db: &sigma,
+        color: NOISE,
+    });
+    let marks: Vec<(f64, String)> = x
+        .bands
+        .iter()
+        .take(3)
+        .map(|b| (b.worst_hz, format!("{:.1} Hz", b.worst_hz)))
+        .collect();
+    let marks_ref: Vec<(f64, &str)> = marks.iter().map(|(f, l)| (*f, l.as_str())).collect();
+    let name = format!("frf_{s}.svg");
+    magnitude_plot(
+        &dir.join(&name).to_string_lossy(),
+        &format!("{} ({} Hz): measured and simulated FRF", x.name, x.rate_hz),
+        &curves,
+        fmin,
+        fmax,
+        &marks_ref,
+    )?;
+    out.push(name);
+    // residuals against the noise level
+    let res = |p: &[C]| -> Vec<f64> {
+        c.measured
+            .iter()
+            .zip(p)
+            .map(|(m, p)| 20.0 * (m - p).norm().max(1e-300).log10())
+            .collect()
+    };
+    let rm = res(&c.model);
+    let re = c.extended.as_deref().map(res);
+    let mut curves = vec![Curve {
+        label: "|measured − model|",
+        freq_hz: &c.freq_hz,
+        db: &rm,
+        color: MODEL,
+    }];
+    let ext_res_label = format!("|measured − {ext_label}|");
+    if let Some(r) = &re {
+        curves.push(Curve {
+            label: &ext_res_label,
+            freq_hz: &c.freq_hz,
+            db: r,
+            color: EXTENDED,
+        });
+    }
+    curves.push(Curve {
+        label: "noise level σ",
+        freq_hz: &c.freq_hz,
+        db: &sigma,
+        color: NOISE,
+    });
+    let name = format!("residual_{s}.svg");
+    magnitude_plot(
+        &dir.join(&name).to_string_lossy(),
+        &format!("{}: residual against the noise level", x.name),
+        &curves,
+        fmin,
+        fmax,
+        &marks_ref,
+    )?;
+    out.push(name);
+    if let Some(td) = &x.time_domain {
+        let t: Vec<f64> = (0..td.measured.len())
+            .map(|i| i as f64 / td.rate_hz)
+            .collect();
+        let mean = td.measured.iter().sum::<f64>() / td.measured.len().max(1) as f64;
+        let y: Vec<f64> = td.measured.iter().map(|v| v - mean).collect();
+        let em: Vec<f64> = td
+            .measured
+            .iter()
+            .zip(&td.model)
+            .map(|(a, b)| a - b)
+            .collect();
+        let ee: Option<Vec<f64>> = td
+            .extended
+            .as_ref()
+            .map(|e| td.measured.iter().zip(e).map(|(a, b)| a - b).collect());
+        let mut lines = vec![
+            Line {
+                label: "measured output (mean removed)",
+                x: &t,
+                y: &y,
+                color: MEASURED,
+            },
+            Line {
+                label: "measured − model",
+                x: &t,
+                y: &em,
+                color: MODEL,
+            },
+        ];
+        let ext_err_label = format!("measured − {ext_label}");
+        if let Some(e) = &ee {
+            lines.push(Line {
+                label: &ext_err_label,
+                x: &t,
+                y: e,
+                color: EXTENDED,
+            });
+        }
+        let name = format!("time_{s}.svg");
+        line_plot(
+            &dir.join(&name).to_string_lossy(),
+            &format!(
+                "{}: one averaged period, measured input through the model",
+                x.name
+            ),
+            "time [s]",
+            "output",
+            &lines,
+            false,
+        )?;
+        out.push(name);
+    }
+    Ok(out)
+}
+
+/// Writes `report.md` and the figures of a diagnosis into `dir` (which must exist); returns
+/// the figure file names.
+///
+/// # Errors
+/// A figure or the report cannot be written.
+pub fn write(dir: &Path, d: &Diagnosis, title: &str) -> Result<Vec<String>> {
+    let ext_label = match d.extension {
+        Hyp::Delay(_) => "extended: delayed hold",
+        Hyp::Average(_) => "extended: averaging sampler",
+        Hyp::FastFrf => "model-free Lemma 6",
+        _ => "extended",
+    };
+    let mut figs = Vec::new();
+    for x in &d.experiments {
+        figs.extend(figures(dir, x, ext_label)?);
+    }
+    let md = markdown(d, title, &figs);
+    let path = dir.join("report.md");
+    std::fs::write(&path, md).map_err(|source| ReportError::Io {
+        path: path.display().to_string(),
+        source,
+    })?;
+    Ok(figs)
+}
+
+/// The text of `report.md`.
+pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> String {
+    let mut md = String::new();
+    let _ = writeln!(md, "# Diagnosis of {title}\n");
+    let _ = writeln!(
+        md,
+        "**Verdict: {}. Cause: {}.**{}\n",
+        d.verdict,
+        d.cause,
+        if d.parameters
+            .as_object()
+            .map(|o| o.is_empty())
+            .unwrap_or(true)
+        {
+            String::new()
+        } else {
+            format!(" Parameters: `{}`.", d.parameters)
+        }
+    );
+    let _ = writeln!(
+        md,
+        "The model: {} ({} states at {:.6} s).\n",
+        d.model_source,
+        d.model.n(),
+        d.model.ts().unwrap_or(0.0)
+    );
+    let _ = writeln!(md, "## What the model's simulation gets wrong\n");
+    let _ = writeln!(
+        md,
+        "Statistic: mean |P_meas − P_sim|²/variance per line; 1 is the noise level, a \
+         discrepancy is above 1 + 5/√K.\n"
+    );
+    let _ = writeln!(
+        md,
+        "| experiment | rate [Hz] | F | lines | model-free Lemma 6 | model | extended |\n|---|---|---|---|---|---|---|"
+    );
+    for x in &d.experiments {
+        let _ = writeln!(
+            md,
+            "| {} ({}) | {} | {} | {} | {} | {:.3} | {} |",
+            x.name,
+            x.role,
+            x.rate_hz,
+            x.factor,
+            x.model_stat.1,
+            x.model_free
+                .map(|m| format!("{:.3}", m.0))
+                .unwrap_or_else(|| "–".into()),
+            x.model_stat.0,
+            x.extended_stat
+                .map(|m| format!("{m:.3}"))
+                .unwrap_or_else(|| "–".into())
+        );
+    }
+    for x in &d.experiments {
+        if x.bands.is_empty() {
+            continue;
+        }
+        let _ = writeln!(
+            md,
+            "\n**{}**: bands where the model misses beyond 3σ (largest share of the statistic first)\n\n| band [Hz] | worst line [Hz] | measured/simulated [dB] | comes from [Hz] | share |\n|---|---|---|---|---|",
+            x.name
+        );
+        for b in &x.bands {
+            let _ = writeln!(
+                md,
+                "| {:.1}–{:.1} | {:.1} | {:+.1} | {:.1} | {:.0} % |",
+                b.f_lo,
+                b.f_hi,
+                b.worst_hz,
+                b.worst_db,
+                b.from_fast_hz,
+                100.0 * b.share
+            );
+        }
+    }
+    let tds: Vec<&ExperimentReport> = d
+        .experiments
+        .iter()
+        .filter(|x| x.time_domain.is_some())
+        .collect();
+    if !tds.is_empty() {
+        let _ = writeln!(
+            md,
+            "\n## Time domain (measured input through the model, one averaged steady period)\n\n| experiment | output rms | noise rms | error rms, model | error rms, extended |\n|---|---|---|---|---|"
+        );
+        for x in tds {
+            if let Some(t) = &x.time_domain {
+                let _ = writeln!(
+                    md,
+                    "| {} | {:.4e} | {:.4e} | {:.4e} | {} |",
+                    x.name,
+                    t.output_rms,
+                    t.noise_rms,
+                    t.error_rms_model,
+                    t.error_rms_extended
+                        .map(|e| format!("{e:.4e}"))
+                        .unwrap_or_else(|| "–".into())
+                );
+            }
+        }
+    }
+    let _ = writeln!(
+        md,
+        "\n## Hypotheses\n\n| hypothesis | statistic | parameters |\n|---|---|---|"
+    );
+    for r in &d.ranking {
+        let _ = writeln!(md, "| {} | {:.3} | {} |", r.0, r.1, r.2);
+    }
+    let _ = writeln!(
+        md,
+        "\nExtension: {}.\n\n## Evidence\n\n| test | statistic | threshold | passed |\n|---|---|---|---|",
+        describe(d.extension)
+    );
+    for e in &d.evidence {
+        let _ = writeln!(
+            md,
+            "| {} | {:.3} | {:.3} | {} |",
+            e.test, e.statistic, e.threshold, e.passed
+        );
+    }
+    let _ = writeln!(
+        md,
+        "\n## Gain on held-out data\n\nStatistic {:.3} before and {:.3} after the extension: ratio {:.1} (held out: {}).",
+        d.gain_before,
+        d.gain_after,
+        d.gain_ratio(),
+        if d.held_out.is_empty() {
+            "none".to_string()
+        } else {
+            d.held_out.join(", ")
+        }
+    );
+    if !figures.is_empty() {
+        let _ = writeln!(md, "\n## Figures\n");
+        for f in figures {
+            let _ = writeln!(md, "![{f}]({f})");
+        }
+    }
+    md
+}
