@@ -371,27 +371,47 @@ fn bands(lines: &[Line], fold_source: impl Fn(f64) -> f64) -> Vec<Band> {
     out
 }
 
-/// The fast frequency whose folded model response dominates at slow frequency f.
-fn dominant_fold(model: &StateSpace, h: f64, factor: usize, f: f64) -> f64 {
+/// Where the response at slow frequency f comes from (a fast-band frequency): the fold at which
+/// the model misses the measured fast FRF the most, weighted by the hold (when that miss exceeds
+/// 3σ of the fast line: the model is wrong there); otherwise the fold whose model response
+/// dominates.
+fn dominant_fold(model: &StateSpace, pair: &Pair<'_>, f: f64) -> f64 {
+    let (h, factor) = (pair.h, pair.factor);
     if factor <= 1 {
         return f;
     }
     let t = h * factor as f64;
     let fs = 1.0 / h;
-    (0..factor)
+    let terms: Vec<(f64, f64, Option<f64>)> = (0..factor)
         .map(|k| {
             let fk = f - k as f64 / t;
             let fk = (fk - fs * (fk / fs).round()).abs();
             let w = hold_weight(2.0 * PI * fk * h, factor).norm();
             let g = model
                 .freqresp(&[fk])
-                .map(|r| r.response()[0][(0, 0)].norm())
-                .unwrap_or(0.0);
-            (fk, w * g)
+                .map(|r| r.response()[0][(0, 0)])
+                .unwrap_or_default();
+            let miss = pair
+                .fast_at(fk)
+                .filter(|(_, v)| *v > 0.0)
+                .map(|(p, v)| ((g - p).norm() / v.sqrt(), w * (g - p).norm()))
+                .filter(|(z, _)| *z > 3.0)
+                .map(|x| x.1);
+            (fk, w * g.norm(), miss)
         })
-        .max_by(|a, b| a.1.total_cmp(&b.1))
-        .map(|x| x.0)
-        .unwrap_or(f)
+        .collect();
+    let best_miss = terms
+        .iter()
+        .filter_map(|t| t.2.map(|m| (t.0, m)))
+        .max_by(|a, b| a.1.total_cmp(&b.1));
+    match best_miss {
+        Some((fk, _)) => fk,
+        None => terms
+            .iter()
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|x| x.0)
+            .unwrap_or(f),
+    }
 }
 
 fn responses(model: &StateSpace, f: &[f64]) -> Result<Vec<C>> {
@@ -407,6 +427,7 @@ fn time_domain(
     e: &Experiment,
     model: &StateSpace,
     extended: Option<&dyn Fn(&[f64]) -> Result<Vec<C>>>,
+    found: &[Band],
 ) -> Result<Option<TimeDomain>> {
     let Some(per) = AveragedPeriod::of(e) else {
         return Ok(None);
@@ -414,16 +435,27 @@ fn time_domain(
     let bins = per.bins_hz();
     let resp = responses(model, &bins)?;
     let sim = per.simulate(&resp)?;
-    let ext = match extended {
-        Some(f) => Some(per.simulate(&f(&bins)?)?),
+    let ext_resp = match extended {
+        Some(f) => Some(f(&bins)?),
         None => None,
     };
+    let ext = match &ext_resp {
+        Some(r) => Some(per.simulate(r)?),
+        None => None,
+    };
+    let in_band = |f: f64| found.iter().any(|b| f >= b.f_lo && f <= b.f_hi);
+    let in_bands = (!found.is_empty()).then(|| {
+        let (em, noise) = per.band_rms(&resp, &in_band);
+        let ee = ext_resp.as_ref().map(|r| per.band_rms(r, &in_band).0);
+        (noise, em, ee)
+    });
     Ok(Some(TimeDomain {
         rate_hz: per.rate_hz,
         output_rms: per.output_rms(),
         noise_rms: per.noise_rms(&resp),
         error_rms_model: per.error_rms(&sim),
         error_rms_extended: ext.as_ref().map(|s| per.error_rms(s)),
+        in_bands,
         measured: per.y.clone(),
         model: sim,
         extended: ext,
@@ -796,6 +828,10 @@ pub fn diagnose_with_progress(
             (None, Hyp::FastFrf) if factor > 1 => Some(stat(&free_lines(&p, frd)).0),
             _ => None,
         };
+        let found = bands(&lines, |f| dominant_fold(&model, &p, f));
+        // in the time domain the fast FRF replaces the model only inside the bands where the
+        // model misses: elsewhere its noisy (and, in closed loop at the lowest lines, biased)
+        // lines would add error where the model is right
         let ext_fn = |bins: &[f64]| -> Result<Vec<C>> {
             match (&em, extension) {
                 (Some(m), _) => responses(m, bins),
@@ -804,7 +840,13 @@ pub fn diagnose_with_progress(
                     Ok(bins
                         .iter()
                         .zip(base)
-                        .map(|(&f, b)| p.predict(f).map(|x| x.0).unwrap_or(b))
+                        .map(|(&f, b)| {
+                            if found.iter().any(|x| f >= x.f_lo && f <= x.f_hi) {
+                                p.predict(f).map(|x| x.0).unwrap_or(b)
+                            } else {
+                                b
+                            }
+                        })
                         .collect())
                 }
             }
@@ -817,6 +859,7 @@ pub fn diagnose_with_progress(
             } else {
                 None
             },
+            &found,
         )?;
         Ok(ExperimentReport {
             name: e.spec.name.clone(),
@@ -830,7 +873,7 @@ pub fn diagnose_with_progress(
             model_free: free,
             model_stat: stat(&lines),
             extended_stat,
-            bands: bands(&lines, |f| dominant_fold(&model, h, factor, f)),
+            bands: found,
             curves: Curves {
                 freq_hz: freq,
                 measured: lines.iter().map(|l| l.meas).collect(),

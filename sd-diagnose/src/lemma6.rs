@@ -27,7 +27,7 @@ pub(crate) struct Pair<'a> {
 
 impl Pair<'_> {
     /// The fast FRF (and its variance) at a signed frequency folded into the fast band.
-    fn fast_at(&self, f: f64) -> Option<(C, f64)> {
+    pub(crate) fn fast_at(&self, f: f64) -> Option<(C, f64)> {
         let fs = 1.0 / self.h;
         let g = f - fs * (f / fs).round();
         let fa = g.abs();

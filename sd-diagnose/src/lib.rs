@@ -175,6 +175,9 @@ pub struct TimeDomain {
     pub error_rms_model: f64,
     /// Rms of measured − extended model.
     pub error_rms_extended: Option<f64>,
+    /// The same three, counting only the bands where the model misses in the frequency domain
+    /// (`None` without bands): noise, model, extended.
+    pub in_bands: Option<(f64, f64, Option<f64>)>,
 }
 
 /// What the diagnosis found on one experiment.
@@ -252,7 +255,8 @@ impl Diagnosis {
                 "bands": x.bands.iter().map(|b| json!({"f_lo_hz": b.f_lo, "f_hi_hz": b.f_hi, "worst_hz": b.worst_hz,
                     "worst_db": b.worst_db, "from_fast_hz": b.from_fast_hz, "share": b.share})).collect::<Vec<_>>(),
                 "time_domain": x.time_domain.as_ref().map(|t| json!({"output_rms": t.output_rms, "noise_rms": t.noise_rms,
-                    "error_rms_model": t.error_rms_model, "error_rms_extended": t.error_rms_extended})),
+                    "error_rms_model": t.error_rms_model, "error_rms_extended": t.error_rms_extended,
+                    "in_bands": t.in_bands.map(|b| json!({"noise_rms": b.0, "error_rms_model": b.1, "error_rms_extended": b.2}))})),
             })).collect::<Vec<_>>(),
         })
     }

@@ -125,6 +125,27 @@ impl AveragedPeriod {
     /// Rms noise of `y − ŷ` for a model given by its response at [`Self::bins_hz`], from the
     /// spread of the per-period residual spectra.
     pub fn noise_rms(&self, response: &[C]) -> f64 {
+        self.band_rms(response, &|_| true).1
+    }
+
+    /// Rms of `y − ŷ` and its noise, counting only the bins whose frequency satisfies `keep`
+    /// (Parseval on the averaged and per-period residual spectra).
+    pub fn band_rms(&self, response: &[C], keep: &dyn Fn(f64) -> bool) -> (f64, f64) {
+        let f0 = self.rate_hz / self.n as f64;
+        let w = |k: usize| if 2 * k == self.n { 1.0 } else { 2.0 };
+        let nn = (self.n * self.n) as f64;
+        let mut err = 0.0;
+        for (j, &k) in self.used.iter().enumerate() {
+            if keep(k as f64 * f0) {
+                let mean_y = self.per_y.iter().map(|y| y[j]).sum::<C>() / self.per_y.len() as f64;
+                err += w(k) * (mean_y - response[j] * self.u[k]).norm_sqr();
+            }
+        }
+        (err.sqrt() / nn.sqrt(), self.noise_in(response, keep))
+    }
+
+    fn noise_in(&self, response: &[C], keep: &dyn Fn(f64) -> bool) -> f64 {
+        let f0 = self.rate_hz / self.n as f64;
         let per: Vec<Vec<C>> = self
             .per_u
             .iter()
@@ -145,6 +166,7 @@ impl AveragedPeriod {
             .used
             .iter()
             .zip(&v)
+            .filter(|(&k, _)| keep(k as f64 * f0))
             .map(|(&k, v)| if 2 * k == self.n { 1.0 } else { 2.0 } * v)
             .sum();
         (ms / (self.n * self.n) as f64).sqrt()

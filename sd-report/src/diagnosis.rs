@@ -316,20 +316,23 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> String {
     if !tds.is_empty() {
         let _ = writeln!(
             md,
-            "\n## Time domain (measured input through the model, one averaged steady period)\n\n| experiment | output rms | noise rms | error rms, model | error rms, extended |\n|---|---|---|---|---|"
+            "\n## Time domain (measured input through the model, one averaged steady period)\n\nAll bins where the input is measured, then only the bands above (where a discrepancy of the\nfrequency domain shows in time without the low-frequency input noise around it).\n\n| experiment | output rms | noise rms | error rms, model | error rms, extended | in the bands: noise | model | extended |\n|---|---|---|---|---|---|---|---|"
         );
         for x in tds {
             if let Some(t) = &x.time_domain {
+                let opt =
+                    |v: Option<f64>| v.map(|e| format!("{e:.3e}")).unwrap_or_else(|| "–".into());
                 let _ = writeln!(
                     md,
-                    "| {} | {:.4e} | {:.4e} | {:.4e} | {} |",
+                    "| {} | {:.3e} | {:.3e} | {:.3e} | {} | {} | {} | {} |",
                     x.name,
                     t.output_rms,
                     t.noise_rms,
                     t.error_rms_model,
-                    t.error_rms_extended
-                        .map(|e| format!("{e:.4e}"))
-                        .unwrap_or_else(|| "–".into())
+                    opt(t.error_rms_extended),
+                    opt(t.in_bands.map(|b| b.0)),
+                    opt(t.in_bands.map(|b| b.1)),
+                    opt(t.in_bands.and_then(|b| b.2)),
                 );
             }
         }

@@ -463,9 +463,17 @@ fn issue8_wrong_given_model_is_a_fast_model_error() {
         "folds from {} Hz",
         band.from_fast_hz
     );
-    // the time-domain simulation shows it as well
+    // in the time domain the whole-band error is dominated by low-frequency input noise, but
+    // inside the band the model's error stands out above the noise and the extension removes it
     let td = slow.time_domain.as_ref().unwrap();
-    assert!(td.error_rms_extended.unwrap() * 2.0 < td.error_rms_model);
+    let (noise, err_model, err_ext) = td.in_bands.unwrap();
+    println!(
+        "time domain: output {:.3e}, noise {:.3e}, model {:.3e}, extended {:.3e}; in the bands: noise {noise:.3e}, model {err_model:.3e}, extended {:.3e}",
+        td.output_rms, td.noise_rms, td.error_rms_model, td.error_rms_extended.unwrap(), err_ext.unwrap()
+    );
+    assert!(err_model > 3.0 * noise);
+    assert!(err_ext.unwrap() < 2.0 * noise);
+    assert!(td.error_rms_extended.unwrap() <= td.error_rms_model * 1.001);
 }
 
 /// The confusion matrix over 100 seeded cases:
