@@ -35,8 +35,10 @@
 //!   exactly at each experiment's period ([`sd_multirate::c2d_nonideal`]). For a trial
 //!   parameter the modal residues are fitted to the fast FRF, then the slow FRFs are predicted;
 //!   the parameter minimizing the slow statistic is found by a grid and golden section. A cause
-//!   is named only when its extension lowers the statistic at least 10× below the plain modal
-//!   model's and at least 1.5× below the other extension's; otherwise `unexplained`.
+//!   is named only when its extension removes at least 90 % of the plain modal model's excess
+//!   over the noise level (`c₀ − c ≥ 0.9 (c₀ − 1)`) and the other extension is worse by more
+//!   than five standard deviations of the statistic (`5 max(c, 1)/√K`); otherwise
+//!   `unexplained`.
 //!
 //! **Gain** is measured on held-out data: each validation experiment's steady periods (or its
 //! record) are split in two halves; the extension's parameter is fitted with the first and the
@@ -197,7 +199,8 @@ pub struct ExperimentReport {
     pub model_stat: (f64, usize),
     /// The extended model's statistic, when there is an extension.
     pub extended_stat: Option<f64>,
-    /// Where the model misses beyond the noise (largest share first, at most 5).
+    /// Where the model misses beyond 3σ (bands carrying ≥ 1 % of the statistic, largest share
+    /// first, at most 5).
     pub bands: Vec<Band>,
     /// The FRFs.
     pub curves: Curves,

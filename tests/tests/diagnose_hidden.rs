@@ -501,3 +501,38 @@ fn issue8_confusion_matrix_100() {
     }
     println!("misdiagnosed: {wrong} of {}", cases.len());
 }
+
+/// Units: the same data in other units (input ×1e6, output ×1e-3, reference ×1e6) give the
+/// same diagnosis — nothing depends on the absolute scale of the signals.
+#[test]
+fn issue8_units_do_not_matter() {
+    let truth = Truth::default();
+    let ni = NonIdealities {
+        hold_delay: 0.55,
+        ..Default::default()
+    };
+    let fast = experiment(&truth, "fast", 5000.0, ni, 81, Role::Model);
+    let slow = experiment(&truth, "slow", 1000.0, ni, 82, Role::Validation);
+    let scale = |e: &Experiment| {
+        let mut e = e.clone();
+        e.u.iter_mut().for_each(|v| *v *= 1e6);
+        e.y.iter_mut().for_each(|v| *v *= 1e-3);
+        if let Some(r) = e.r.as_mut() {
+            r.iter_mut().for_each(|v| *v *= 1e6);
+        }
+        e
+    };
+    let a = diagnose(&[fast.clone(), slow.clone()], &Default::default()).unwrap();
+    let b = diagnose(&[scale(&fast), scale(&slow)], &Default::default()).unwrap();
+    assert_eq!(a.cause, "hold_delay");
+    assert_eq!(b.cause, a.cause);
+    let (pa, pb) = (
+        a.parameters["delay_frac"].as_f64().unwrap(),
+        b.parameters["delay_frac"].as_f64().unwrap(),
+    );
+    assert!(
+        (pa - 0.55).abs() < 0.055 && (pa - pb).abs() < 1e-3,
+        "{pa} {pb}"
+    );
+    assert!((a.gain_ratio() / b.gain_ratio() - 1.0).abs() < 0.05);
+}

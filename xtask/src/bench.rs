@@ -253,7 +253,8 @@ pub fn run(quick: bool) -> Result<(), String> {
     let tb_entry = json!({"name": "virtual_stage", "size": "70 000 samples at 5 kHz (LTI, averaging sensor) / nonlinear (cubic + Coulomb)",
         "ours_lti_s": t_tb, "ours_nonlinear_s": t_nl, "peer": "none (no virtual stage in python-control or scipy)"});
     let diag_entry = json!({"name": "diagnose", "size": "three experiments of 70 000 samples (5 kHz model, 5 kHz, 1 kHz)",
-        "ours_s": t_diag, "cause": diag.cause, "peer": "none (no such tool elsewhere)"});
+        "ours_s": t_diag, "cause": diag.cause, "parameters": diag.parameters, "gain_ratio": diag.gain_ratio(),
+        "model": diag.model_source, "peer": "none (no such tool elsewhere)"});
 
     // freqresp: library call and the whole sdctl process
     let (fmin, fmax) = (0.1, 2500.0);

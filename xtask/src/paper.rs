@@ -430,7 +430,7 @@ pub fn run(out: &str, quick: bool) -> Result<(), String> {
                 color: GREY,
             },
             Curve {
-                label: "fit extended with the diagnosed cause",
+                label: "fit extended with the diagnosed cause (lies on the measured)",
                 freq_hz: &f_ext,
                 db: &pred_ext,
                 color: GREEN,
