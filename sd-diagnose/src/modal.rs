@@ -9,11 +9,11 @@
 //! no continuous counterpart and are dropped: under the right hypothesis the delay is part of
 //! the discretisation instead.
 //!
-//! Every basis function is one output of one continuous model
-//! `ẋ = blockdiag(…) x + b u`, `φ = [I; 0] x + [0; 1] u` (rigid body as a 1/s² chain, a real
-//! pole as 1/(s − p), a pair as `[[σ, ω], [−ω, σ]]`, whose two states span
-//! `{(s − σ), ω}/((s − σ)² + ω²)`). Under a hypothesis θ (hold delay α or window β) each
-//! experiment's basis responses are that model discretised exactly at the experiment's own
+//! Every basis function is one output of a small continuous block (rigid body as a 1/s² chain
+//! whose two states give 1/s² and 1/s, a real pole as 1/(s − p), a pair as
+//! `[[σ, ω], [−ω, σ]]`, whose two states span `{(s − σ), ω}/((s − σ)² + ω²)`, and a constant).
+//! Under a hypothesis θ (hold delay α or window β) each experiment's basis responses are the
+//! blocks discretised exactly at the experiment's own
 //! period with [`sd_multirate::c2d_nonideal`], so the plant `P = Σ r_j φ_j` is linear in the
 //! real residues `r`. They are fitted to the fast FRF by weighted least squares
 //! (`min Σ |G − Σ r_j φ_j^h|²/σ²`, columns scaled to unit norm, SVD with rank cut at
@@ -32,10 +32,12 @@ const RIGID_SH: f64 = 1e-4;
 /// Poles with `|z|` below this are dropped (delay-like).
 const MIN_ABS_Z: f64 = 0.05;
 
-/// The continuous basis model (1 input, one output per basis function).
+/// The continuous basis: small blocks (1 input, one output per basis function each), kept
+/// apart so that every discretisation is of a 1- or 2-state model (O(n) per hypothesis instead
+/// of one exponential of the whole augmented model).
 #[derive(Debug, Clone)]
 pub(crate) struct ModalBasis {
-    sys: StateSpace,
+    blocks: Vec<StateSpace>,
 }
 
 impl ModalBasis {
@@ -68,67 +70,96 @@ impl ModalBasis {
     }
 
     fn build(rigid: usize, real: &[f64], pairs: &[C]) -> Result<Self> {
-        let n = rigid + real.len() + 2 * pairs.len();
-        let mut a = DMatrix::zeros(n, n);
-        let mut b = DMatrix::zeros(n, 1);
-        let mut i = 0;
+        let ct = SampleTime::Continuous;
+        let block = |a: DMatrix<f64>, b: DMatrix<f64>| -> Result<StateSpace> {
+            let n = a.nrows();
+            Ok(StateSpace::new(
+                a,
+                b,
+                DMatrix::identity(n, n),
+                DMatrix::zeros(n, 1),
+                ct,
+            )?)
+        };
+        let mut blocks = Vec::new();
         match rigid {
-            1 => {
-                b[(0, 0)] = 1.0;
-                i = 1;
-            }
-            2 => {
-                a[(0, 1)] = 1.0;
-                b[(1, 0)] = 1.0;
-                i = 2;
-            }
+            1 => blocks.push(block(
+                DMatrix::zeros(1, 1),
+                DMatrix::from_element(1, 1, 1.0),
+            )?),
+            2 => blocks.push(block(
+                DMatrix::from_row_slice(2, 2, &[0.0, 1.0, 0.0, 0.0]),
+                DMatrix::from_column_slice(2, 1, &[0.0, 1.0]),
+            )?),
             _ => {}
         }
         for &p in real {
-            a[(i, i)] = p;
-            b[(i, 0)] = 1.0;
-            i += 1;
+            blocks.push(block(
+                DMatrix::from_element(1, 1, p),
+                DMatrix::from_element(1, 1, 1.0),
+            )?);
         }
         for p in pairs {
-            a[(i, i)] = p.re;
-            a[(i + 1, i + 1)] = p.re;
-            a[(i, i + 1)] = p.im;
-            a[(i + 1, i)] = -p.im;
-            b[(i, 0)] = 1.0;
-            i += 2;
+            blocks.push(block(
+                DMatrix::from_row_slice(2, 2, &[p.re, p.im, -p.im, p.re]),
+                DMatrix::from_column_slice(2, 1, &[1.0, 0.0]),
+            )?);
         }
-        let mut c = DMatrix::zeros(n + 1, n);
-        for k in 0..n {
-            c[(k, k)] = 1.0;
-        }
-        let mut d = DMatrix::zeros(n + 1, 1);
-        d[(n, 0)] = 1.0;
-        Ok(ModalBasis {
-            sys: StateSpace::new(a, b, c, d, SampleTime::Continuous)?,
-        })
+        // the feedthrough: a constant
+        blocks.push(StateSpace::new(
+            DMatrix::zeros(0, 0),
+            DMatrix::zeros(0, 1),
+            DMatrix::zeros(1, 0),
+            DMatrix::from_element(1, 1, 1.0),
+            ct,
+        )?);
+        Ok(ModalBasis { blocks })
+    }
+
+    fn discretised(&self, ts: f64, ni: NonIdeal) -> Result<Vec<StateSpace>> {
+        self.blocks
+            .iter()
+            .map(|b| c2d_nonideal(b, ts, ni).map_err(|e| DiagnoseError::Setup(e.to_string())))
+            .collect()
     }
 
     /// The basis responses at period `ts` under `ni`, at `freq_hz`: one row per frequency.
     pub(crate) fn responses(&self, ts: f64, ni: NonIdeal, freq_hz: &[f64]) -> Result<Vec<Vec<C>>> {
-        let d = c2d_nonideal(&self.sys, ts, ni).map_err(|e| DiagnoseError::Setup(e.to_string()))?;
-        let ev = sd_model::FreqRespEvaluator::new(&d)?;
+        let evs = self
+            .discretised(ts, ni)?
+            .iter()
+            .map(sd_model::FreqRespEvaluator::new)
+            .collect::<std::result::Result<Vec<_>, _>>()?;
         Ok(freq_hz
             .iter()
-            .map(|&f| ev.eval_hz(f).column(0).iter().copied().collect())
+            .map(|&f| {
+                evs.iter()
+                    .flat_map(|ev| ev.eval_hz(f).column(0).iter().copied().collect::<Vec<_>>())
+                    .collect()
+            })
             .collect())
     }
 
-    /// The discrete model `Σ r_j φ_j` at period `ts` under `ni`.
+    /// The discrete model `Σ r_j φ_j` at period `ts` under `ni` (the blocks in parallel).
     pub(crate) fn model(&self, r: &[f64], ts: f64, ni: NonIdeal) -> Result<StateSpace> {
-        let d = c2d_nonideal(&self.sys, ts, ni).map_err(|e| DiagnoseError::Setup(e.to_string()))?;
-        let row = DMatrix::from_row_slice(1, r.len(), r);
-        Ok(StateSpace::new(
-            d.a().clone(),
-            d.b().clone(),
-            &row * d.c(),
-            &row * d.d(),
-            d.time(),
-        )?)
+        let ds = self.discretised(ts, ni)?;
+        let n: usize = ds.iter().map(StateSpace::n).sum();
+        let mut a = DMatrix::zeros(n, n);
+        let mut b = DMatrix::zeros(n, 1);
+        let mut c = DMatrix::zeros(1, n);
+        let mut d = DMatrix::zeros(1, 1);
+        let (mut i, mut j) = (0, 0);
+        for blk in &ds {
+            let (k, m) = (blk.n(), blk.ny());
+            let row = DMatrix::from_row_slice(1, m, &r[j..j + m]);
+            a.view_mut((i, i), (k, k)).copy_from(blk.a());
+            b.view_mut((i, 0), (k, 1)).copy_from(blk.b());
+            c.view_mut((0, i), (1, k)).copy_from(&(&row * blk.c()));
+            d += &row * blk.d();
+            i += k;
+            j += m;
+        }
+        Ok(StateSpace::new(a, b, c, d, SampleTime::discrete(ts)?)?)
     }
 }
 

@@ -188,7 +188,7 @@ pub fn line_plot(
                 .x_desc(x_desc)
                 .y_desc(y_desc)
                 .y_label_formatter(&|v| {
-                    if v.abs() >= 1e-3 && v.abs() < 1e4 {
+                    if *v == 0.0 || (v.abs() >= 1e-3 && v.abs() < 1e4) {
                         format!("{v:.1}")
                     } else {
                         format!("{v:.1e}")
