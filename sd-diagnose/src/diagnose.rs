@@ -429,10 +429,37 @@ fn time_domain(
     e: &Experiment,
     model: &StateSpace,
     extended: Option<&dyn Fn(&[f64]) -> Result<Vec<C>>>,
+    ext_model: Option<&StateSpace>,
     found: &[Band],
 ) -> Result<Option<TimeDomain>> {
     let Some(per) = AveragedPeriod::of(e) else {
-        return Ok(None);
+        if e.spec.period_samples.is_some() {
+            return Ok(None);
+        }
+        // a non-periodic record: simulated from the least-squares initial state
+        let rms = |x: &mut dyn Iterator<Item = f64>| {
+            let (s, n) = x.fold((0.0, 0usize), |(s, n), v| (s + v * v, n + 1));
+            (s / n.max(1) as f64).sqrt()
+        };
+        let sim = crate::timedomain::simulate_record(model, &e.u, &e.y)?;
+        let ext = match ext_model {
+            Some(m) => Some(crate::timedomain::simulate_record(m, &e.u, &e.y)?),
+            None => None,
+        };
+        let mean = e.y.iter().sum::<f64>() / e.y.len().max(1) as f64;
+        return Ok(Some(TimeDomain {
+            rate_hz: e.spec.sample_rate_hz,
+            output_rms: rms(&mut e.y.iter().map(|v| v - mean)),
+            noise_rms: f64::NAN,
+            error_rms_model: rms(&mut e.y.iter().zip(&sim).map(|(a, b)| a - b)),
+            error_rms_extended: ext
+                .as_ref()
+                .map(|x| rms(&mut e.y.iter().zip(x).map(|(a, b)| a - b))),
+            in_bands: None,
+            measured: e.y.clone(),
+            model: sim,
+            extended: ext,
+        }));
     };
     let bins = per.bins_hz();
     let resp = responses(model, &bins)?;
@@ -884,6 +911,7 @@ pub fn diagnose_with_progress(
             } else {
                 None
             },
+            em.as_ref(),
             &found,
         )?;
         Ok(ExperimentReport {

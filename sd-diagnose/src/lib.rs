@@ -158,7 +158,8 @@ pub struct Curves {
     pub extended: Option<Vec<C>>,
 }
 
-/// The time-domain comparison of one periodic experiment (one averaged steady period).
+/// The time-domain comparison of one experiment: one averaged steady period of a periodic
+/// experiment, or a whole non-periodic record simulated from the least-squares initial state.
 #[derive(Debug, Clone)]
 pub struct TimeDomain {
     /// Sample rate (Hz).
@@ -171,7 +172,8 @@ pub struct TimeDomain {
     pub extended: Option<Vec<f64>>,
     /// Rms of the output around its mean.
     pub output_rms: f64,
-    /// Rms noise of the comparison (spread of the per-period residual of the model).
+    /// Rms noise of the comparison (spread of the per-period residual of the model; NaN for a
+    /// non-periodic record, where it is not known).
     pub noise_rms: f64,
     /// Rms of measured − model.
     pub error_rms_model: f64,
@@ -204,7 +206,7 @@ pub struct ExperimentReport {
     pub bands: Vec<Band>,
     /// The FRFs.
     pub curves: Curves,
-    /// The time-domain comparison (periodic experiments).
+    /// The time-domain comparison.
     pub time_domain: Option<TimeDomain>,
 }
 

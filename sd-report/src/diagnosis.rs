@@ -152,6 +152,17 @@ fn figures(dir: &Path, x: &ExperimentReport, ext_label: &str) -> Result<Vec<Stri
     )?;
     out.push(name);
     if let Some(td) = &x.time_domain {
+        // a long record is shown by its first 4000 samples
+        let shown = td.measured.len().min(4000);
+        let td = &sd_diagnose::TimeDomain {
+            measured: td.measured[..shown].to_vec(),
+            model: td.model[..shown.min(td.model.len())].to_vec(),
+            extended: td
+                .extended
+                .as_ref()
+                .map(|e| e[..shown.min(e.len())].to_vec()),
+            ..td.clone()
+        };
         let t: Vec<f64> = (0..td.measured.len())
             .map(|i| i as f64 / td.rate_hz)
             .collect();
@@ -320,14 +331,17 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> String {
         );
         for x in tds {
             if let Some(t) = &x.time_domain {
-                let opt =
-                    |v: Option<f64>| v.map(|e| format!("{e:.3e}")).unwrap_or_else(|| "–".into());
+                let opt = |v: Option<f64>| {
+                    v.filter(|e| e.is_finite())
+                        .map(|e| format!("{e:.3e}"))
+                        .unwrap_or_else(|| "–".into())
+                };
                 let _ = writeln!(
                     md,
-                    "| {} | {:.3e} | {:.3e} | {:.3e} | {} | {} | {} | {} |",
+                    "| {} | {:.3e} | {} | {:.3e} | {} | {} | {} | {} |",
                     x.name,
                     t.output_rms,
-                    t.noise_rms,
+                    opt(Some(t.noise_rms)),
                     t.error_rms_model,
                     opt(t.error_rms_extended),
                     opt(t.in_bands.map(|b| b.0)),
