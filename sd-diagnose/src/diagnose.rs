@@ -425,10 +425,13 @@ fn responses(model: &StateSpace, f: &[f64]) -> Result<Vec<C>> {
         .collect())
 }
 
+/// A model given by its response at a list of frequencies.
+type ResponseFn<'a> = dyn Fn(&[f64]) -> Result<Vec<C>> + 'a;
+
 fn time_domain(
     e: &Experiment,
     model: &StateSpace,
-    extended: Option<&dyn Fn(&[f64]) -> Result<Vec<C>>>,
+    extended: Option<&ResponseFn<'_>>,
     ext_model: Option<&StateSpace>,
     found: &[Band],
 ) -> Result<Option<TimeDomain>> {
