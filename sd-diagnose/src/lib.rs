@@ -45,6 +45,7 @@
 //! model's and the extension's statistics are compared on the second.
 
 mod lemma6;
+mod lstsq;
 pub mod modal;
 pub mod timedomain;
 

@@ -200,50 +200,15 @@ impl Residues {
                 j[(2 * k + 1, c)] = w * phi[i][c].im;
             }
         }
-        let scale: Vec<f64> = (0..nb)
-            .map(|c| {
-                let s = j.column(c).norm();
-                if s > 0.0 && s.is_finite() {
-                    s
-                } else {
-                    1.0
-                }
-            })
-            .collect();
-        for c in 0..nb {
-            let s = scale[c];
-            j.column_mut(c).scale_mut(1.0 / s);
-        }
-        let svd = j.clone().svd(true, true);
-        let (Some(u), Some(vt)) = (svd.u.as_ref(), svd.v_t.as_ref()) else {
-            return Err(DiagnoseError::Setup("SVD of the residue fit failed".into()));
-        };
-        let smax = svd.singular_values.max();
-        if !(smax.is_finite() && smax > 0.0) {
+        let Some(ls) = crate::lstsq::scaled_lstsq(&j, &g) else {
             return Err(DiagnoseError::Setup(
                 "the modal basis has no finite response on the model experiment's lines".into(),
             ));
-        }
-        let mut x = DVector::zeros(nb);
-        let mut cov = DMatrix::zeros(nb, nb);
-        for (k, &sv) in svd.singular_values.iter().enumerate() {
-            if sv > 1e-10 * smax {
-                let v = vt.row(k).transpose();
-                x += &v * (u.column(k).dot(&g) / sv);
-                cov += &v * v.transpose() / (sv * sv);
-            }
-        }
-        let res = &g - &j * &x;
-        let r: Vec<f64> = (0..nb).map(|c| x[c] / scale[c]).collect();
-        for a in 0..nb {
-            for b in 0..nb {
-                cov[(a, b)] /= scale[a] * scale[b];
-            }
-        }
+        };
         Ok(Residues {
-            r,
-            cov,
-            chi2: res.norm_squared() / rows.len() as f64,
+            r: ls.x.iter().copied().collect(),
+            cov: ls.cov,
+            chi2: ls.residual / rows.len() as f64,
         })
     }
 

@@ -311,34 +311,13 @@ pub fn simulate_record(model: &sd_model::StateSpace, u: &[f64], y: &[f64]) -> Re
         o.row_mut(k).copy_from(&row);
         row = &row * model.a();
     }
-    let scale: Vec<f64> = (0..n)
-        .map(|j| {
-            let s = o.column(j).norm();
-            if s > 0.0 && s.is_finite() {
-                s
-            } else {
-                1.0
-            }
-        })
-        .collect();
-    for j in 0..n {
-        o.column_mut(j).scale_mut(1.0 / scale[j]);
-    }
     if !o.iter().all(|v| v.is_finite()) {
         // an unstable model over a long record: no initial-state fit, zero state
         return Ok(yf);
     }
     let r = DVector::from_iterator(m, y.iter().zip(&yf).map(|(a, b)| a - b));
-    let svd = o.clone().svd(true, true);
-    if let (Some(uu), Some(vt)) = (svd.u.as_ref(), svd.v_t.as_ref()) {
-        let smax = svd.singular_values.max();
-        let mut x = DVector::zeros(n);
-        for (k, &sv) in svd.singular_values.iter().enumerate() {
-            if sv > 1e-10 * smax {
-                x += vt.row(k).transpose() * (uu.column(k).dot(&r) / sv);
-            }
-        }
-        let free = &o * x;
+    if let Some(ls) = crate::lstsq::scaled_lstsq(&o, &r) {
+        let free = &o * ls.x;
         for (a, b) in yf.iter_mut().zip(free.iter()) {
             *a += b;
         }
