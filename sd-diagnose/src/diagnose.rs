@@ -304,27 +304,12 @@ impl Modal<'_> {
                 "no parameter of the extension gives a finite statistic".into(),
             ));
         }
-        let (mut a, mut b) = ((best - 0.04f64).max(0.0), (best + 0.04f64).min(1.0));
-        let r = 0.5 * (5f64.sqrt() - 1.0);
-        let (mut x1, mut x2) = (b - r * (b - a), a + r * (b - a));
-        let (mut c1, mut c2) = (cost(x1), cost(x2));
-        for _ in 0..24 {
-            if c1 < c2 {
-                b = x2;
-                x2 = x1;
-                c2 = c1;
-                x1 = b - r * (b - a);
-                c1 = cost(x1);
-            } else {
-                a = x1;
-                x1 = x2;
-                c1 = c2;
-                x2 = a + r * (b - a);
-                c2 = cost(x2);
-            }
-        }
-        let p = 0.5 * (a + b);
-        let c = cost(p);
+        let (p, c) = sd_model::linalg::golden_min(
+            cost,
+            (best - 0.04f64).max(0.0),
+            (best + 0.04f64).min(1.0),
+            24,
+        );
         Ok(if c < bc { (p, c) } else { (best, bc) })
     }
 }

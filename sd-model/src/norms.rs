@@ -208,30 +208,14 @@ fn hinf_ct(sys: &StateSpace) -> Result<(f64, f64)> {
     }
     // Polish by golden-section search on a bracket around the peak.
     if best.1.is_finite() && best.1 > 0.0 {
-        let (mut a, mut b) = (best.1 * (1.0 - 1e-3), best.1 * (1.0 + 1e-3));
-        let g = (5f64.sqrt() - 1.0) / 2.0;
-        let mut x1 = b - g * (b - a);
-        let mut x2 = a + g * (b - a);
-        let (mut f1, mut f2) = (sig(x1), sig(x2));
-        for _ in 0..80 {
-            if f1 > f2 {
-                b = x2;
-                x2 = x1;
-                f2 = f1;
-                x1 = b - g * (b - a);
-                f1 = sig(x1);
-            } else {
-                a = x1;
-                x1 = x2;
-                f1 = f2;
-                x2 = a + g * (b - a);
-                f2 = sig(x2);
-            }
-        }
-        for (f, x) in [(f1, x1), (f2, x2)] {
-            if f > best.0 {
-                best = (f, x);
-            }
+        let (x, f) = crate::linalg::golden_min(
+            |x| -sig(x),
+            best.1 * (1.0 - 1e-3),
+            best.1 * (1.0 + 1e-3),
+            80,
+        );
+        if -f > best.0 {
+            best = (-f, x);
         }
     }
     let w = if best.1.is_finite() {

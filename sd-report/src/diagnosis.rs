@@ -47,6 +47,44 @@ pub fn describe(h: Hyp) -> String {
     }
 }
 
+/// One magnitude figure: the given curves, the extension's (if any) and the noise level σ;
+/// returns its file name.
+#[allow(clippy::too_many_arguments)]
+fn magnitude_figure<'a>(
+    dir: &Path,
+    name: String,
+    title: &str,
+    mut curves: Vec<Curve<'a>>,
+    ext: Option<(&'a str, &'a [f64])>,
+    noise: (&'a [f64], &'a [f64]),
+    (fmin, fmax): (f64, f64),
+    marks: &[(f64, &str)],
+) -> Result<String> {
+    if let Some((label, db)) = ext {
+        curves.push(Curve {
+            label,
+            freq_hz: noise.0,
+            db,
+            color: EXTENDED,
+        });
+    }
+    curves.push(Curve {
+        label: "noise level σ",
+        freq_hz: noise.0,
+        db: noise.1,
+        color: NOISE,
+    });
+    magnitude_plot(
+        &dir.join(&name).to_string_lossy(),
+        title,
+        &curves,
+        fmin,
+        fmax,
+        marks,
+    )?;
+    Ok(name)
+}
+
 /// Writes the figures of one experiment into `dir`; returns their file names.
 fn figures(dir: &Path, x: &ExperimentReport, ext_label: &str) -> Result<Vec<String>> {
     let c = &x.curves;
@@ -65,34 +103,6 @@ fn figures(dir: &Path, x: &ExperimentReport, ext_label: &str) -> Result<Vec<Stri
     } else {
         "model".to_string()
     };
-    let mut curves = vec![
-        Curve {
-            label: "measured",
-            freq_hz: &c.freq_hz,
-            db: &meas,
-            color: MEASURED,
-        },
-        Curve {
-            label: &sim_label,
-            freq_hz: &c.freq_hz,
-            db: &model,
-            color: MODEL,
-        },
-    ];
-    if let Some(e) = &ext {
-        curves.push(Curve {
-            label: ext_label,
-            freq_hz: &c.freq_hz,
-            db: e,
-            color: EXTENDED,
-        });
-    }
-    curves.push(Curve {
-        label: "noise level σ",
-        freq_hz: &c.freq_hz,
-        db: &sigma,
-        color: NOISE,
-    });
     let marks: Vec<(f64, String)> = x
         .bands
         .iter()
@@ -100,16 +110,37 @@ fn figures(dir: &Path, x: &ExperimentReport, ext_label: &str) -> Result<Vec<Stri
         .map(|b| (b.worst_hz, format!("{:.1} Hz", b.worst_hz)))
         .collect();
     let marks_ref: Vec<(f64, &str)> = marks.iter().map(|(f, l)| (*f, l.as_str())).collect();
-    let name = format!("frf_{s}.svg");
-    magnitude_plot(
-        &dir.join(&name).to_string_lossy(),
-        &format!("{} ({} Hz): measured and simulated FRF", x.name, x.rate_hz),
-        &curves,
-        fmin,
-        fmax,
-        &marks_ref,
+    let range = (fmin, fmax);
+    let mut figure = |name: String,
+                      title: String,
+                      curves: Vec<Curve<'_>>,
+                      ext: Option<(&str, &[f64])>|
+     -> Result<()> {
+        let noise = (c.freq_hz.as_slice(), sigma.as_slice());
+        out.push(magnitude_figure(
+            dir, name, &title, curves, ext, noise, range, &marks_ref,
+        )?);
+        Ok(())
+    };
+    figure(
+        format!("frf_{s}.svg"),
+        format!("{} ({} Hz): measured and simulated FRF", x.name, x.rate_hz),
+        vec![
+            Curve {
+                label: "measured",
+                freq_hz: &c.freq_hz,
+                db: &meas,
+                color: MEASURED,
+            },
+            Curve {
+                label: &sim_label,
+                freq_hz: &c.freq_hz,
+                db: &model,
+                color: MODEL,
+            },
+        ],
+        ext.as_deref().map(|e| (ext_label, e)),
     )?;
-    out.push(name);
     // residuals against the noise level
     let res = |p: &[C]| -> Vec<f64> {
         c.measured
@@ -120,37 +151,18 @@ fn figures(dir: &Path, x: &ExperimentReport, ext_label: &str) -> Result<Vec<Stri
     };
     let rm = res(&c.model);
     let re = c.extended.as_deref().map(res);
-    let mut curves = vec![Curve {
-        label: "|measured − model|",
-        freq_hz: &c.freq_hz,
-        db: &rm,
-        color: MODEL,
-    }];
     let ext_res_label = format!("|measured − {ext_label}|");
-    if let Some(r) = &re {
-        curves.push(Curve {
-            label: &ext_res_label,
+    figure(
+        format!("residual_{s}.svg"),
+        format!("{}: residual against the noise level", x.name),
+        vec![Curve {
+            label: "|measured − model|",
             freq_hz: &c.freq_hz,
-            db: r,
-            color: EXTENDED,
-        });
-    }
-    curves.push(Curve {
-        label: "noise level σ",
-        freq_hz: &c.freq_hz,
-        db: &sigma,
-        color: NOISE,
-    });
-    let name = format!("residual_{s}.svg");
-    magnitude_plot(
-        &dir.join(&name).to_string_lossy(),
-        &format!("{}: residual against the noise level", x.name),
-        &curves,
-        fmin,
-        fmax,
-        &marks_ref,
+            db: &rm,
+            color: MODEL,
+        }],
+        re.as_deref().map(|r| (ext_res_label.as_str(), r)),
     )?;
-    out.push(name);
     if let Some(td) = &x.time_domain {
         // a long record is shown by its first 4000 samples
         let shown = td.measured.len().min(4000);
@@ -243,6 +255,16 @@ pub fn write(dir: &Path, d: &Diagnosis, title: &str) -> Result<Vec<String>> {
     Ok(figs)
 }
 
+/// A table cell: the number (3 decimals, or 3 significant digits in scientific notation), or
+/// "–" when there is none or it is not finite.
+fn cell(v: Option<f64>, sci: bool) -> String {
+    match v.filter(|e| e.is_finite()) {
+        Some(e) if sci => format!("{e:.3e}"),
+        Some(e) => format!("{e:.3}"),
+        None => "–".into(),
+    }
+}
+
 /// The text of `report.md`.
 pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> String {
     let mut md = String::new();
@@ -288,13 +310,9 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> String {
             x.rate_hz,
             x.factor,
             x.model_stat.1,
-            x.model_free
-                .map(|m| format!("{:.3}", m.0))
-                .unwrap_or_else(|| "–".into()),
+            cell(x.model_free.map(|m| m.0), false),
             x.model_stat.0,
-            x.extended_stat
-                .map(|m| format!("{m:.3}"))
-                .unwrap_or_else(|| "–".into())
+            cell(x.extended_stat, false)
         );
     }
     for x in &d.experiments {
@@ -331,11 +349,7 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> String {
         );
         for x in tds {
             if let Some(t) = &x.time_domain {
-                let opt = |v: Option<f64>| {
-                    v.filter(|e| e.is_finite())
-                        .map(|e| format!("{e:.3e}"))
-                        .unwrap_or_else(|| "–".into())
-                };
+                let opt = |v: Option<f64>| cell(v, true);
                 let _ = writeln!(
                     md,
                     "| {} | {:.3e} | {} | {:.3e} | {} | {} | {} | {} |",

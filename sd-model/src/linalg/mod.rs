@@ -5,7 +5,9 @@
 
 pub mod convert;
 pub mod expm;
+pub mod golden;
 pub mod lyap;
 pub mod schur;
 
 pub use expm::expm;
+pub use golden::golden_min;
