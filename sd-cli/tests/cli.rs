@@ -642,6 +642,22 @@ fn issue8_testbed_then_diagnose() {
         assert!(svg.starts_with("<svg") && svg.len() > 2000, "{f}");
         assert!(report.contains(f), "{f} not linked from the report");
     }
+    // the testbed's truth (continuous) as the given model: same cause, same window
+    let truth = dir
+        .join("data")
+        .join("truth.json")
+        .to_string_lossy()
+        .into_owned();
+    let out2 = dir.join("diag_given").to_string_lossy().into_owned();
+    let o = sdctl(&["diagnose", &manifest, "--model", &truth, "--out", &out2]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let g: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.join("diag_given").join("diagnosis.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(g["model"]["source"], "given");
+    assert_eq!(g["cause"], "averaging_sampler");
+    assert!((g["parameters"]["window_frac"].as_f64().unwrap() - 0.8).abs() < 0.02);
     // a given model that is not a model, or not SISO at the right rate: exit 2
     let junk = write(&dir, "junk.json", "{\"A\": 1}");
     let o = sdctl(&["diagnose", &manifest, "--model", &junk, "--out", &out]);
