@@ -79,7 +79,10 @@ pub struct Standstill {
     pub samples: usize,
     /// Noise at the fast rate.
     pub noise: Noise,
-    /// Non-idealities of the fast simulation.
+    /// Non-idealities of the slow loop, as fractions of the controller's period T = F·h: the
+    /// hold switches α·T late and the controller's sensor averages over the last β·T (clock
+    /// error and quantization as in the identification experiments). The fast record samples
+    /// the position ideally (the error between the controller's samples).
     pub nonideal: NonIdealities,
 }
 
@@ -228,7 +231,27 @@ pub fn run_standstill(truth: &Truth, exp: &Standstill) -> Result<(ExperimentData
         return Err(TestbedError::Config("factor must be ≥ 1".into()));
     }
     let h = t / exp.factor as f64;
-    let mut plant = PlantSim::new(truth, h, &exp.nonideal, None, false)?;
+    let ni = exp.nonideal;
+    ni.validate()?;
+    // αT = (m + φ)h: m whole fast samples of input delay, the fast hold switching φh late;
+    // βT = (q + r)h: q whole fast windows and the last r of the one before (exact for any α, β)
+    let split = |x: f64| {
+        let whole = (x + 1e-9).floor();
+        (whole as usize, (x - whole).max(0.0))
+    };
+    let f = exp.factor as f64;
+    let (m, phi) = split(ni.hold_delay * f);
+    let (q, r) = split(ni.averaging * f);
+    let base = NonIdealities {
+        hold_delay: phi,
+        averaging: 0.0,
+        ..ni
+    };
+    let sim =
+        |averaging: f64| PlantSim::new(truth, h, &NonIdealities { averaging, ..base }, None, false);
+    let mut plant = sim(0.0)?;
+    let mut full = if q > 0 { Some(sim(1.0)?) } else { None };
+    let mut part = if r > 0.0 { Some(sim(r)?) } else { None };
     let mut k = Controller::new(&exp.controller);
     let mut rng = SplitMix::new(exp.noise.seed);
     let n = exp.samples;
@@ -239,15 +262,45 @@ pub fn run_standstill(truth: &Truth, exp: &Standstill) -> Result<(ExperimentData
         Vec::new(),
     );
     let mut uk = 0.0;
+    // the commanded input over the last m fast samples (the delayed hold), the last q full
+    // windows and the last q + 1 partial ones (the averaging sensor)
+    let mut pending: std::collections::VecDeque<f64> =
+        std::collections::VecDeque::from(vec![0.0; m]);
+    let mut fulls: std::collections::VecDeque<f64> = std::collections::VecDeque::from(vec![0.0; q]);
+    let mut parts: std::collections::VecDeque<f64> =
+        std::collections::VecDeque::from(vec![0.0; q + 1]);
     for j in 0..n {
-        let ym = plant.measure() + exp.noise.sensor_rms * rng.normal();
-        if j % exp.factor == 0 {
-            uk = -k.step(ym);
-            us.push(uk);
-            ys.push(ym);
+        let noise = exp.noise.sensor_rms * rng.normal();
+        let ym = plant.measure() + noise;
+        if let Some(p) = &full {
+            fulls.pop_front();
+            fulls.push_back(p.measure());
         }
-        plant.step(uk + exp.noise.force_rms * rng.normal());
-        uf.push(uk);
+        if let Some(p) = &part {
+            parts.pop_front();
+            parts.push_back(p.measure());
+        }
+        if j % exp.factor == 0 {
+            let sensed = if q > 0 || r > 0.0 {
+                (fulls.iter().sum::<f64>() + r * parts[0]) / (q as f64 + r) + noise
+            } else {
+                ym
+            };
+            uk = -k.step(sensed);
+            us.push(uk);
+            ys.push(sensed);
+        }
+        pending.push_back(uk);
+        let applied = pending.pop_front().unwrap_or(uk);
+        let force = applied + exp.noise.force_rms * rng.normal();
+        plant.step(force);
+        if let Some(p) = &mut full {
+            p.step(force);
+        }
+        if let Some(p) = &mut part {
+            p.step(force);
+        }
+        uf.push(applied);
         yf.push(ym);
     }
     let mk = |suffix: &str, rate: f64, u: Vec<f64>, y: Vec<f64>| ExperimentData {

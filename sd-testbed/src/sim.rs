@@ -35,7 +35,7 @@ pub struct NonIdealities {
 }
 
 impl NonIdealities {
-    fn validate(&self) -> Result<()> {
+    pub(crate) fn validate(&self) -> Result<()> {
         NonIdeal {
             hold_delay: self.hold_delay,
             averaging: self.averaging,

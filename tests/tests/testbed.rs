@@ -203,3 +203,79 @@ fn issue7_speed() {
     println!("70 000 samples at 5 kHz: LTI {t_lti:.3} s, nonlinear {t_nl:.3} s (requirements 0.5 s and 5 s)");
     assert!(t_lti <= 1.0 && t_nl <= 10.0);
 }
+
+/// The standstill loop's non-idealities are tied to the controller's period: with a hold
+/// switching α·T late and a sensor averaging over β·T (fractions that are whole numbers of fast
+/// samples and fractions that are not), the controller's samples minus the sensor noise equal
+/// the exact slow model `c2d_nonideal(P, T, α, β)` driven by the recorded controller output, to
+/// 1e-9 of the signal; the ideal slow model misses them.
+#[test]
+fn issue7_standstill_nonidealities_tied_to_the_controller_period() {
+    let truth = Truth::default();
+    let lin = truth.linear_model().unwrap();
+    let (ts, factor, samples, sigma, seed) = (1e-3, 5usize, 4000usize, 1e-6, 4u64);
+    let k = sd_hinf::weights::pid(30.0, 20.0, Some(ts), &Default::default()).unwrap();
+    // the sensor noise the loop saw: the run draws (sensor, force) once per fast sample
+    let mut rng = sd_ident::rng::SplitMix::new(seed);
+    let noise: Vec<f64> = (0..samples)
+        .map(|_| {
+            let a = sigma * rng.normal();
+            let _force = rng.normal();
+            a
+        })
+        .collect();
+    for (alpha, beta) in [(0.0, 0.6), (0.3, 0.0), (0.37, 0.53), (0.4, 1.0)] {
+        let ni = NonIdealities {
+            hold_delay: alpha,
+            averaging: beta,
+            ..Default::default()
+        };
+        let (_, slow) = sd_testbed::run_standstill(
+            &truth,
+            &sd_testbed::Standstill {
+                name: "s".into(),
+                controller: k.clone(),
+                factor,
+                samples,
+                noise: Noise {
+                    force_rms: 0.0,
+                    sensor_rms: sigma,
+                    seed,
+                },
+                nonideal: ni,
+            },
+        )
+        .unwrap();
+        let u = nalgebra::DMatrix::from_column_slice(slow.u.len(), 1, &slow.u);
+        let exact = c2d_nonideal(
+            &lin,
+            ts,
+            NonIdeal {
+                hold_delay: alpha,
+                averaging: beta,
+            },
+        )
+        .unwrap()
+        .simulate(&u, None)
+        .unwrap()
+        .y;
+        let ideal = c2d_nonideal(&lin, ts, NonIdeal::ideal())
+            .unwrap()
+            .simulate(&u, None)
+            .unwrap()
+            .y;
+        let scale = slow.y.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let worst = |model: &nalgebra::DMatrix<f64>| {
+            (0..slow.y.len()).fold(0.0f64, |w, i| {
+                w.max((slow.y[i] - noise[i * factor] - model[(i, 0)]).abs())
+            })
+        };
+        println!(
+            "standstill α {alpha} β {beta}: exact model {:.2e}, ideal model {:.2e} (of {scale:.2e})",
+            worst(&exact),
+            worst(&ideal)
+        );
+        assert!(worst(&exact) < 1e-9 * scale, "α {alpha} β {beta}");
+        assert!(worst(&ideal) > 1e-3 * scale, "α {alpha} β {beta}");
+    }
+}
