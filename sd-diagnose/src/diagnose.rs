@@ -8,7 +8,9 @@ use crate::{
     Result, TimeDomain,
 };
 use num_complex::Complex64 as C;
-use sd_ident::{frf_periodic, Experiment, FitOptions, PeriodicOptions, Role, Weighting};
+use sd_ident::{
+    frf_periodic, DistortionReport, Experiment, FitOptions, PeriodicOptions, Role, Weighting,
+};
 use sd_model::{Frd, SampleTime, StateSpace};
 use sd_multirate::{downsample, hold_weight, NonIdeal};
 use serde_json::json;
@@ -22,7 +24,8 @@ enum Part {
     Second,
 }
 
-fn estimate(e: &Experiment, part: Part) -> Result<Frd> {
+/// The FRF of (part of) an experiment, with the distortion report of a periodic one.
+fn estimate(e: &Experiment, part: Part) -> Result<(Frd, Option<DistortionReport>)> {
     let Some(period) = e.spec.period_samples else {
         // non-periodic data: the local polynomial method (transients handled); the halves for
         // the held-out gain are the two halves of the record
@@ -34,14 +37,15 @@ fn estimate(e: &Experiment, part: Part) -> Result<Frd> {
         };
         let opt = sd_ident::LpmOptions::default();
         let fs = e.spec.sample_rate_hz;
-        return Ok(match &e.r {
+        let frd = match &e.r {
             Some(r) => sd_ident::lpm_closed_loop(fs, &r[lo..hi], &e.u[lo..hi], &e.y[lo..hi], &opt)?,
             None => {
                 let x = nalgebra::DMatrix::from_column_slice(hi - lo, 1, &e.u[lo..hi]);
                 let z = nalgebra::DMatrix::from_column_slice(hi - lo, 1, &e.y[lo..hi]);
                 sd_ident::lpm(fs, &x, &z, &opt)?.frd
             }
-        });
+        };
+        return Ok((frd, None));
     };
     let skip = e.spec.skip_periods;
     let total = e.u.len() / period;
@@ -53,14 +57,38 @@ fn estimate(e: &Experiment, part: Part) -> Result<Frd> {
     };
     let cut = |x: &[f64]| x[lo * period..hi * period].to_vec();
     let r = e.r.as_ref().map(|r| cut(r));
-    Ok(frf_periodic(
+    let est = frf_periodic(
         e.spec.sample_rate_hz,
         r.as_deref(),
         &cut(&e.u),
         &cut(&e.y),
         &PeriodicOptions::new(period, 0),
-    )?
-    .frd)
+    )?;
+    Ok((est.frd, est.distortion))
+}
+
+/// Evidence of nonlinear distortion: the mean power at the non-excited odd and even lines of
+/// the band over the noise level there (≈ 1 ± 1/√L for a linear system).
+fn distortion_evidence(name: &str, d: &DistortionReport) -> Vec<Evidence> {
+    [
+        ("odd", d.odd_ratio, d.odd_lines),
+        ("even", d.even_ratio, d.even_lines),
+    ]
+    .into_iter()
+    .filter(|x| x.2 > 0)
+    .map(|(kind, ratio, lines)| {
+        let thr = threshold(lines);
+        Evidence {
+            test: format!(
+                "power at the {lines} non-excited {kind} lines of `{name}` over the noise \
+                     (nonlinear distortion)"
+            ),
+            statistic: ratio,
+            threshold: thr,
+            passed: ratio <= thr,
+        }
+    })
+    .collect()
 }
 
 /// Rms of the excitation (reference, or input without one) over the steady periods.
@@ -203,6 +231,7 @@ fn model_for(
 /// A validation experiment with its estimates.
 struct Val<'a> {
     exp: &'a Experiment,
+    distortion: Option<DistortionReport>,
     factor: usize,
     whole: Frd,
     halves: Option<(Frd, Frd)>,
@@ -514,7 +543,7 @@ pub fn diagnose_with_progress(
         })
         .ok_or_else(|| DiagnoseError::Setup("no model experiment".into()))?;
     progress(&format!("FRF of `{}`", model_exp.spec.name));
-    let fast = estimate(model_exp, Part::Whole)?;
+    let (fast, fast_distortion) = estimate(model_exp, Part::Whole)?;
     if !with_var(&fast) {
         return Err(DiagnoseError::Setup(format!(
             "`{}` gives no FRF variance: a periodic experiment needs at least two steady periods",
@@ -550,7 +579,7 @@ pub fn diagnose_with_progress(
             )));
         }
         progress(&format!("FRF of `{}`", e.spec.name));
-        let whole = estimate(e, Part::Whole)?;
+        let (whole, distortion) = estimate(e, Part::Whole)?;
         if !with_var(&whole) {
             return Err(DiagnoseError::Setup(format!(
                 "`{}` gives no FRF variance: it needs at least two steady periods",
@@ -558,11 +587,12 @@ pub fn diagnose_with_progress(
             )));
         }
         let halves = match (estimate(e, Part::First), estimate(e, Part::Second)) {
-            (Ok(a), Ok(b)) if with_var(&a) && with_var(&b) => Some((a, b)),
+            (Ok((a, _)), Ok((b, _))) if with_var(&a) && with_var(&b) => Some((a, b)),
             _ => None,
         };
         vals.push(Val {
             exp: e,
+            distortion,
             factor,
             whole,
             halves,
@@ -573,6 +603,15 @@ pub fn diagnose_with_progress(
                 downsample(&model, factor)?
             },
         });
+    }
+    // nonlinear distortion at non-excited lines (random-odd or sparse multisines)
+    if let Some(d) = &fast_distortion {
+        evidence.extend(distortion_evidence(&model_exp.spec.name, d));
+    }
+    for v in &vals {
+        if let Some(d) = &v.distortion {
+            evidence.extend(distortion_evidence(&v.exp.spec.name, d));
+        }
     }
     let pair = |factor| Pair {
         fast: &fast,
@@ -668,6 +707,17 @@ pub fn diagnose_with_progress(
         extension = Hyp::PerLevel;
         gain_before = b;
         gain_after = a;
+    } else if k_free == 0 && vals.iter().all(|v| v.factor == 1) {
+        // only same-rate experiments at other excitation levels, and they agree: linear
+        verdict = "consistent";
+        cause = "none".into();
+        extension = Hyp::None;
+        let all = vals
+            .iter()
+            .map(|v| model_lines(&pair(1), &v.model, &v.whole))
+            .collect::<Result<Vec<_>>>()?;
+        gain_before = pooled(&all).0;
+        gain_after = gain_before;
     } else if k_free == 0 {
         return Err(DiagnoseError::Setup(
             "no validation experiment at the model experiment's excitation level (±20 %): \
@@ -923,28 +973,19 @@ pub fn diagnose_with_progress(
                 extended,
             },
             time_domain: td,
+            distortion: None,
         })
     };
-    reports.push(ex_report(
-        model_exp,
-        &fast,
-        1,
-        fast_model_lines.clone(),
-        &model,
-        None,
-    )?);
+    let mut first = ex_report(model_exp, &fast, 1, fast_model_lines.clone(), &model, None)?;
+    first.distortion = fast_distortion.clone();
+    reports.push(first);
     for v in &vals {
         let p = pair(v.factor);
         let ml = model_lines(&p, &v.model, &v.whole)?;
         let free = stat(&free_lines(&p, &v.whole));
-        reports.push(ex_report(
-            v.exp,
-            &v.whole,
-            v.factor,
-            ml,
-            &v.model,
-            Some(free),
-        )?);
+        let mut r = ex_report(v.exp, &v.whole, v.factor, ml, &v.model, Some(free))?;
+        r.distortion = v.distortion.clone();
+        reports.push(r);
     }
     Ok(Diagnosis {
         verdict: verdict.into(),

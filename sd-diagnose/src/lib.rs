@@ -2,7 +2,8 @@
 //!
 //! **Inputs.** One model experiment (its rate `1/h`) and validation experiments at the same
 //! rate or an integer fraction `1/T = 1/(F h)`, each estimated as an FRF with variances
-//! (periodic: averaged periods; non-periodic: local polynomial method).
+//! (periodic: averaged periods, with the noise and distortion levels at non-excited lines where
+//! the excitation leaves some; non-periodic: local polynomial method).
 //!
 //! **The model** is fitted to the model experiment's FRF ([`sd_ident::fit`], orders chosen by
 //! Akaike's FPE, rigid-body poles from the low-frequency slope) or given. Its simulation of a
@@ -209,6 +210,8 @@ pub struct ExperimentReport {
     pub curves: Curves,
     /// The time-domain comparison.
     pub time_domain: Option<TimeDomain>,
+    /// Noise and distortion levels at the non-excited lines of a periodic experiment.
+    pub distortion: Option<sd_ident::DistortionReport>,
 }
 
 /// The outcome.
@@ -263,6 +266,8 @@ impl Diagnosis {
                 "time_domain": x.time_domain.as_ref().map(|t| json!({"output_rms": t.output_rms, "noise_rms": t.noise_rms,
                     "error_rms_model": t.error_rms_model, "error_rms_extended": t.error_rms_extended,
                     "in_bands": t.in_bands.map(|b| json!({"noise_rms": b.0, "error_rms_model": b.1, "error_rms_extended": b.2}))})),
+                "distortion": x.distortion.as_ref().map(|d| json!({"odd_lines": d.odd_lines, "even_lines": d.even_lines,
+                    "odd_ratio": d.odd_ratio, "even_ratio": d.even_ratio, "noise_level": d.noise_level})),
             })).collect::<Vec<_>>(),
         })
     }
