@@ -1,7 +1,8 @@
 //! Project automation.
 //!
-//! - `cargo xtask paper [--out DIR] [--quick]`: the paper's chain on the embedded virtual stage
-//!   (figures, `report.md`, `report.json`; default `target/paper/`).
+//! - `cargo xtask paper [--out DIR] [--quick] [--averaging F]`: the paper's chain on the embedded
+//!   virtual stage (figures, `report.md`, `report.json`; default `target/paper/`); `F` is the
+//!   sensor's averaging window as a fraction of each period (default 0.6).
 //! - `cargo xtask bench [--quick]`: medians of our operations and, where python-control and
 //!   slycot import, of the same operations on the same inputs in python-control/scipy, with the
 //!   ratio; written to `target/bench/results.json`.
@@ -19,12 +20,22 @@ fn main() -> ExitCode {
         .position(|a| a == "--out")
         .and_then(|i| args.get(i + 1))
         .cloned();
+    let averaging = match args.iter().position(|a| a == "--averaging") {
+        None => paper::DEFAULT_AVERAGING,
+        Some(i) => match args.get(i + 1).and_then(|v| v.parse::<f64>().ok()) {
+            Some(f) if (0.0..=1.0).contains(&f) => f,
+            _ => {
+                eprintln!("xtask: --averaging takes a fraction of the sample period in [0, 1]");
+                return ExitCode::from(2);
+            }
+        },
+    };
     let r = match args.first().map(String::as_str) {
-        Some("paper") => paper::run(out.as_deref().unwrap_or("target/paper"), quick),
+        Some("paper") => paper::run(out.as_deref().unwrap_or("target/paper"), quick, averaging),
         Some("bench") => bench::run(quick),
         _ => {
             eprintln!(
-                "usage: cargo xtask paper [--out DIR] [--quick] | cargo xtask bench [--quick]"
+                "usage: cargo xtask paper [--out DIR] [--quick] [--averaging F] | cargo xtask bench [--quick]"
             );
             return ExitCode::from(2);
         }
