@@ -1,6 +1,6 @@
 //! The diagnosis itself (crate documentation).
 
-use crate::lemma6::{compare, stat, threshold, Line, Pair};
+use crate::lemma6::{compare, pooled, stat, threshold, Line, Pair};
 use crate::modal::{ModalBasis, Residues};
 use crate::timedomain::AveragedPeriod;
 use crate::{
@@ -77,16 +77,14 @@ fn distortion_evidence(name: &str, d: &DistortionReport) -> Vec<Evidence> {
     .into_iter()
     .filter(|x| x.2 > 0)
     .map(|(kind, ratio, lines)| {
-        let thr = threshold(lines);
-        Evidence {
-            test: format!(
+        Evidence::check(
+            format!(
                 "power at the {lines} non-excited {kind} lines of `{name}` over the noise \
-                     (nonlinear distortion)"
+                 (nonlinear distortion)"
             ),
-            statistic: ratio,
-            threshold: thr,
-            passed: ratio <= thr,
-        }
+            ratio,
+            threshold(lines),
+        )
     })
     .collect()
 }
@@ -171,7 +169,6 @@ fn model_for(
         lm_iterations: 0,
         ..Default::default()
     };
-    let neq = 2.0 * fast.len() as f64;
     let mut best: Option<(f64, usize, StateSpace, f64)> = None;
     for order in rigid + 1..=opt.max_order.max(rigid + 1) {
         if let Some(b) = &best {
@@ -181,20 +178,17 @@ fn model_for(
             }
         }
         progress(&format!("fitting order {order}"));
-        let Ok(r) = sd_ident::fit(
-            fast,
-            &FitOptions {
-                order,
-                ..base.clone()
-            },
-        ) else {
+        let opt_n = FitOptions {
+            order,
+            ..base.clone()
+        };
+        let Ok(r) = sd_ident::fit(fast, &opt_n) else {
             continue;
         };
-        let p = (2 * (order - rigid) + rigid + 1) as f64;
-        if p >= neq {
-            break;
+        let fpe = sd_ident::final_prediction_error(r.cost, &opt_n, fast.len());
+        if !fpe.is_finite() {
+            continue;
         }
-        let fpe = r.cost * (1.0 + p / neq) / (1.0 - p / neq);
         if best.as_ref().map(|b| fpe < b.0).unwrap_or(true) {
             best = Some((fpe, order, r.model, r.cost));
         }
@@ -228,6 +222,9 @@ fn model_for(
     }
 }
 
+/// Excitation levels within this relative distance count as the same level.
+const LEVEL_TOL: f64 = 0.2;
+
 /// A validation experiment with its estimates.
 struct Val<'a> {
     exp: &'a Experiment,
@@ -243,7 +240,7 @@ struct Val<'a> {
 
 impl Val<'_> {
     fn rate_tied(&self) -> bool {
-        (self.level - 1.0).abs() <= 0.2
+        (self.level - 1.0).abs() <= LEVEL_TOL
     }
 }
 
@@ -264,16 +261,6 @@ fn model_lines(pair: &Pair<'_>, model: &StateSpace, val: &Frd) -> Result<Vec<Lin
         let vp = pair.predict(f).map(|p| p.1).unwrap_or(0.0);
         Some((resp.response()[i][(0, 0)], vp))
     }))
-}
-
-/// Mean of per-line statistics pooled over several comparisons.
-fn pooled(sets: &[Vec<Line>]) -> (f64, usize) {
-    let k: usize = sets.iter().map(Vec::len).sum();
-    if k == 0 {
-        return (f64::INFINITY, 0);
-    }
-    let s: f64 = sets.iter().flatten().map(Line::chi2).sum();
-    (s / k as f64, k)
 }
 
 /// The rate-tied hypotheses on the continuous modal model.
@@ -312,7 +299,7 @@ impl Modal<'_> {
             .iter()
             .map(|(f, v)| self.lines(&res, hyp, *f, v))
             .collect::<Result<Vec<_>>>()?;
-        Ok(pooled(&sets).0)
+        Ok(pooled(sets.iter().map(Vec::as_slice)).0)
     }
 
     /// The parameter of `make` in [0, 1] minimizing the cost (grid of 26, then golden section
@@ -362,7 +349,7 @@ fn bands(lines: &[Line], fold_source: impl Fn(f64) -> f64) -> Vec<Band> {
             f_hi: seg[seg.len() - 1].f,
             worst_hz: w.f,
             worst_db: 20.0 * (w.meas.norm() / w.pred.norm().max(f64::MIN_POSITIVE)).log10(),
-            from_fast_hz: fold_source(w.f),
+            from_fast_hz: w.f,
             share: s / total.max(f64::MIN_POSITIVE),
         });
     };
@@ -384,6 +371,9 @@ fn bands(lines: &[Line], fold_source: impl Fn(f64) -> f64) -> Vec<Band> {
     out.retain(|b| b.share >= 0.01);
     out.sort_by(|a, b| b.share.total_cmp(&a.share));
     out.truncate(5);
+    for b in &mut out {
+        b.from_fast_hz = fold_source(b.worst_hz);
+    }
     out
 }
 
@@ -398,15 +388,15 @@ fn dominant_fold(model: &StateSpace, pair: &Pair<'_>, f: f64) -> f64 {
     }
     let t = h * factor as f64;
     let fs = 1.0 / h;
+    let Ok(ev) = sd_model::FreqRespEvaluator::new(model) else {
+        return f;
+    };
     let terms: Vec<(f64, f64, Option<f64>)> = (0..factor)
         .map(|k| {
             let fk = f - k as f64 / t;
             let fk = (fk - fs * (fk / fs).round()).abs();
             let w = hold_weight(2.0 * PI * fk * h, factor).norm();
-            let g = model
-                .freqresp(&[fk])
-                .map(|r| r.response()[0][(0, 0)])
-                .unwrap_or_default();
+            let g = ev.eval_hz(fk)[(0, 0)];
             let miss = pair
                 .fast_at(fk)
                 .filter(|(_, v)| *v > 0.0)
@@ -557,15 +547,14 @@ pub fn diagnose_with_progress(
         move |i, _| Some((r[i], 0.0))
     });
     let (fast_chi2, fast_k) = stat(&fast_model_lines);
-    let mut evidence = vec![Evidence {
-        test: format!(
+    let mut evidence = vec![Evidence::check(
+        format!(
             "model ({model_source}) against its own data `{}`",
             model_exp.spec.name
         ),
-        statistic: fast_chi2,
-        threshold: threshold(fast_k),
-        passed: fast_chi2 <= threshold(fast_k),
-    }];
+        fast_chi2,
+        threshold(fast_k),
+    )];
     let lm = level(model_exp);
     // validation experiments
     let mut vals = Vec::new();
@@ -618,9 +607,8 @@ pub fn diagnose_with_progress(
         factor,
         h,
     };
-    // the model-free and the model's comparisons
-    let mut free_sets = Vec::new();
-    let mut model_sets = Vec::new();
+    // the model-free and the model's comparisons, per validation experiment
+    let mut compared: Vec<(Vec<Line>, Vec<Line>)> = Vec::with_capacity(vals.len());
     let mut reports = Vec::new();
     let mut nonlinear: Vec<(String, f64, f64, f64)> = Vec::new();
     let mut held = Vec::new();
@@ -637,34 +625,32 @@ pub fn diagnose_with_progress(
             )));
         }
         let thr = threshold(k);
-        evidence.push(Evidence {
-            test: format!(
+        evidence.push(Evidence::check(
+            format!(
                 "Lemma 6 prediction of `{}` from `{}` (model-free)",
                 v.exp.spec.name, model_exp.spec.name
             ),
-            statistic: s0,
-            threshold: thr,
-            passed: s0 <= thr,
-        });
+            s0,
+            thr,
+        ));
         let (sm, km) = stat(&ml);
-        evidence.push(Evidence {
-            test: format!("the model's simulation of `{}`", v.exp.spec.name),
-            statistic: sm,
-            threshold: threshold(km),
-            passed: sm <= threshold(km),
-        });
+        evidence.push(Evidence::check(
+            format!("the model's simulation of `{}`", v.exp.spec.name),
+            sm,
+            threshold(km),
+        ));
         if v.factor == 1 {
             // same rate: nothing rate-tied can differ; a different excitation level that
             // changes the FRF is a nonlinearity
-            evidence.push(Evidence {
-                test: format!(
-                    "`{}` at {:.3}× the model experiment's excitation level",
+            evidence.push(Evidence::check(
+                format!(
+                    "`{}` at {:.3}× the model experiment's excitation level (|ratio − 1| \
+                     within 20 %: the same level)",
                     v.exp.spec.name, v.level
                 ),
-                statistic: v.level,
-                threshold: 1.2,
-                passed: v.rate_tied(),
-            });
+                (v.level - 1.0).abs(),
+                LEVEL_TOL,
+            ));
             if s0 > thr && !v.rate_tied() {
                 // extension: a best linear approximation per level, judged on held-out periods
                 let (mut b, mut a) = (s0, s0);
@@ -676,13 +662,16 @@ pub fn diagnose_with_progress(
                 nonlinear.push((v.exp.spec.name.clone(), v.level, b, a));
             }
         }
-        if v.rate_tied() {
-            free_sets.push(fl);
-            model_sets.push(ml);
-        }
+        compared.push((fl, ml));
     }
-    let (s_free, k_free) = pooled(&free_sets);
-    let (s_model, k_model) = pooled(&model_sets);
+    let tied_sets = || {
+        vals.iter()
+            .zip(&compared)
+            .filter(|(v, _)| v.rate_tied())
+            .map(|(_, c)| c)
+    };
+    let (s_free, k_free) = pooled(tied_sets().map(|c| c.0.as_slice()));
+    let (s_model, k_model) = pooled(tied_sets().map(|c| c.1.as_slice()));
     let modal = Modal {
         basis: ModalBasis::from_model(&model)?,
         fast: &fast,
@@ -712,11 +701,7 @@ pub fn diagnose_with_progress(
         verdict = "consistent";
         cause = "none".into();
         extension = Hyp::None;
-        let all = vals
-            .iter()
-            .map(|v| model_lines(&pair(1), &v.model, &v.whole))
-            .collect::<Result<Vec<_>>>()?;
-        gain_before = pooled(&all).0;
+        gain_before = pooled(compared.iter().map(|c| c.1.as_slice())).0;
         gain_after = gain_before;
     } else if k_free == 0 {
         return Err(DiagnoseError::Setup(
@@ -762,12 +747,11 @@ pub fn diagnose_with_progress(
         verdict = "discrepancy";
         cause = "unexplained".into();
         extension = Hyp::None;
-        evidence.push(Evidence {
-            test: "same rate and excitation level, yet different FRFs: not repeatable".into(),
-            statistic: s_free,
-            threshold: threshold(k_free),
-            passed: false,
-        });
+        evidence.push(Evidence::check(
+            "same rate and excitation level, yet different FRFs: not repeatable",
+            s_free,
+            threshold(k_free),
+        ));
         gain_before = s_model;
         gain_after = s_model;
     } else {
@@ -789,12 +773,11 @@ pub fn diagnose_with_progress(
             ("averaging_sampler".into(), cb, 1),
         ];
         ranking.sort_by(|a, b| a.1.total_cmp(&b.1));
-        evidence.push(Evidence {
-            test: "best extension brings the statistic under the threshold".into(),
-            statistic: ranking[0].1,
-            threshold: threshold(k_free),
-            passed: ranking[0].1 <= threshold(k_free),
-        });
+        evidence.push(Evidence::check(
+            "best extension brings the statistic under the threshold",
+            ranking[0].1,
+            threshold(k_free),
+        ));
         // named when the extension explains at least 90 % of the excess over the noise level
         // and the other extension is significantly worse: its statistic exceeds the best by
         // more than 5 standard deviations of a mean over K lines (1/√K per unit statistic)
@@ -834,7 +817,7 @@ pub fn diagnose_with_progress(
             .iter()
             .map(|(f, v2, v)| model_lines(&pair(*f), &v.model, v2))
             .collect::<Result<Vec<_>>>()?;
-        gain_before = pooled(&before_sets).0;
+        gain_before = pooled(before_sets.iter().map(Vec::as_slice)).0;
         gain_after = match extension {
             Hyp::Delay(_) | Hyp::Average(_) if !firsts.is_empty() => {
                 progress("held-out gain");
@@ -854,7 +837,7 @@ pub fn diagnose_with_progress(
                         model_lines(&pair(*f), &m, v2)
                     })
                     .collect::<Result<Vec<_>>>()?;
-                pooled(&sets).0
+                pooled(sets.iter().map(Vec::as_slice)).0
             }
             _ => gain_before,
         };
@@ -871,15 +854,14 @@ pub fn diagnose_with_progress(
         _ => None,
     };
     if let Some(r) = &ext_res {
-        evidence.push(Evidence {
-            test: format!(
+        evidence.push(Evidence::check(
+            format!(
                 "the extended continuous modal model against `{}`",
                 model_exp.spec.name
             ),
-            statistic: r.chi2,
-            threshold: threshold(fast_k),
-            passed: r.chi2 <= threshold(fast_k),
-        });
+            r.chi2,
+            threshold(fast_k),
+        ));
     }
     let ext_model = |ts: f64| -> Result<Option<StateSpace>> {
         match &ext_res {
@@ -892,7 +874,8 @@ pub fn diagnose_with_progress(
                      factor: usize,
                      lines: Vec<Line>,
                      model_at: &StateSpace,
-                     free: Option<(f64, usize)>|
+                     free: Option<(f64, usize)>,
+                     distortion: Option<DistortionReport>|
      -> Result<ExperimentReport> {
         let ts = h * factor as f64;
         let em = ext_model(ts)?;
@@ -910,11 +893,8 @@ pub fn diagnose_with_progress(
         };
         // the extension judged with the model's yardstick: measured variance plus the fast
         // FRF's, propagated through Lemma 6
-        let extended_stat = match (&ext_res, extension) {
-            (Some(_), _) => match &em {
-                Some(m) => Some(stat(&model_lines(&p, m, frd)?).0),
-                None => None,
-            },
+        let extended_stat = match (&em, extension) {
+            (Some(m), _) => Some(stat(&model_lines(&p, m, frd)?).0),
             (None, Hyp::FastFrf) if factor > 1 => Some(stat(&free_lines(&p, frd)).0),
             _ => None,
         };
@@ -973,19 +953,28 @@ pub fn diagnose_with_progress(
                 extended,
             },
             time_domain: td,
-            distortion: None,
+            distortion,
         })
     };
-    let mut first = ex_report(model_exp, &fast, 1, fast_model_lines.clone(), &model, None)?;
-    first.distortion = fast_distortion.clone();
-    reports.push(first);
-    for v in &vals {
-        let p = pair(v.factor);
-        let ml = model_lines(&p, &v.model, &v.whole)?;
-        let free = stat(&free_lines(&p, &v.whole));
-        let mut r = ex_report(v.exp, &v.whole, v.factor, ml, &v.model, Some(free))?;
-        r.distortion = v.distortion.clone();
-        reports.push(r);
+    reports.push(ex_report(
+        model_exp,
+        &fast,
+        1,
+        fast_model_lines,
+        &model,
+        None,
+        fast_distortion,
+    )?);
+    for (v, (fl, ml)) in vals.iter().zip(compared) {
+        reports.push(ex_report(
+            v.exp,
+            &v.whole,
+            v.factor,
+            ml,
+            &v.model,
+            Some(stat(&fl)),
+            v.distortion.clone(),
+        )?);
     }
     Ok(Diagnosis {
         verdict: verdict.into(),

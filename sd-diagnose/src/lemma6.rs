@@ -97,13 +97,20 @@ pub(crate) fn compare(val: &Frd, pred: impl Fn(usize, f64) -> Option<(C, f64)>) 
 
 /// Mean normalized squared residual over the lines (≈ 1 ± 1/√K at the noise level) and K.
 pub(crate) fn stat(lines: &[Line]) -> (f64, usize) {
-    if lines.is_empty() {
-        return (f64::INFINITY, 0);
+    pooled([lines])
+}
+
+/// [`stat`] over several comparisons taken together.
+pub(crate) fn pooled<'a>(sets: impl IntoIterator<Item = &'a [Line]>) -> (f64, usize) {
+    let (s, k) = sets
+        .into_iter()
+        .flatten()
+        .fold((0.0, 0usize), |(s, k), l| (s + l.chi2(), k + 1));
+    if k == 0 {
+        (f64::INFINITY, 0)
+    } else {
+        (s / k as f64, k)
     }
-    (
-        lines.iter().map(Line::chi2).sum::<f64>() / lines.len() as f64,
-        lines.len(),
-    )
 }
 
 /// The detection threshold for K lines: `1 + 5/√K`.

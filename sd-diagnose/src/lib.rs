@@ -128,6 +128,18 @@ pub struct Evidence {
     pub passed: bool,
 }
 
+impl Evidence {
+    /// A test that passes when `statistic ≤ threshold`.
+    pub(crate) fn check(test: impl Into<String>, statistic: f64, threshold: f64) -> Self {
+        Evidence {
+            test: test.into(),
+            statistic,
+            threshold,
+            passed: statistic <= threshold,
+        }
+    }
+}
+
 /// A band of lines where a prediction misses the data beyond the noise.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Band {

@@ -213,7 +213,8 @@ impl AveragedPeriod {
     }
 }
 
-fn rms(x: impl Iterator<Item = f64>) -> f64 {
+/// Root mean square of a sequence.
+pub(crate) fn rms(x: impl Iterator<Item = f64>) -> f64 {
     let (s, n) = x.fold((0.0, 0usize), |(s, n), v| (s + v * v, n + 1));
     (s / n.max(1) as f64).sqrt()
 }

@@ -723,6 +723,22 @@ fn to_state_space(pf: &Pf, ts: f64) -> Result<StateSpace> {
     )?)
 }
 
+/// Akaike's final prediction error `V·(1 + p/N)/(1 − p/N)` of a fit with cost `V` and the
+/// settings `opt` on `lines` complex lines: p counts two per free pole (pole and residue), one
+/// per fixed pole's residue and one for a feedthrough; N = 2·lines real equations; ∞ when
+/// p ≥ N.
+pub fn final_prediction_error(cost: f64, opt: &FitOptions, lines: usize) -> f64 {
+    let p = (2 * opt.order.saturating_sub(opt.rigid_body)
+        + opt.rigid_body
+        + usize::from(opt.feedthrough)) as f64;
+    let neq = 2.0 * lines as f64;
+    if p < neq {
+        cost * (1.0 + p / neq) / (1.0 - p / neq)
+    } else {
+        f64::INFINITY
+    }
+}
+
 /// Fits every order in `orders` and reports the cost of each; the selected order minimizes
 /// Akaike's final prediction error `V·(1 + p/N)/(1 − p/N)` (p parameters, N real equations).
 ///
@@ -735,20 +751,13 @@ pub fn select_order(
 ) -> Result<(Vec<(usize, f64)>, FitResult)> {
     let mut table = Vec::new();
     let mut best: Option<(f64, FitResult)> = None;
-    let neq = 2.0 * frd.len() as f64;
     for &n in orders {
         let opt = FitOptions {
             order: n,
             ..base.clone()
         };
         let r = fit(frd, &opt)?;
-        let p =
-            (2 * (n - base.rigid_body) + base.rigid_body + usize::from(base.feedthrough)) as f64;
-        let fpe = if p < neq {
-            r.cost * (1.0 + p / neq) / (1.0 - p / neq)
-        } else {
-            f64::INFINITY
-        };
+        let fpe = final_prediction_error(r.cost, &opt, frd.len());
         table.push((n, r.cost));
         if best.as_ref().map(|b| fpe < b.0).unwrap_or(true) {
             best = Some((fpe, r));

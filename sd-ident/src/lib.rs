@@ -22,7 +22,8 @@ pub mod tol;
 pub use error::{IdentError, Result};
 pub use experiment::{parse_manifest, read_columns, Experiment, ExperimentSpec, Role};
 pub use fit::{
-    fit, fit_with_progress, model_cost, select_order, FitOptions, FitProgress, FitResult, Weighting,
+    final_prediction_error, fit, fit_with_progress, model_cost, select_order, FitOptions,
+    FitProgress, FitResult, Weighting,
 };
 pub use frf::{frf_periodic, DistortionReport, FrfEstimate, PeriodicOptions};
 pub use lpm::{lpm, lpm_closed_loop, LpmEstimate, LpmOptions};
