@@ -38,4 +38,4 @@ pub use closed_loop::{HarmonicTransfer, MultirateLoop, MultirateSimulation};
 pub use downsample::downsample;
 pub use error::{MultirateError, Result};
 pub use lift::{lift, stack, unstack, PeriodicSystem, Phase};
-pub use nonideal::{c2d_nonideal, downsample_nonideal, NonIdeal};
+pub use nonideal::{c2d_nonideal, downsample_nonideal, NonIdeal, MAX_HOLD_DELAY};

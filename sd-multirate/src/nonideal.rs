@@ -50,7 +50,8 @@ use sd_model::{c2d, Discretization, ModelError, SampleTime, StateSpace};
 /// The rate-tied non-idealities of a sampled-data loop, as fractions of the sample period.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct NonIdeal {
-    /// α ∈ [0, 1]: the hold switches α·T after the sample instant (0: ideal ZOH).
+    /// α ∈ [0, [`MAX_HOLD_DELAY`]]: the hold switches α·T after the sample instant (0: ideal
+    /// ZOH). Beyond one period, α = m + φ with m whole periods of input delay and φ ∈ (0, 1].
     pub hold_delay: f64,
     /// β ∈ [0, 1]: the sampler averages the output over the last β·T before the instant
     /// (0: ideal sampler).
@@ -80,22 +81,62 @@ impl NonIdeal {
     pub fn is_ideal(&self) -> bool {
         self.hold_delay == 0.0 && self.averaging == 0.0
     }
-    /// Checks that both fractions are finite and in [0, 1].
+    /// Checks that the hold delay is finite and in [0, [`MAX_HOLD_DELAY`]] and the averaging
+    /// window finite and in [0, 1].
     pub fn validate(&self) -> Result<()> {
-        for (what, v) in [
-            ("hold delay", self.hold_delay),
-            ("averaging window", self.averaging),
+        for (what, v, max) in [
+            ("hold delay", self.hold_delay, MAX_HOLD_DELAY),
+            ("averaging window", self.averaging, 1.0),
         ] {
-            if !(v.is_finite() && (0.0..=1.0).contains(&v)) {
+            if !(v.is_finite() && (0.0..=max).contains(&v)) {
                 return Err(MultirateError::InvalidFraction {
                     what,
                     value: v,
-                    why: "a fraction of the sample period must be in [0, 1]".into(),
+                    why: format!("as a fraction of the sample period it must be in [0, {max}]"),
                 });
             }
         }
         Ok(())
     }
+
+    /// Whole periods of input delay and the remaining fraction φ ∈ [0, 1] of the hold delay
+    /// (`α = m + φ`; α ≤ 1 gives m = 0).
+    pub fn split_delay(&self) -> (usize, f64) {
+        if self.hold_delay <= 1.0 {
+            return (0, self.hold_delay);
+        }
+        let m = self.hold_delay.ceil() - 1.0;
+        (m as usize, self.hold_delay - m)
+    }
+}
+
+/// The longest hold delay accepted, in sample periods.
+pub const MAX_HOLD_DELAY: f64 = 4.0;
+
+/// `sys` preceded by `m` whole periods of input delay (registers after the plant's state, so
+/// the first states stay the continuous state at the sample instants).
+fn with_input_delay(sys: StateSpace, m: usize) -> Result<StateSpace> {
+    if m == 0 {
+        return Ok(sys);
+    }
+    let (n, nu, ny) = (sys.n(), sys.nu(), sys.ny());
+    let nd = m * nu;
+    let mut a = DMatrix::<f64>::zeros(n + nd, n + nd);
+    let mut b = DMatrix::<f64>::zeros(n + nd, nu);
+    let mut c = DMatrix::<f64>::zeros(ny, n + nd);
+    a.view_mut((0, 0), (n, n)).copy_from(sys.a());
+    // register j (0-based) holds u_{k−1−j}; the plant sees the oldest, u_{k−m}
+    let last = n + (m - 1) * nu;
+    a.view_mut((0, last), (n, nu)).copy_from(sys.b());
+    for j in 1..m {
+        a.view_mut((n + j * nu, n + (j - 1) * nu), (nu, nu))
+            .fill_with_identity();
+    }
+    b.view_mut((n, 0), (nu, nu)).fill_with_identity();
+    c.view_mut((0, 0), (ny, n)).copy_from(sys.c());
+    c.view_mut((0, last), (ny, nu)).copy_from(sys.d());
+    let out = StateSpace::new(a, b, c, DMatrix::zeros(ny, nu), sys.time())?;
+    Ok(copy_names(&sys, out))
 }
 
 /// Exact discretisation of a continuous model at period `ts` with a delayed hold and/or an
@@ -105,6 +146,18 @@ impl NonIdeal {
 /// A discrete-time model, an invalid `ts`, fractions outside [0, 1] or not finite.
 pub fn c2d_nonideal(sys: &StateSpace, ts: f64, ni: NonIdeal) -> Result<StateSpace> {
     ni.validate()?;
+    let (whole, frac) = ni.split_delay();
+    if whole > 0 {
+        let inner = c2d_nonideal(
+            sys,
+            ts,
+            NonIdeal {
+                hold_delay: frac,
+                ..ni
+            },
+        )?;
+        return with_input_delay(inner, whole);
+    }
     if ni.is_ideal() {
         return Ok(c2d(sys, ts, Discretization::Zoh)?);
     }
@@ -227,6 +280,15 @@ pub fn downsample_nonideal(p_h: &StateSpace, factor: usize, ni: NonIdeal) -> Res
     let h = require_discrete(p_h, "downsample with a delayed hold or averaging sampler")?;
     check_factor(factor)?;
     ni.validate()?;
+    if ni.hold_delay > 1.0 {
+        return Err(MultirateError::InvalidFraction {
+            what: "hold delay",
+            value: ni.hold_delay,
+            why: "from a fast discrete model it must be in [0, 1]; use c2d_nonideal on a \
+                  continuous model for longer delays"
+                .into(),
+        });
+    }
     let m = whole_samples("hold delay", ni.hold_delay, factor)?;
     let q = whole_samples("averaging window", ni.averaging, factor)?.max(1);
     if m == 0 && q == 1 {

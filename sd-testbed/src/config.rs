@@ -263,6 +263,7 @@ pub fn parse_config(source: &str) -> Result<TestbedConfig> {
                     nonideal,
                     role,
                     substeps: None,
+                    fine_steps: None,
                 });
             }
             "standstill" => standstill.push(Standstill {

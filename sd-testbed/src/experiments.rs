@@ -64,6 +64,9 @@ pub struct Identification {
     pub role: Role,
     /// Integrator substeps per period for a nonlinear truth (default: automatic).
     pub substeps: Option<usize>,
+    /// Simulate a linear truth by the fine-step route with this many sub-steps per period
+    /// ([`PlantSim::fine_step`]) instead of the exact discretisation (`None`: exact).
+    pub fine_steps: Option<usize>,
 }
 
 /// A standstill experiment.
@@ -193,7 +196,10 @@ pub fn run_identification(truth: &Truth, exp: &Identification) -> Result<Experim
         ));
     }
     check_stable(truth, &exp.controller, &exp.nonideal)?;
-    let mut plant = PlantSim::new(truth, ts, &exp.nonideal, exp.substeps, false)?;
+    let mut plant = match exp.fine_steps {
+        Some(n) => PlantSim::fine_step(truth, ts, &exp.nonideal, n)?,
+        None => PlantSim::new(truth, ts, &exp.nonideal, exp.substeps, false)?,
+    };
     let mut k = Controller::new(&exp.controller);
     let mut rng = SplitMix::new(exp.noise.seed);
     let r = exp.excitation.repeat(exp.periods);

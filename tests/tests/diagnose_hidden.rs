@@ -58,6 +58,7 @@ fn identify(
             nonideal: ni,
             role,
             substeps: None,
+            fine_steps: None,
         },
     )
     .ok()?;

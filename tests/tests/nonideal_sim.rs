@@ -27,24 +27,28 @@ fn brute_force(
     let mut x = DVector::<f64>::zeros(p.n());
     let mut y = DMatrix::zeros(k_max, ny);
     let zero = DVector::<f64>::zeros(p.nu());
+    // the command in force at sub-step s of period k: the last one issued m sub-steps earlier
+    // (any m, also beyond one period)
+    let input = |k: usize, s: usize| -> DVector<f64> {
+        let t = (k * subs + s) as i64 - m as i64;
+        if t < 0 {
+            zero.clone()
+        } else {
+            u.row(t as usize / subs).transpose()
+        }
+    };
     let mut avg = DVector::<f64>::zeros(ny); // average over the window ending at kh
     for k in 0..k_max {
-        let uk = u.row(k).transpose();
-        let uprev = if k > 0 {
-            u.row(k - 1).transpose()
-        } else {
-            zero.clone()
-        };
-        let at_sample = if m > 0 { &uprev } else { &uk };
+        let at_sample = input(k, 0);
         let yk = if q > 0 {
             avg.clone()
         } else {
-            c * &x + d * at_sample
+            c * &x + d * &at_sample
         };
         y.row_mut(k).copy_from(&yk.transpose());
         let mut integral = DVector::<f64>::zeros(ny);
         for s in 0..subs {
-            let us = if s < m { &uprev } else { &uk };
+            let us = &input(k, s);
             let y0 = c * &x + d * us;
             let xm = phi * &x + gam * us;
             let ym = c * &xm + d * us;
@@ -110,6 +114,15 @@ const CASES: [(usize, usize); 8] = [
     (600, 700),
     (777, 1),
 ];
+
+/// Hold delays beyond one period (α = m + φ: whole periods of input delay, then the fractional
+/// hold), alone and with an averaging window, against the same brute force.
+#[test]
+fn delayed_hold_beyond_one_period_vs_fine_simulation() {
+    let p = sd_model::stage::paper_stage(0.01).unwrap();
+    let worst = check(&p, 1e-3, 1000, &[(1400, 0), (2000, 0), (1250, 600), (3700, 0)], 4);
+    assert!(worst <= 1e-8);
+}
 
 #[test]
 fn issue3_nonideal_paper_stage_at_1khz_vs_fine_simulation() {

@@ -57,6 +57,7 @@ fn experiment_skip(
         nonideal: ni,
         role: Role::Model,
         substeps: None,
+        fine_steps: None,
     }
 }
 
@@ -277,5 +278,65 @@ fn issue7_standstill_nonidealities_tied_to_the_controller_period() {
         );
         assert!(worst(&exact) < 1e-9 * scale, "α {alpha} β {beta}");
         assert!(worst(&ideal) > 1e-3 * scale, "α {alpha} β {beta}");
+    }
+}
+
+/// The fine-step route (sub-step ZOH, hold switching and trapezoidal sensor averaging on the
+/// sub-step grid, true period with the clock error) against the exact route (block
+/// exponentials of `c2d_nonideal`): two numerical forms of the same physics. With N sub-steps
+/// per period and the fractions on the sub-step grid the difference is the trapezoidal rule's
+/// O(1/N²); a hold delay beyond one period is covered too.
+#[test]
+fn fine_step_route_agrees_with_the_exact_route() {
+    let truth = Truth::default();
+    let h = 1e-3;
+    let mut rng = sd_tests::gen::Rng::new(12);
+    let u: Vec<f64> = (0..400).map(|_| rng.normal()).collect();
+    for (a, b, e) in [
+        (0.0, 0.0, 0.0),
+        (0.3, 0.0, 0.0),
+        (0.0, 0.6, 0.0),
+        (1.4, 0.5, 0.01),
+        (0.55, 0.25, -0.02),
+    ] {
+        let ni = NonIdealities {
+            hold_delay: a,
+            averaging: b,
+            clock_error: e,
+            ..Default::default()
+        };
+        let run = |mut p: PlantSim| -> Vec<f64> {
+            u.iter()
+                .map(|&x| {
+                    let y = p.measure();
+                    p.step(x);
+                    y
+                })
+                .collect()
+        };
+        let exact = run(PlantSim::new(&truth, h, &ni, None, false).unwrap());
+        let fine = run(PlantSim::fine_step(&truth, h, &ni, 400).unwrap());
+        let norm = exact.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let diff = exact
+            .iter()
+            .zip(&fine)
+            .map(|(x, y)| (x - y).powi(2))
+            .sum::<f64>()
+            .sqrt()
+            / norm;
+        println!("α {a} β {b} ε {e}: relative difference {diff:.2e}");
+        assert!(diff < 1e-4, "α {a} β {b} ε {e}: {diff:e}");
+        // and the effect itself is far larger than that difference
+        if a + b > 0.0 {
+            let ideal = run(PlantSim::new(&truth, h, &NonIdealities::default(), None, false).unwrap());
+            let eff = exact
+                .iter()
+                .zip(&ideal)
+                .map(|(x, y)| (x - y).powi(2))
+                .sum::<f64>()
+                .sqrt()
+                / norm;
+            assert!(eff > 100.0 * diff, "effect {eff:e} vs {diff:e}");
+        }
     }
 }

@@ -214,6 +214,7 @@ pub fn run(quick: bool) -> Result<(), String> {
             nonideal: ni,
             role,
             substeps: None,
+            fine_steps: None,
         })
     };
     let avg = sd_testbed::NonIdealities {

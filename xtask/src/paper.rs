@@ -148,6 +148,7 @@ fn identification(
         },
         role,
         substeps: None,
+        fine_steps: None,
     })
 }
 
