@@ -243,6 +243,13 @@ enum Cmd {
         /// Output folder for diagnosis.json, report.md and the SVG figures.
         #[arg(long)]
         out: String,
+        /// False-alarm probability of the verdict (a consistent model is called a discrepancy
+        /// this often).
+        #[arg(long, default_value_t = 0.01)]
+        alpha: f64,
+        /// Highest model order tried when the model is fitted.
+        #[arg(long, default_value_t = 20)]
+        max_order: usize,
     },
     /// Loopshaping weights as model JSON (continuous unless --ts is given).
     Weight {
@@ -739,6 +746,8 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
             manifest,
             model,
             out,
+            alpha,
+            max_order,
         } => {
             let text = crate::io::read_text(&manifest)?;
             let specs = sd_ident::parse_manifest(&text).map_err(|e| from_ident(&manifest, e))?;
@@ -758,7 +767,8 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
             }
             let opt = sd_diagnose::DiagnoseOptions {
                 model: model.as_deref().map(read_model).transpose()?,
-                ..Default::default()
+                alpha,
+                max_order,
             };
             // progress for a person at a terminal; scripts get one line (or one error line)
             let start = std::time::Instant::now();
@@ -768,7 +778,12 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
                     eprintln!("[diagnose {:6.2} s] {m}", start.elapsed().as_secs_f64())
                 }
             })
-            .map_err(|e| CliError::input(format!("{manifest}: {e}")))?;
+            .map_err(|e| match e {
+                sd_diagnose::DiagnoseError::Numerical(_) => {
+                    CliError::numerical(format!("{manifest}: {e}"))
+                }
+                _ => CliError::input(format!("{manifest}: {e}")),
+            })?;
             std::fs::create_dir_all(&out)
                 .map_err(|e| CliError::input(format!("cannot create {out}: {e}")))?;
             let dir = std::path::Path::new(&out);
@@ -777,12 +792,15 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
             emit(&js, Some(&dir.join("diagnosis.json").to_string_lossy()))?;
             let figs = sd_report::diagnosis::write(dir, &d, &manifest)
                 .map_err(|e| CliError::input(e.to_string()))?;
+            let gain = match d.gain_ratio() {
+                Some(r) => format!("held-out gain ×{r:.1}"),
+                None => "no held-out gain".into(),
+            };
             eprintln!(
-                "[diagnose] {} / {} {} (gain ×{:.1}); report.md and {} figures in {out}",
+                "[diagnose] {} / {} {} ({gain}); report.md and {} figures in {out}",
                 d.verdict,
                 d.cause,
                 d.parameters,
-                d.gain_ratio(),
                 figs.len()
             );
             Ok(())

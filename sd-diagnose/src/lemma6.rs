@@ -1,6 +1,7 @@
 //! The model-free Lemma 6 prediction and the line-by-line comparison of a prediction with a
 //! measured FRF.
 
+use crate::stats::{satterthwaite, Line};
 use num_complex::Complex64 as C;
 use sd_model::Frd;
 use sd_multirate::hold_weight;
@@ -11,10 +12,15 @@ use std::f64::consts::PI;
 /// `P_T(f) = Σ_{k<F} P_h(f − k/T) H_F(f − k/T)/F`; `None` where a fold frequency is not on the
 /// fast grid.
 pub fn predict(fast: &Frd, h: f64, factor: usize, freq_hz: &[f64]) -> Vec<Option<C>> {
-    let pair = Pair { fast, factor, h };
+    let pair = Pair {
+        fast,
+        factor,
+        h,
+        dof: f64::INFINITY,
+    };
     freq_hz
         .iter()
-        .map(|&f| pair.predict(f).map(|p| p.0))
+        .map(|&f| pair.predict(f).map(|p| p.value))
         .collect()
 }
 
@@ -23,6 +29,8 @@ pub(crate) struct Pair<'a> {
     pub(crate) fast: &'a Frd,
     pub(crate) factor: usize,
     pub(crate) h: f64,
+    /// Degrees of freedom of the fast FRF's variances.
+    pub(crate) dof: f64,
 }
 
 impl Pair<'_> {
@@ -42,78 +50,53 @@ impl Pair<'_> {
         }
     }
 
-    /// Prediction and its variance `Σ_k |H_F/F|² var P_h(f_k)` at slow frequency f.
-    pub(crate) fn predict(&self, f: f64) -> Option<(C, f64)> {
+    /// Prediction and its variance `Σ_k |H_F/F|² var P_h(f_k)` at slow frequency f (with
+    /// Satterthwaite's degrees of freedom of that sum).
+    pub(crate) fn predict(&self, f: f64) -> Option<Pred> {
         let t = self.h * self.factor as f64;
         let mut sum = C::new(0.0, 0.0);
-        let mut var = 0.0;
+        let mut parts = Vec::with_capacity(self.factor);
         for k in 0..self.factor {
             let fk = f - k as f64 / t;
             let (p, v) = self.fast_at(fk)?;
             let w = hold_weight(2.0 * PI * fk * self.h, self.factor);
             sum += p * w;
-            var += w.norm_sqr() * v;
+            parts.push((w.norm_sqr() * v, self.dof));
         }
-        Some((sum, var))
+        Some(Pred {
+            value: sum,
+            var: parts.iter().map(|p| p.0).sum(),
+            dof: satterthwaite(&parts),
+        })
     }
 }
 
-/// One line of a comparison.
+/// A prediction at one line: value, variance and the variance's degrees of freedom.
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct Line {
-    pub(crate) f: f64,
-    pub(crate) meas: C,
-    pub(crate) pred: C,
-    /// Measured variance plus the prediction's.
+pub(crate) struct Pred {
+    pub(crate) value: C,
     pub(crate) var: f64,
+    pub(crate) dof: f64,
 }
 
-impl Line {
-    pub(crate) fn chi2(&self) -> f64 {
-        (self.meas - self.pred).norm_sqr() / self.var
-    }
-}
-
-/// The lines of `val` where `pred` (line index, frequency) gives a prediction with its variance
-/// and the total variance is positive.
-pub(crate) fn compare(val: &Frd, pred: impl Fn(usize, f64) -> Option<(C, f64)>) -> Vec<Line> {
+/// The lines of `val` (its variances estimated with `dof` degrees of freedom) where `pred`
+/// (line index, frequency) gives a prediction and the total variance is positive.
+pub(crate) fn compare(val: &Frd, dof: f64, pred: impl Fn(usize, f64) -> Option<Pred>) -> Vec<Line> {
     let var = val.variance();
     val.freq_hz()
         .iter()
         .enumerate()
         .filter_map(|(i, &f)| {
-            let (p, vp) = pred(i, f)?;
+            let p = pred(i, f)?;
             let vm = var.map(|v| v[i][(0, 0)]).unwrap_or(0.0);
-            let v = vm + vp;
+            let v = vm + p.var;
             (v > 0.0).then_some(Line {
                 f,
                 meas: val.response()[i][(0, 0)],
-                pred: p,
+                pred: p.value,
                 var: v,
+                dof: satterthwaite(&[(vm, dof), (p.var, p.dof)]),
             })
         })
         .collect()
-}
-
-/// Mean normalized squared residual over the lines (≈ 1 ± 1/√K at the noise level) and K.
-pub(crate) fn stat(lines: &[Line]) -> (f64, usize) {
-    pooled([lines])
-}
-
-/// [`stat`] over several comparisons taken together.
-pub(crate) fn pooled<'a>(sets: impl IntoIterator<Item = &'a [Line]>) -> (f64, usize) {
-    let (s, k) = sets
-        .into_iter()
-        .flatten()
-        .fold((0.0, 0usize), |(s, k), l| (s + l.chi2(), k + 1));
-    if k == 0 {
-        (f64::INFINITY, 0)
-    } else {
-        (s / k as f64, k)
-    }
-}
-
-/// The detection threshold for K lines: `1 + 5/√K`.
-pub(crate) fn threshold(k: usize) -> f64 {
-    1.0 + 5.0 / (k.max(1) as f64).sqrt()
 }

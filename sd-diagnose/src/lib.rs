@@ -17,10 +17,13 @@
 //! `f_k` is a measured line, so the slow FRF is predicted without a model, with variance
 //! `Σ_k |H_F/F|² var P_h(f_k)`.
 //!
-//! **Statistic.** `V/K = (1/K) Σ_lines |P_meas − P_pred|²/(var_meas + var_pred)`, ≈ 1 ± 1/√K for
-//! a consistent pair; above `1 + 5/√K` it is a discrepancy. The model's prediction is judged with
-//! the model-free prediction's variance (a model that fits the fast data to their noise level
-//! predicts the slow data to the propagated noise level).
+//! **Statistic** ([`stats`]): per line `x = |P_meas − P_pred|²/(σ̂²_meas + σ̂²_pred)`, turned into
+//! the exponential score `(ν/2) ln(1 + 2x/ν)` with ν the degrees of freedom of the estimated
+//! variances (periods, LPM window), averaged over the lines: 1 at the noise level for any
+//! number of periods. The threshold is the `1 − α` quantile of that mean (Gamma, with the LPM's
+//! line correlation), α the false-alarm probability ([`DiagnoseOptions::alpha`], default 1 %,
+//! shared by the tests of one verdict). The model's prediction variance is the residue
+//! covariance of its modal form refitted to the fast data (zero for a given model).
 //!
 //! **Verdict and cause.**
 //! - both predictions consistent: `consistent`, cause `none`;
@@ -29,36 +32,48 @@
 //! - a same-rate experiment at another excitation level (> 20 % apart) whose FRF differs
 //!   significantly: cause `nonlinearity`; the extension is one best linear approximation per
 //!   level, judged on held-out periods of that level;
-//! - the model-free prediction inconsistent: the rate-tied hypotheses, each a one-parameter
-//!   extension of a continuous modal model built from the fitted model's poles ([`modal`]):
-//!   `hold_delay` α (the hold switches α of each experiment's own period late) and
-//!   `averaging_sampler` β (the sensor averages over β of each period), each discretised
-//!   exactly at each experiment's period ([`sd_multirate::c2d_nonideal`]). For a trial
-//!   parameter the modal residues are fitted to the fast FRF, then the slow FRFs are predicted;
-//!   the parameter minimizing the slow statistic is found by a grid and golden section. A cause
-//!   is named only when its extension removes at least 90 % of the plain modal model's excess
-//!   over the noise level (`c₀ − c ≥ 0.9 (c₀ − 1)`) and the other extension is worse by more
-//!   than five standard deviations of the statistic (`5 max(c, 1)/√K`); otherwise
-//!   `unexplained`.
+//! - the model-free prediction inconsistent: the rate-tied hypotheses ([`hypotheses`]),
+//!   parametric extensions of a continuous modal model built from the model's poles
+//!   ([`modal`]): `hold_delay` α (the hold switches α of each experiment's own period late,
+//!   up to [`sd_multirate::MAX_HOLD_DELAY`] periods), `averaging_sampler` β (the sensor
+//!   averages over β of each period), `clock_error` e (a validation experiment's true period
+//!   is nominal·(1 + e), one e per experiment), and the pairs delay + averaging, delay + clock,
+//!   averaging + clock. Each is discretised exactly at each experiment's (true) period
+//!   ([`sd_multirate::c2d_nonideal`]); the modal residues are refitted to the fast FRF per
+//!   trial. Parameters and the family are chosen on the *training* part of the data only
+//!   (earlier periods, or the first part of a record) by a penalised criterion (sum of scores
+//!   + ½ ln K per parameter); the chosen extension is named only when its statistic on the
+//!   *held-out* part (later periods) passes the calibrated threshold, and a pair only when its
+//!   second parameter pays for itself there too; otherwise `unexplained`, with the best
+//!   partial explanation reported as such. Reported parameters are refitted on all data.
 //!
-//! **Gain** is measured on held-out data: each validation experiment's steady periods (or its
-//! record) are split in two halves; the extension's parameter is fitted with the first and the
-//! model's and the extension's statistics are compared on the second.
+//! **Gain** is measured on the held-out part: the plain modal model (the same poles, residues
+//! refitted to the fast data) before, the extension with the training parameters after; the
+//! same yardstick for both. Where no part can be held out the gain is `null` with the reason.
 
+mod data;
+mod findings;
+pub mod hypotheses;
 mod lemma6;
 mod lstsq;
 pub mod modal;
+mod model;
+pub mod stats;
 pub mod timedomain;
 
 mod diagnose;
 
 pub use diagnose::{diagnose, diagnose_with_progress};
+pub use hypotheses::RateTied;
 pub use lemma6::predict;
+pub use stats::Statistic;
 pub use timedomain::AveragedPeriod;
 
 use num_complex::Complex64 as C;
 use sd_model::StateSpace;
+use serde::Serialize;
 use serde_json::json;
+use std::collections::BTreeMap;
 
 /// Errors of the diagnosis.
 #[derive(Debug, thiserror::Error)]
@@ -76,6 +91,9 @@ pub enum DiagnoseError {
     /// Experiments or a model that cannot be diagnosed together (message says why).
     #[error("{0}")]
     Setup(String),
+    /// A numerical step failed on valid data (message says which).
+    #[error("{0}")]
+    Numerical(String),
 }
 
 /// Result alias of this crate.
@@ -89,6 +107,8 @@ pub struct DiagnoseOptions {
     pub model: Option<StateSpace>,
     /// Highest order tried when fitting (FPE picks one).
     pub max_order: usize,
+    /// False-alarm probability of a verdict (default 0.01).
+    pub alpha: f64,
 }
 
 impl Default for DiagnoseOptions {
@@ -96,27 +116,97 @@ impl Default for DiagnoseOptions {
         DiagnoseOptions {
             model: None,
             max_order: 20,
+            alpha: 0.01,
         }
     }
 }
 
-/// The extension of the model that the diagnosis settled on.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Hyp {
-    /// No extension.
+/// The verdict.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Verdict {
+    /// The model and the data agree within the noise (at the false-alarm probability).
+    Consistent,
+    /// They do not.
+    Discrepancy,
+}
+
+impl std::fmt::Display for Verdict {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Verdict::Consistent => "consistent",
+            Verdict::Discrepancy => "discrepancy",
+        })
+    }
+}
+
+/// A named cause with its parameters.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "name", rename_all = "snake_case")]
+pub enum Cause {
+    /// Nothing to explain.
     None,
-    /// The hold switches this fraction of each period late.
-    Delay(f64),
-    /// The sensor averages over this fraction of each period.
-    Average(f64),
-    /// The fast FRF itself replaces the model at the folding frequencies.
-    FastFrf,
-    /// One best linear approximation per excitation level.
-    PerLevel,
+    /// The hold switches `delay_frac` of each sample period late.
+    HoldDelay {
+        /// Fraction of the period (may exceed 1).
+        delay_frac: f64,
+        /// The delay in seconds per experiment.
+        delay_s: BTreeMap<String, f64>,
+    },
+    /// The sensor averages over `window_frac` of each sample period.
+    AveragingSampler {
+        /// Fraction of the period.
+        window_frac: f64,
+    },
+    /// A validation experiment's true period is nominal·(1 + e).
+    ClockError {
+        /// e per experiment.
+        clock_error: BTreeMap<String, f64>,
+    },
+    /// Experiments at other excitation levels disagree.
+    Nonlinearity {
+        /// Level of each disagreeing experiment relative to the model experiment's.
+        relative_levels: BTreeMap<String, f64>,
+    },
+    /// The model is wrong where the data agree with each other.
+    FastModelError {
+        /// The model's statistic on its own data.
+        model_misfit_on_fast_data: f64,
+        /// Its worst fast lines (Hz).
+        worst_fast_hz: Vec<f64>,
+    },
+    /// No catalogued cause explains the discrepancy.
+    Unexplained,
+}
+
+impl Cause {
+    /// The name in `diagnosis.json`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Cause::None => "none",
+            Cause::HoldDelay { .. } => "hold_delay",
+            Cause::AveragingSampler { .. } => "averaging_sampler",
+            Cause::ClockError { .. } => "clock_error",
+            Cause::Nonlinearity { .. } => "nonlinearity",
+            Cause::FastModelError { .. } => "fast_model_error",
+            Cause::Unexplained => "unexplained",
+        }
+    }
+
+    /// Its parameters as a JSON object (empty for none/unexplained).
+    pub fn parameters(&self) -> serde_json::Map<String, serde_json::Value> {
+        match serde_json::to_value(self) {
+            Ok(serde_json::Value::Object(mut m)) => {
+                m.remove("name");
+                m
+            }
+            _ => serde_json::Map::new(),
+        }
+    }
 }
 
 /// One test of the evidence list.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Serialize)]
 pub struct Evidence {
     /// What was tested.
     pub test: String,
@@ -138,19 +228,101 @@ impl Evidence {
             passed: statistic <= threshold,
         }
     }
+
+    /// A calibrated statistic as evidence.
+    pub(crate) fn of(test: impl Into<String>, s: &Statistic) -> Self {
+        Self::check(test, s.value, s.threshold)
+    }
+}
+
+/// One ranked hypothesis.
+#[derive(Debug, Clone, Serialize)]
+pub struct Ranked {
+    /// Cause name(s), joined by `+`.
+    pub cause: String,
+    /// Statistic on the training data.
+    pub cost: f64,
+    /// Penalised criterion on the training data (smaller is better).
+    pub criterion: f64,
+    /// Statistic on the held-out data, with the training parameters.
+    pub held_out: Option<f64>,
+    /// Number of parameters.
+    pub n_params: usize,
+}
+
+/// The gain of the extension on held-out data.
+#[derive(Debug, Clone, Serialize)]
+pub struct Gain {
+    /// What is compared.
+    pub metric: &'static str,
+    /// Statistic before the extension.
+    pub before: Option<f64>,
+    /// After.
+    pub after: Option<f64>,
+    /// before / after.
+    pub ratio: Option<f64>,
+    /// The held-out data, named.
+    pub held_out: Vec<String>,
+    /// Why there is no gain, when there is none.
+    pub why: Option<String>,
+}
+
+impl Gain {
+    pub(crate) const METRIC: &'static str =
+        "mean calibrated score per line (1 = noise level), plain modal model before, extension after";
+
+    pub(crate) fn measured(before: f64, after: f64, held_out: Vec<String>) -> Self {
+        let ok = before.is_finite() && after.is_finite() && after > 0.0;
+        Gain {
+            metric: Self::METRIC,
+            before: ok.then_some(before),
+            after: ok.then_some(after),
+            ratio: ok.then(|| before / after),
+            held_out,
+            why: (!ok).then(|| "the held-out statistic is not finite".to_string()),
+        }
+    }
+
+    pub(crate) fn none(why: impl Into<String>) -> Self {
+        Gain {
+            metric: Self::METRIC,
+            before: None,
+            after: None,
+            ratio: None,
+            held_out: Vec::new(),
+            why: Some(why.into()),
+        }
+    }
+}
+
+/// The extension of the model that the diagnosis settled on.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Extension {
+    /// No extension.
+    None,
+    /// Rate-tied non-idealities on the continuous modal model.
+    RateTied(RateTied),
+    /// The fast FRF itself replaces the model at the folding frequencies.
+    FastFrf,
+    /// One best linear approximation per excitation level.
+    PerLevel,
 }
 
 /// A band of lines where a prediction misses the data beyond the noise.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Band {
     /// Lowest frequency (Hz).
+    #[serde(rename = "f_lo_hz")]
     pub f_lo: f64,
     /// Highest frequency (Hz).
+    #[serde(rename = "f_hi_hz")]
     pub f_hi: f64,
     /// The line with the largest normalized residual (Hz).
     pub worst_hz: f64,
     /// `20 log10 |P_meas/P_pred|` there (dB).
     pub worst_db: f64,
+    /// Phase of `P_meas/P_pred` there (degrees).
+    pub worst_deg: f64,
     /// Where the model's response that folds onto `worst_hz` mostly comes from (Hz, fast band).
     pub from_fast_hz: f64,
     /// Share of the whole statistic that this band carries.
@@ -172,120 +344,183 @@ pub struct Curves {
     pub extended: Option<Vec<C>>,
 }
 
+/// Rms values of a time-domain comparison inside the discrepancy bands.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct InBands {
+    /// Noise.
+    pub noise_rms: f64,
+    /// Measured − model.
+    pub error_rms_model: f64,
+    /// Measured − extended model.
+    pub error_rms_extended: Option<f64>,
+}
+
 /// The time-domain comparison of one experiment: one averaged steady period of a periodic
 /// experiment, or a whole non-periodic record simulated from the least-squares initial state.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Serialize)]
 pub struct TimeDomain {
     /// Sample rate (Hz).
+    #[serde(skip)]
     pub rate_hz: f64,
     /// Measured averaged output period.
+    #[serde(skip)]
     pub measured: Vec<f64>,
     /// The model's periodic response to the measured input.
+    #[serde(skip)]
     pub model: Vec<f64>,
     /// The extended model's, when there is an extension.
+    #[serde(skip)]
     pub extended: Option<Vec<f64>>,
     /// Rms of the output around its mean.
     pub output_rms: f64,
-    /// Rms noise of the comparison (spread of the per-period residual of the model; NaN for a
-    /// non-periodic record, where it is not known).
-    pub noise_rms: f64,
+    /// Rms noise of the comparison (spread of the per-period residual of the model; `None` for
+    /// a non-periodic record, where it is not known).
+    pub noise_rms: Option<f64>,
     /// Rms of measured − model.
     pub error_rms_model: f64,
     /// Rms of measured − extended model.
     pub error_rms_extended: Option<f64>,
-    /// The same three, counting only the bands where the model misses in the frequency domain
-    /// (`None` without bands): noise, model, extended.
-    pub in_bands: Option<(f64, f64, Option<f64>)>,
+    /// The same, counting only the bands where the model misses in the frequency domain.
+    pub in_bands: Option<InBands>,
 }
 
 /// What the diagnosis found on one experiment.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Serialize)]
 pub struct ExperimentReport {
     /// Experiment name.
     pub name: String,
-    /// "model" or "validation".
-    pub role: String,
+    /// Its role.
+    pub role: sd_ident::Role,
     /// Sample rate (Hz).
     pub rate_hz: f64,
     /// Model rate / this rate.
     pub factor: usize,
-    /// Model-free Lemma 6 statistic and its line count (validation experiments).
-    pub model_free: Option<(f64, usize)>,
-    /// The model's statistic and its line count.
-    pub model_stat: (f64, usize),
+    /// Excitation level relative to the model experiment's.
+    pub relative_level: f64,
+    /// Model-free Lemma 6 statistic (validation experiments).
+    #[serde(rename = "model_free_statistic")]
+    pub model_free: Option<Statistic>,
+    /// The model's statistic.
+    #[serde(rename = "model_statistic")]
+    pub model_stat: Statistic,
     /// The extended model's statistic, when there is an extension.
-    pub extended_stat: Option<f64>,
+    #[serde(rename = "extended_statistic")]
+    pub extended_stat: Option<Statistic>,
     /// Where the model misses beyond 3σ (bands carrying ≥ 1 % of the statistic, largest share
     /// first, at most 5).
     pub bands: Vec<Band>,
     /// The FRFs.
+    #[serde(skip)]
     pub curves: Curves,
     /// The time-domain comparison.
     pub time_domain: Option<TimeDomain>,
     /// Noise and distortion levels at the non-excited lines of a periodic experiment.
+    #[serde(serialize_with = "distortion_json")]
     pub distortion: Option<sd_ident::DistortionReport>,
 }
 
+fn distortion_json<S: serde::Serializer>(
+    d: &Option<sd_ident::DistortionReport>,
+    s: S,
+) -> std::result::Result<S::Ok, S::Error> {
+    d.as_ref()
+        .map(|d| {
+            json!({"odd_lines": d.odd_lines, "even_lines": d.even_lines,
+                "odd_ratio": d.odd_ratio, "even_ratio": d.even_ratio, "noise_level": d.noise_level})
+        })
+        .serialize(s)
+}
+
+/// What the model's misfit on its own experiment is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OwnFit {
+    /// At the noise level.
+    Noise,
+    /// Above it, and the non-excited lines show nonlinear distortion.
+    Distortion,
+    /// Above it without distortion: the model does not fit (order, structure).
+    FitError,
+}
+
+/// The model that was judged.
+#[derive(Debug, Clone, Serialize)]
+pub struct ModelInfo {
+    /// "given" or how it was fitted.
+    pub source: String,
+    /// States.
+    pub order: usize,
+    /// Sample period (s).
+    pub ts: Option<f64>,
+    /// Its statistic on its own (model) experiment.
+    pub own_data: Option<Statistic>,
+    /// What that misfit is.
+    pub own_fit: Option<OwnFit>,
+}
+
 /// The outcome.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Serialize)]
 pub struct Diagnosis {
-    /// "consistent" or "discrepancy".
-    pub verdict: String,
-    /// "none", "hold_delay", "averaging_sampler", "nonlinearity", "fast_model_error" or
-    /// "unexplained".
+    /// Consistent or not.
+    pub verdict: Verdict,
+    /// The cause name, or the names joined by `+` (alphabetical) when several are named.
     pub cause: String,
-    /// Fitted parameters (JSON object, DESIGN §4).
+    /// The named causes with their parameters.
+    pub causes: Vec<Cause>,
+    /// All named causes' parameters in one object.
     pub parameters: serde_json::Value,
+    /// The best partial explanation when the cause is `unexplained`.
+    pub partial: Option<Ranked>,
+    /// The false-alarm probability of the verdict.
+    pub alpha: f64,
     /// The tests performed.
     pub evidence: Vec<Evidence>,
-    /// Hypotheses ranked by cost `(cause, cost per line, parameters)`.
-    pub ranking: Vec<(String, f64, usize)>,
-    /// Held-out statistic before the extension.
-    pub gain_before: f64,
-    /// After.
-    pub gain_after: f64,
-    /// Experiments whose data were held out for the gain.
-    pub held_out: Vec<String>,
+    /// Hypotheses ranked by their penalised criterion on the training data.
+    pub ranking: Vec<Ranked>,
+    /// Held-out gain.
+    pub gain: Gain,
     /// The extension.
-    pub extension: Hyp,
+    #[serde(skip)]
+    pub extension: Extension,
     /// The model used (discrete, at the model experiment's period).
+    #[serde(skip)]
     pub model: StateSpace,
-    /// "fitted (order n, FPE)" or "given".
-    pub model_source: String,
+    /// Summary of the model.
+    #[serde(rename = "model")]
+    pub model_info: ModelInfo,
     /// Per experiment (the model experiment first).
     pub experiments: Vec<ExperimentReport>,
 }
 
 impl Diagnosis {
-    /// `diagnosis.json` (DESIGN §4, with the per-experiment findings added).
+    /// `diagnosis.json` (the keys of [`Diagnosis`], documented in the crate README).
     pub fn to_json(&self) -> serde_json::Value {
-        json!({
-            "verdict": self.verdict,
-            "cause": self.cause,
-            "parameters": self.parameters,
-            "evidence": self.evidence.iter().map(|e| json!({"test": e.test, "statistic": e.statistic, "threshold": e.threshold, "passed": e.passed})).collect::<Vec<_>>(),
-            "ranking": self.ranking.iter().map(|r| json!({"cause": r.0, "cost": r.1, "n_params": r.2})).collect::<Vec<_>>(),
-            "gain": {"metric": "mean |P_meas − P_pred|²/var per line (1 = noise level)", "before": self.gain_before,
-                     "after": self.gain_after, "ratio": self.gain_ratio(), "held_out": self.held_out},
-            "model": {"source": self.model_source, "order": self.model.n(), "ts": self.model.ts()},
-            "experiments": self.experiments.iter().map(|x| json!({
-                "name": x.name, "role": x.role, "rate_hz": x.rate_hz, "factor": x.factor,
-                "model_free_statistic": x.model_free.map(|m| m.0),
-                "model_statistic": x.model_stat.0, "lines": x.model_stat.1,
-                "extended_statistic": x.extended_stat,
-                "bands": x.bands.iter().map(|b| json!({"f_lo_hz": b.f_lo, "f_hi_hz": b.f_hi, "worst_hz": b.worst_hz,
-                    "worst_db": b.worst_db, "from_fast_hz": b.from_fast_hz, "share": b.share})).collect::<Vec<_>>(),
-                "time_domain": x.time_domain.as_ref().map(|t| json!({"output_rms": t.output_rms, "noise_rms": t.noise_rms,
-                    "error_rms_model": t.error_rms_model, "error_rms_extended": t.error_rms_extended,
-                    "in_bands": t.in_bands.map(|b| json!({"noise_rms": b.0, "error_rms_model": b.1, "error_rms_extended": b.2}))})),
-                "distortion": x.distortion.as_ref().map(|d| json!({"odd_lines": d.odd_lines, "even_lines": d.even_lines,
-                    "odd_ratio": d.odd_ratio, "even_ratio": d.even_ratio, "noise_level": d.noise_level})),
-            })).collect::<Vec<_>>(),
-        })
+        serde_json::to_value(self).unwrap_or_else(|e| json!({"error": e.to_string()}))
     }
 
-    /// Held-out statistic before / after.
-    pub fn gain_ratio(&self) -> f64 {
-        self.gain_before / self.gain_after.max(f64::MIN_POSITIVE)
+    /// Held-out statistic before / after (`None` when it could not be measured).
+    pub fn gain_ratio(&self) -> Option<f64> {
+        self.gain.ratio
     }
+
+    /// "given" or how the model was fitted.
+    pub fn model_source(&self) -> &str {
+        &self.model_info.source
+    }
+}
+
+/// The cause string of several named causes: names sorted and joined by `+`.
+pub(crate) fn joined(causes: &[Cause]) -> String {
+    let mut names: Vec<&str> = causes.iter().map(Cause::name).collect();
+    names.sort_unstable();
+    names.join("+")
+}
+
+/// All causes' parameters merged into one object.
+pub(crate) fn merged_parameters(causes: &[Cause]) -> serde_json::Value {
+    let mut m = serde_json::Map::new();
+    for c in causes {
+        m.extend(c.parameters());
+    }
+    serde_json::Value::Object(m)
 }

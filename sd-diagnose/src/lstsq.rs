@@ -8,8 +8,6 @@ pub(crate) struct LstSq {
     pub(crate) x: DVector<f64>,
     /// `(JᵀJ)⁺`, the covariance of x for unit-variance residuals.
     pub(crate) cov: DMatrix<f64>,
-    /// `‖J x − g‖²`.
-    pub(crate) residual: f64,
 }
 
 /// `min ‖J x − g‖` by the SVD of J with its columns scaled to unit norm (so the rank cut
@@ -52,6 +50,80 @@ pub(crate) fn scaled_lstsq(j: &DMatrix<f64>, g: &DVector<f64>) -> Option<LstSq> 
             cov[(a, b)] /= scale[a] * scale[b];
         }
     }
-    let residual = (g - j * &x).norm_squared();
-    Some(LstSq { x, cov, residual })
+    Some(LstSq { x, cov })
+}
+
+/// `min ‖J x − g‖` by the normal equations of the column-scaled J, `(JₛᵀJₛ) y = Jₛᵀ g`, solved
+/// through the symmetric eigendecomposition with eigenvalues below `1e-13·λ_max` cut (singular
+/// values below ≈3e-7·σ_max: the normal equations square the condition number, so the cut sits
+/// above their rounding level). O(m n²) without forming U: for the tall, narrow modal-residue
+/// problems of the hypothesis search it is several times faster than [`scaled_lstsq`] and
+/// agrees with it to the cut (tested).
+pub(crate) fn normal_lstsq(j: &DMatrix<f64>, g: &DVector<f64>) -> Option<LstSq> {
+    let n = j.ncols();
+    let scale: Vec<f64> = (0..n)
+        .map(|c| {
+            let s = j.column(c).norm();
+            if s > 0.0 && s.is_finite() {
+                s
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    let mut a = j.transpose() * j;
+    let mut b = j.transpose() * g;
+    for r in 0..n {
+        b[r] /= scale[r];
+        for c in 0..n {
+            a[(r, c)] /= scale[r] * scale[c];
+        }
+    }
+    if !a.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    let eig = nalgebra::SymmetricEigen::new(a);
+    let lmax = eig.eigenvalues.max();
+    if !(lmax.is_finite() && lmax > 0.0) {
+        return None;
+    }
+    let mut x = DVector::zeros(n);
+    let mut cov = DMatrix::zeros(n, n);
+    for (k, &l) in eig.eigenvalues.iter().enumerate() {
+        if l > 1e-13 * lmax {
+            let v = eig.eigenvectors.column(k);
+            x += v * (v.dot(&b) / l);
+            cov += v * v.transpose() / l;
+        }
+    }
+    for r in 0..n {
+        x[r] /= scale[r];
+        for c in 0..n {
+            cov[(r, c)] /= scale[r] * scale[c];
+        }
+    }
+    Some(LstSq { x, cov })
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    /// The normal-equation route agrees with the SVD route on a well-posed tall problem with
+    /// columns of very different scales.
+    #[test]
+    fn normal_equations_agree_with_svd() {
+        let (m, n) = (400, 6);
+        let j = DMatrix::from_fn(m, n, |r, c| {
+            let t = r as f64 / m as f64;
+            (t * (c + 1) as f64 * 3.1).sin() * 10f64.powi(c as i32 - 3) + 0.01 * t.powi(c as i32)
+        });
+        let g = DVector::from_fn(m, |r, _| (r as f64 * 0.37).cos());
+        let a = scaled_lstsq(&j, &g).unwrap();
+        let b = normal_lstsq(&j, &g).unwrap();
+        let ex = (&a.x - &b.x).norm() / a.x.norm();
+        let ec = (&a.cov - &b.cov).norm() / a.cov.norm();
+        assert!(ex < 1e-8 && ec < 1e-8, "{ex:e} {ec:e}");
+    }
 }

@@ -13,7 +13,8 @@ use crate::error::{IdentError, Result};
 use std::io::Read;
 
 /// Role of an experiment in a diagnosis.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Role {
     /// The model is fitted here.
     Model,

@@ -89,7 +89,17 @@ pub struct FrfEstimate {
     pub y_mean: Vec<C>,
     /// Mean input spectrum `Ū` at the excited lines.
     pub u_mean: Vec<C>,
+    /// Input signal-to-noise ratio `|Ū|²/σ²_Ū` per excited line (infinite with one period).
+    /// The first-order variance holds where it is large; below [`MIN_INPUT_SNR`] the ratio
+    /// estimate is biased by more than 0.1 σ (noise in the denominator) and its variance
+    /// formula no longer applies — in closed loop the lowest lines, where the loop cancels the
+    /// excitation, are such.
+    pub input_snr: Vec<f64>,
 }
+
+/// The input SNR below which a line of a ratio estimate is not trusted (bias of `Ȳ/Ū` with
+/// noise on `Ū` relative to its standard deviation ≈ `1/√SNR`: 0.1 at 100).
+pub const MIN_INPUT_SNR: f64 = 100.0;
 
 /// FRF of periodic data (module documentation). `r` is the external reference (closed loop),
 /// or `None` when u is exogenous.
@@ -181,6 +191,7 @@ pub fn frf_periodic(
     let mut resp = Vec::with_capacity(lines.len());
     let mut var = Vec::with_capacity(lines.len());
     let (mut ym, mut um) = (Vec::new(), Vec::new());
+    let mut snr = Vec::with_capacity(lines.len());
     for &k in &lines {
         let (ub, yb) = (mean_at(&ul, k), mean_at(&yl, k));
         if ub.norm() == 0.0 {
@@ -197,6 +208,13 @@ pub fn frf_periodic(
             let (suu, syy, syu) = noise(k);
             let v = (syy + g.norm_sqr() * suu - 2.0 * (g.conj() * syu).re) / ub.norm_sqr();
             var.push(nalgebra::DMatrix::from_element(1, 1, v.max(0.0)));
+            snr.push(if suu > 0.0 {
+                ub.norm_sqr() / suu
+            } else {
+                f64::INFINITY
+            });
+        } else {
+            snr.push(f64::INFINITY);
         }
     }
     if m == 1 {
@@ -271,6 +289,7 @@ pub fn frf_periodic(
         distortion,
         y_mean: ym,
         u_mean: um,
+        input_snr: snr,
     })
 }
 

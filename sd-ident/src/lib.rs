@@ -25,6 +25,6 @@ pub use fit::{
     final_prediction_error, fit, fit_with_progress, model_cost, select_order, FitOptions,
     FitProgress, FitResult, Weighting,
 };
-pub use frf::{frf_periodic, DistortionReport, FrfEstimate, PeriodicOptions};
-pub use lpm::{lpm, lpm_closed_loop, LpmEstimate, LpmOptions};
+pub use frf::{frf_periodic, DistortionReport, FrfEstimate, PeriodicOptions, MIN_INPUT_SNR};
+pub use lpm::{lpm, lpm_closed_loop, lpm_closed_loop_snr, LpmEstimate, LpmOptions};
 pub use multisine::{crest_factor, design, write_csv, Lines, Multisine, MultisineSpec, Phases};

@@ -186,6 +186,21 @@ pub fn lpm(fs: f64, x: &DMatrix<f64>, z: &DMatrix<f64>, opt: &LpmOptions) -> Res
 /// # Errors
 /// As [`lpm`]; a line where `U/R` vanishes.
 pub fn lpm_closed_loop(fs: f64, r: &[f64], u: &[f64], y: &[f64], opt: &LpmOptions) -> Result<Frd> {
+    Ok(lpm_closed_loop_snr(fs, r, u, y, opt)?.0)
+}
+
+/// [`lpm_closed_loop`] with the input SNR `|U/R|²/var(U/R)` of every line (see
+/// [`crate::MIN_INPUT_SNR`]: below it the ratio is biased and its variance invalid).
+///
+/// # Errors
+/// As [`lpm_closed_loop`].
+pub fn lpm_closed_loop_snr(
+    fs: f64,
+    r: &[f64],
+    u: &[f64],
+    y: &[f64],
+    opt: &LpmOptions,
+) -> Result<(Frd, Vec<f64>)> {
     let n = r.len();
     if u.len() != n || y.len() != n {
         return Err(IdentError::Data(
@@ -199,6 +214,7 @@ pub fn lpm_closed_loop(fs: f64, r: &[f64], u: &[f64], y: &[f64], opt: &LpmOption
     let est = lpm(fs, &x, &z, opt)?;
     let mut resp = Vec::new();
     let mut var = Vec::new();
+    let mut snr = Vec::new();
     for (i, g) in est.frd.response().iter().enumerate() {
         let (gy, gu) = (g[(0, 0)], g[(1, 0)]);
         if gu.norm() == 0.0 {
@@ -209,6 +225,10 @@ pub fn lpm_closed_loop(fs: f64, r: &[f64], u: &[f64], y: &[f64], opt: &LpmOption
         }
         let gg = gy / gu;
         let v = est.frd.variance().map(|v| &v[i]);
+        snr.push(match v {
+            Some(v) if v[(1, 0)] > 0.0 => gu.norm_sqr() / v[(1, 0)],
+            _ => f64::INFINITY,
+        });
         let cv = &est.noise_cov[i];
         let vv = match v {
             Some(v) => {
@@ -229,10 +249,8 @@ pub fn lpm_closed_loop(fs: f64, r: &[f64], u: &[f64], y: &[f64], opt: &LpmOption
         resp.push(DMatrix::from_element(1, 1, gg));
         var.push(DMatrix::from_element(1, 1, vv.max(0.0)));
     }
-    Ok(Frd::new(
-        est.frd.freq_hz().to_vec(),
-        resp,
-        Some(var),
-        est.frd.time(),
-    )?)
+    Ok((
+        Frd::new(est.frd.freq_hz().to_vec(), resp, Some(var), est.frd.time())?,
+        snr,
+    ))
 }

@@ -118,6 +118,23 @@ impl Frd {
     pub fn is_empty(&self) -> bool {
         self.freq_hz.is_empty()
     }
+
+    /// The lines where `keep(index)` holds (same sample time, variances kept).
+    ///
+    /// # Errors
+    /// None in practice (the subset of a valid FRD is valid).
+    pub fn select(&self, keep: impl Fn(usize) -> bool) -> Result<Frd> {
+        let idx: Vec<usize> = (0..self.len()).filter(|&i| keep(i)).collect();
+        Frd::new(
+            idx.iter().map(|&i| self.freq_hz[i]).collect(),
+            idx.iter().map(|&i| self.response[i].clone()).collect(),
+            self.variance
+                .as_ref()
+                .map(|v| idx.iter().map(|&i| v[i].clone()).collect()),
+            self.time,
+        )
+    }
+
     /// (ny, nu).
     pub fn shape(&self) -> (usize, usize) {
         self.response.first().map(|r| r.shape()).unwrap_or((0, 0))

@@ -183,6 +183,19 @@ impl FreqRespEvaluator {
         }
     }
 
+    /// `G` at a frequency in Hz written column-major into `out` (length ny·nu), without
+    /// allocating where the reduced form has simple poles only.
+    pub fn eval_hz_into(&self, f_hz: f64, out: &mut [C]) {
+        let s = self.point(f_hz);
+        if self.dense.is_some() {
+            let g = self.eval_at(s);
+            out.copy_from_slice(g.as_slice());
+            return;
+        }
+        out.copy_from_slice(self.d.as_slice());
+        self.accumulate(s, out, self.d.nrows());
+    }
+
     /// `G` at a frequency in Hz.
     pub fn eval_hz(&self, f_hz: f64) -> DMatrix<C> {
         self.eval_at(self.point(f_hz))

@@ -49,7 +49,7 @@ pub use json::{
 pub use norms::HinfNorm;
 pub use num_complex::Complex64;
 pub use reduce::BalancedTruncation;
-pub use sim::Simulation;
+pub use sim::{rms, rms_of, Simulation};
 pub use ss::StateSpace;
 pub use tf::TransferFunction;
 pub use time::SampleTime;

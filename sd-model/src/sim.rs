@@ -67,3 +67,17 @@ impl StateSpace {
         c2d(self, ts, Discretization::Zoh)?.simulate(u, x0)
     }
 }
+
+/// Root mean square of a signal, `sqrt(Σ x²/N)` (0 for an empty one). The one `rms` of the
+/// workspace.
+pub fn rms(x: &[f64]) -> f64 {
+    rms_of(x.iter().copied())
+}
+
+/// [`rms`] of the values of an iterator.
+pub fn rms_of(x: impl IntoIterator<Item = f64>) -> f64 {
+    let (s, n) = x
+        .into_iter()
+        .fold((0.0, 0usize), |(s, n), v| (s + v * v, n + 1));
+    (s / n.max(1) as f64).sqrt()
+}

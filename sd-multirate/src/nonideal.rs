@@ -422,10 +422,13 @@ mod tests {
     #[test]
     fn refuses_bad_fractions() {
         let p = plant();
-        assert!(c2d_nonideal(&p, 1e-3, NonIdeal::hold_delay(1.5)).is_err());
+        assert!(c2d_nonideal(&p, 1e-3, NonIdeal::hold_delay(MAX_HOLD_DELAY + 0.5)).is_err());
+        assert!(c2d_nonideal(&p, 1e-3, NonIdeal::hold_delay(-0.1)).is_err());
+        assert!(c2d_nonideal(&p, 1e-3, NonIdeal::averaging(1.2)).is_err());
         assert!(c2d_nonideal(&p, 1e-3, NonIdeal::averaging(f64::NAN)).is_err());
         let ph = c2d(&p, 2e-4, Discretization::Zoh).unwrap();
         assert!(downsample_nonideal(&ph, 5, NonIdeal::hold_delay(0.3)).is_err());
+        assert!(downsample_nonideal(&ph, 5, NonIdeal::hold_delay(1.4)).is_err());
         assert!(c2d_nonideal(&ph, 1e-3, NonIdeal::hold_delay(0.3)).is_err());
     }
 }

@@ -10,7 +10,7 @@ use crate::plot::{line_plot, magnitude_plot, Curve, Line};
 use crate::{ReportError, Result};
 use num_complex::Complex64 as C;
 use plotters::style::RGBColor;
-use sd_diagnose::{Diagnosis, ExperimentReport, Hyp};
+use sd_diagnose::{Diagnosis, ExperimentReport, Extension};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -37,13 +37,41 @@ fn slug(name: &str) -> String {
 }
 
 /// What the extension is, in words.
-pub fn describe(h: Hyp) -> String {
+pub fn describe(h: &Extension) -> String {
     match h {
-        Hyp::None => "none".into(),
-        Hyp::Delay(a) => format!("hold switching {a:.3} of each sample period late"),
-        Hyp::Average(b) => format!("sensor averaging over {b:.3} of each sample period"),
-        Hyp::FastFrf => "the measured fast FRF in place of the model (model-free Lemma 6)".into(),
-        Hyp::PerLevel => "one best linear approximation per excitation level".into(),
+        Extension::None => "none".into(),
+        Extension::RateTied(p) => {
+            let mut parts = Vec::new();
+            if p.hold_delay > 0.0 {
+                parts.push(format!(
+                    "hold switching {:.3} of each sample period late",
+                    p.hold_delay
+                ));
+            }
+            if p.averaging > 0.0 {
+                parts.push(format!(
+                    "sensor averaging over {:.3} of each sample period",
+                    p.averaging
+                ));
+            }
+            if !p.clock_error.is_empty() {
+                let e: Vec<String> = p
+                    .clock_error
+                    .iter()
+                    .map(|e| format!("{:+.3} %", 100.0 * e))
+                    .collect();
+                parts.push(format!("sample clock off by {}", e.join(", ")));
+            }
+            if parts.is_empty() {
+                "the plain continuous modal model".into()
+            } else {
+                parts.join("; ")
+            }
+        }
+        Extension::FastFrf => {
+            "the measured fast FRF in place of the model (model-free Lemma 6)".into()
+        }
+        Extension::PerLevel => "one best linear approximation per excitation level".into(),
     }
 }
 
@@ -237,9 +265,8 @@ fn figures(dir: &Path, x: &ExperimentReport, ext_label: &str) -> Result<Vec<Stri
 /// A figure or the report cannot be written.
 pub fn write(dir: &Path, d: &Diagnosis, title: &str) -> Result<Vec<String>> {
     let ext_label = match d.extension {
-        Hyp::Delay(_) => "extended: delayed hold",
-        Hyp::Average(_) => "extended: averaging sampler",
-        Hyp::FastFrf => "model-free Lemma 6",
+        Extension::RateTied(_) => "extended model",
+        Extension::FastFrf => "model-free Lemma 6",
         _ => "extended",
     };
     let mut figs = Vec::new();
@@ -287,32 +314,57 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> String {
     let _ = writeln!(
         md,
         "The model: {} ({} states at {:.6} s).\n",
-        d.model_source,
+        d.model_source(),
         d.model.n(),
         d.model.ts().unwrap_or(0.0)
     );
+    if let (Some(s), Some(f)) = (&d.model_info.own_data, d.model_info.own_fit) {
+        let what = match f {
+            sd_diagnose::OwnFit::Noise => "at the noise level".to_string(),
+            sd_diagnose::OwnFit::Distortion => {
+                "above the noise, and the non-excited lines show nonlinear distortion: the \
+                 excess is the system's, not the fit's"
+                    .to_string()
+            }
+            sd_diagnose::OwnFit::FitError => format!(
+                "above the noise without distortion: a fit error (raise `--max-order`, now \
+                 order {}, or give a model)",
+                d.model.n()
+            ),
+        };
+        let _ = writeln!(
+            md,
+            "On its own experiment the model's statistic is {:.3} (threshold {:.3}): {what}.\n",
+            s.value, s.threshold
+        );
+    }
     let _ = writeln!(md, "## What the model's simulation gets wrong\n");
     let _ = writeln!(
         md,
-        "Statistic: mean |P_meas − P_sim|²/variance per line; 1 is the noise level, a \
-         discrepancy is above 1 + 5/√K.\n"
+        "Statistic: mean calibrated score per line (|P_meas − P_sim|²/variance, corrected for \
+         the degrees of freedom of the estimated variances); 1 is the noise level; a \
+         discrepancy is above the threshold at false-alarm probability {} (per test: shared \
+         by the verdict's tests).\n",
+        d.alpha
     );
     let _ = writeln!(
         md,
-        "| experiment | rate [Hz] | F | lines | model-free Lemma 6 | model | extended |\n|---|---|---|---|---|---|---|"
+        "| experiment | rate [Hz] | F | level | lines | threshold | model-free Lemma 6 | model | extended |\n|---|---|---|---|---|---|---|---|---|"
     );
     for x in &d.experiments {
         let _ = writeln!(
             md,
-            "| {} ({}) | {} | {} | {} | {} | {:.3} | {} |",
+            "| {} ({:?}) | {} | {} | {:.2} | {} | {:.3} | {} | {:.3} | {} |",
             x.name,
             x.role,
             x.rate_hz,
             x.factor,
-            x.model_stat.1,
-            cell(x.model_free.map(|m| m.0), false),
-            x.model_stat.0,
-            cell(x.extended_stat, false)
+            x.relative_level,
+            x.model_stat.lines,
+            x.model_stat.threshold,
+            cell(x.model_free.map(|m| m.value), false),
+            x.model_stat.value,
+            cell(x.extended_stat.map(|m| m.value), false)
         );
     }
     for x in &d.experiments {
@@ -321,17 +373,18 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> String {
         }
         let _ = writeln!(
             md,
-            "\n**{}**: bands where the model misses beyond 3σ (largest share of the statistic first)\n\n| band [Hz] | worst line [Hz] | measured/simulated [dB] | comes from [Hz] | share |\n|---|---|---|---|---|",
+            "\n**{}**: bands where the model misses beyond 3σ (largest share of the statistic first)\n\n| band [Hz] | worst line [Hz] | measured/simulated [dB] | phase [°] | comes from [Hz] | share |\n|---|---|---|---|---|---|",
             x.name
         );
         for b in &x.bands {
             let _ = writeln!(
                 md,
-                "| {:.1}–{:.1} | {:.1} | {:+.1} | {:.1} | {:.0} % |",
+                "| {:.1}–{:.1} | {:.1} | {:+.2} | {:+.1} | {:.1} | {:.0} % |",
                 b.f_lo,
                 b.f_hi,
                 b.worst_hz,
                 b.worst_db,
+                b.worst_deg,
                 b.from_fast_hz,
                 100.0 * b.share
             );
@@ -355,47 +408,71 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> String {
                     "| {} | {:.3e} | {} | {:.3e} | {} | {} | {} | {} |",
                     x.name,
                     t.output_rms,
-                    opt(Some(t.noise_rms)),
+                    opt(t.noise_rms),
                     t.error_rms_model,
                     opt(t.error_rms_extended),
-                    opt(t.in_bands.map(|b| b.0)),
-                    opt(t.in_bands.map(|b| b.1)),
-                    opt(t.in_bands.and_then(|b| b.2)),
+                    opt(t.in_bands.map(|b| b.noise_rms)),
+                    opt(t.in_bands.map(|b| b.error_rms_model)),
+                    opt(t.in_bands.and_then(|b| b.error_rms_extended)),
                 );
             }
         }
     }
     let _ = writeln!(
         md,
-        "\n## Hypotheses\n\n| hypothesis | statistic | parameters |\n|---|---|---|"
+        "\n## Hypotheses\n\nFitted on the training data (earlier periods), ranked by the penalised criterion \
+         (score sum + ½ ln K per parameter), judged on the held-out data.\n\n| hypothesis | \
+         parameters | statistic (training) | criterion | statistic (held out) |\n|---|---|---|---|---|"
     );
     for r in &d.ranking {
-        let _ = writeln!(md, "| {} | {:.3} | {} |", r.0, r.1, r.2);
+        let _ = writeln!(
+            md,
+            "| {} | {} | {:.3} | {:.1} | {} |",
+            r.cause,
+            r.n_params,
+            r.cost,
+            r.criterion,
+            cell(r.held_out, false)
+        );
+    }
+    if let Some(p) = &d.partial {
+        let _ = writeln!(
+            md,
+            "\nBest partial explanation (not named: its held-out statistic {} is above the \
+             threshold): {}.",
+            cell(p.held_out, false),
+            p.cause
+        );
     }
     let _ = writeln!(
         md,
         "\nExtension: {}.\n\n## Evidence\n\n| test | statistic | threshold | passed |\n|---|---|---|---|",
-        describe(d.extension)
+        describe(&d.extension)
     );
     for e in &d.evidence {
         let _ = writeln!(
             md,
             "| {} | {:.3} | {:.3} | {} |",
-            e.test, e.statistic, e.threshold, e.passed
+            e.test,
+            e.statistic,
+            e.threshold,
+            if e.passed { "yes" } else { "**no**" }
         );
     }
-    let _ = writeln!(
-        md,
-        "\n## Gain on held-out data\n\nStatistic {:.3} before and {:.3} after the extension: ratio {:.1} (held out: {}).",
-        d.gain_before,
-        d.gain_after,
-        d.gain_ratio(),
-        if d.held_out.is_empty() {
-            "none".to_string()
-        } else {
-            d.held_out.join(", ")
-        }
-    );
+    let g = &d.gain;
+    let _ = match (g.before, g.after, g.ratio) {
+        (Some(b), Some(a), Some(r)) => writeln!(
+            md,
+            "\n## Gain on held-out data\n\nStatistic {b:.3} before (plain modal model) and {a:.3} \
+             after the extension: ratio {r:.1} (held out: {}).",
+            g.held_out.join(", ")
+        ),
+        _ => writeln!(
+            md,
+            "\n## Gain on held-out data\n\nNot measured: {}.",
+            g.why.as_deref().unwrap_or("no held-out data")
+        ),
+    };
     if !figures.is_empty() {
         let _ = writeln!(md, "\n## Figures\n");
         for f in figures {

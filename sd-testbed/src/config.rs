@@ -37,6 +37,7 @@
 //! injection = "reference"          # or "input"
 //! force_noise = 0.05               # rms per sample (N)
 //! sensor_noise = 3e-10             # rms per sample (m)
+//! sensor_drift = 0.0               # random-walk sensor offset, rms step per sample (m)
 //! factor = 5                       # standstill: plant simulated at factor·rate_hz
 //! samples = 70000                  # standstill: fast samples
 //! ```
@@ -201,6 +202,7 @@ pub fn parse_config(source: &str) -> Result<TestbedConfig> {
         let noise = Noise {
             force_rms: num(e, "force_noise", 0.05)?,
             sensor_rms: num(e, "sensor_noise", 3e-10)?,
+            sensor_drift: num(e, "sensor_drift", 0.0)?,
             seed: int(e, "seed", seed as usize)? as u64,
         };
         let k = controller(e, truth.mass, 1.0 / rate).map_err(ctx)?;

@@ -30,13 +30,15 @@ pub enum Injection {
     Reference,
 }
 
-/// White noise levels (rms per sample) and the seed.
+/// Noise levels (rms per sample) and the seed.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Noise {
-    /// Force noise at the plant input.
+    /// White force noise at the plant input (N).
     pub force_rms: f64,
-    /// Sensor noise on the measurement.
+    /// White sensor noise on the measurement (m).
     pub sensor_rms: f64,
+    /// A drifting sensor offset: a random walk with this rms step per sample (m; 0: none).
+    pub sensor_drift: f64,
     /// Seed of the generator.
     pub seed: u64,
 }
@@ -205,8 +207,12 @@ pub fn run_identification(truth: &Truth, exp: &Identification) -> Result<Experim
     let r = exp.excitation.repeat(exp.periods);
     let mut u = Vec::with_capacity(r.len());
     let mut y = Vec::with_capacity(r.len());
+    let mut drift = 0.0;
     for &rk in &r {
-        let ym = plant.measure() + exp.noise.sensor_rms * rng.normal();
+        if exp.noise.sensor_drift > 0.0 {
+            drift += exp.noise.sensor_drift * rng.normal();
+        }
+        let ym = plant.measure() + exp.noise.sensor_rms * rng.normal() + drift;
         let uk = match exp.injection {
             Injection::Input => rk - k.step(ym),
             Injection::Reference => k.step(rk - ym),

@@ -92,6 +92,7 @@ struct FineStep {
     /// Past commands, the newest first.
     history: std::collections::VecDeque<f64>,
     avg: f64,
+    tmp: DVector<f64>,
 }
 
 impl FineStep {
@@ -109,8 +110,9 @@ impl FineStep {
                 0
             };
             let us = self.history.get(lag).copied().unwrap_or(0.0);
-            let xn = &self.ad * &self.x + &self.bd * us;
-            self.x = xn;
+            self.tmp.gemv(1.0, &self.ad, &self.x, 0.0);
+            self.tmp.axpy(us, &self.bd, 1.0);
+            std::mem::swap(&mut self.tmp, &mut self.x);
             let y1 = self.c.dot(&self.x);
             if s + self.window_subs >= self.subs {
                 integral += 0.5 * (y0 + y1) * self.dt;
@@ -322,6 +324,7 @@ impl PlantSim {
                 window_subs: (ni.averaging * subs as f64).round() as usize,
                 history: std::collections::VecDeque::new(),
                 avg: 0.0,
+                tmp: DVector::zeros(d.n()),
             })),
             quantization: ni.quantization,
         })

@@ -64,3 +64,4 @@ pub fn pid(bw_hz: f64, mass: f64, ts: f64) -> sd_model::StateSpace {
     )
     .unwrap()
 }
+pub mod diagcases;

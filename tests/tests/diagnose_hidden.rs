@@ -1,9 +1,20 @@
-//! Issue #8: hide an effect in virtual-stage data and require the diagnosis to find it.
+//! The diagnosis on hidden effects: fixed cases on the exact route, and seeded cases made by the
+//! testbed's fine-step route (another numerical form than the hypotheses), with the confusion
+//! matrix reported on seeds disjoint from those the method was developed on.
+//!
+//! Seed ranges: development (looked at while building the search and the naming rule)
+//! `0..100`; reported (never looked at before the figures were taken) `1000..1100`. The default
+//! run takes the first 32 reported seeds; the whole range:
+//! `cargo test --release -p sd-tests --test diagnose_hidden -- --ignored --nocapture`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-use sd_diagnose::{diagnose, DiagnoseOptions};
+use sd_diagnose::{diagnose, Cause, DiagnoseOptions, Diagnosis, Verdict};
 use sd_ident::{Experiment, Lines, MultisineSpec, Phases, Role};
 use sd_testbed::{run_identification, Identification, Injection, Noise, NonIdealities, Truth};
+use sd_tests::diagcases::{hidden_effect, Case, Effect};
+
+/// Seeds the confusion matrix is reported on (disjoint from the development seeds 0..100).
+const REPORT_SEEDS: std::ops::Range<u64> = 1000..1100;
 
 /// One closed-loop identification experiment on the virtual stage, as the diagnosis reads it:
 /// a PID-like controller (bandwidth `bw`, low-pass at `lowpass` Hz or none), a full random-phase
@@ -53,6 +64,7 @@ fn identify(
             noise: Noise {
                 force_rms: noise.0,
                 sensor_rms: noise.1,
+                sensor_drift: 0.0,
                 seed: seed + 1000,
             },
             nonideal: ni,
@@ -92,10 +104,9 @@ fn experiment(
     .unwrap()
 }
 
-fn run(truth: &Truth, ni: NonIdealities, seed: u64) -> sd_diagnose::Diagnosis {
+fn run(truth: &Truth, ni: NonIdealities, seed: u64) -> Diagnosis {
     // a clock error belongs to the slow controller's own oscillator: the fast experiment runs on
-    // time (a common clock error would rescale both frequency axes alike, and the data would be
-    // consistent with each other)
+    // time (a common clock error would rescale both frequency axes alike)
     let fast_ni = NonIdealities {
         clock_error: 0.0,
         ..ni
@@ -105,320 +116,312 @@ fn run(truth: &Truth, ni: NonIdealities, seed: u64) -> sd_diagnose::Diagnosis {
     diagnose(&[fast, slow], &Default::default()).unwrap()
 }
 
+fn first_order(tf_num: Vec<f64>, tf_den: Vec<f64>) -> sd_model::StateSpace {
+    sd_model::TransferFunction::new(tf_num, tf_den, sd_model::SampleTime::Continuous)
+        .unwrap()
+        .to_ss()
+        .unwrap()
+}
+
+/// Fixed cases on the exact route: effects common to both rates are consistent, each rate-tied
+/// effect is named with its parameter, a slow clock 0.2 % fast is a clock error.
 #[test]
-fn issue8_hidden_effects() {
+fn hidden_effects_fixed_cases() {
     let truth = Truth::default();
     let mut filtered = truth.clone();
-    filtered.sensor_filters.push(
-        sd_model::TransferFunction::new(
-            vec![1.0],
-            vec![1.0 / (2.0 * std::f64::consts::PI * 3000.0), 1.0],
-            sd_model::SampleTime::Continuous,
-        )
-        .unwrap()
-        .to_ss()
-        .unwrap(),
-    );
-    // a transport delay of 100 µs common to both rates (Padé (2,2): an all-pass with the
-    // delay's phase to within 1° up to 1.5 kHz)
+    filtered.sensor_filters.push(first_order(
+        vec![1.0],
+        vec![1.0 / (2.0 * std::f64::consts::PI * 3000.0), 1.0],
+    ));
+    // a transport delay of 100 µs common to both rates (Padé (2,2))
     let tau: f64 = 100e-6;
     let mut delayed = truth.clone();
-    delayed.sensor_filters.push(
-        sd_model::TransferFunction::new(
-            vec![tau * tau / 12.0, -tau / 2.0, 1.0],
-            vec![tau * tau / 12.0, tau / 2.0, 1.0],
-            sd_model::SampleTime::Continuous,
-        )
-        .unwrap()
-        .to_ss()
-        .unwrap(),
-    );
+    delayed.sensor_filters.push(first_order(
+        vec![tau * tau / 12.0, -tau / 2.0, 1.0],
+        vec![tau * tau / 12.0, tau / 2.0, 1.0],
+    ));
+    let ni = |a: f64, b: f64, e: f64| NonIdealities {
+        hold_delay: a,
+        averaging: b,
+        clock_error: e,
+        ..Default::default()
+    };
     let cases: Vec<(&str, Truth, NonIdealities)> = vec![
-        ("none", truth.clone(), NonIdealities::default()),
-        ("common filter", filtered, NonIdealities::default()),
-        ("common delay", delayed, NonIdealities::default()),
-        (
-            "hold delay 0.4",
-            truth.clone(),
-            NonIdealities {
-                hold_delay: 0.4,
-                ..Default::default()
-            },
-        ),
-        (
-            "averaging 0.7",
-            truth.clone(),
-            NonIdealities {
-                averaging: 0.7,
-                ..Default::default()
-            },
-        ),
-        (
-            "slow clock 0.2 % fast",
-            truth.clone(),
-            NonIdealities {
-                clock_error: -0.002,
-                ..Default::default()
-            },
-        ),
+        ("none", truth.clone(), ni(0.0, 0.0, 0.0)),
+        ("common filter", filtered, ni(0.0, 0.0, 0.0)),
+        ("common delay", delayed, ni(0.0, 0.0, 0.0)),
+        ("hold delay 0.4", truth.clone(), ni(0.4, 0.0, 0.0)),
+        ("averaging 0.7", truth.clone(), ni(0.0, 0.7, 0.0)),
+        ("slow clock 0.2 % fast", truth.clone(), ni(0.0, 0.0, -0.002)),
     ];
-    for (i, (name, t, ni)) in cases.into_iter().enumerate() {
-        let d = run(&t, ni, 40 + i as u64);
+    for (i, (name, t, n)) in cases.into_iter().enumerate() {
+        let d = run(&t, n, 40 + i as u64);
         println!(
-            "{name}: {} / {} {} | ranking {:?} | gain {:.2} -> {:.2}",
-            d.verdict,
+            "{name}: {} / {} {} | gain {:?}",
+            d.verdict, d.cause, d.parameters, d.gain.ratio
+        );
+        for r in &d.ranking {
+            println!(
+                "   {} training {:.3} held out {:?}",
+                r.cause, r.cost, r.held_out
+            );
+        }
+        match name {
+            "none" | "common filter" | "common delay" => {
+                assert_eq!((d.verdict, d.cause.as_str()), (Verdict::Consistent, "none"))
+            }
+            "hold delay 0.4" => {
+                assert_eq!(d.cause, "hold_delay");
+                assert!((d.parameters["delay_frac"].as_f64().unwrap() - 0.4).abs() <= 0.02);
+                assert!(d.gain.ratio.unwrap() >= 3.0);
+            }
+            "averaging 0.7" => {
+                assert_eq!(d.cause, "averaging_sampler");
+                assert!((d.parameters["window_frac"].as_f64().unwrap() - 0.7).abs() <= 0.03);
+                assert!(d.gain.ratio.unwrap() >= 3.0);
+            }
+            _ => {
+                assert_eq!(d.cause, "clock_error");
+                let e = d.parameters["clock_error"]["slow"].as_f64().unwrap();
+                assert!((e + 0.002).abs() < 2e-4, "{e}");
+                assert!(d.gain.ratio.unwrap() >= 3.0);
+            }
+        }
+    }
+}
+
+/// One seeded case's outcome.
+struct Outcome {
+    case: Case,
+    cause: String,
+    /// Parameter errors: delay (periods), window (fraction), clock (relative).
+    errors: Vec<(&'static str, f64)>,
+    gain: Option<f64>,
+    seconds: f64,
+}
+
+impl Outcome {
+    fn wrong_name(&self) -> bool {
+        let c = self.cause.as_str();
+        c != "none" && c != "unexplained" && c != self.case.effect.expected()
+    }
+    fn right(&self) -> bool {
+        self.cause == self.case.effect.expected()
+    }
+    /// Limits: delay 0.03 periods (the fine-step grid alone is ±0.01), window 0.05, clock
+    /// 5e-4 (relative).
+    fn params_ok(&self) -> bool {
+        self.errors.iter().all(|(k, e)| match *k {
+            "delay" => *e <= 0.03,
+            "window" => *e <= 0.05,
+            _ => *e <= 5e-4,
+        })
+    }
+}
+
+fn parameter_errors(effect: Effect, d: &Diagnosis) -> Vec<(&'static str, f64)> {
+    let (a, b, e) = match effect {
+        Effect::Delay(a) => (Some(a), None, None),
+        Effect::Averaging(b) => (None, Some(b), None),
+        Effect::Clock(e) => (None, None, Some(e)),
+        Effect::DelayAveraging(a, b) => (Some(a), Some(b), None),
+        Effect::DelayClock(a, e) => (Some(a), None, Some(e)),
+        _ => (None, None, None),
+    };
+    let mut out = Vec::new();
+    for c in &d.causes {
+        match c {
+            Cause::HoldDelay { delay_frac, .. } => {
+                if let Some(a) = a {
+                    out.push(("delay", (delay_frac - a).abs()))
+                }
+            }
+            Cause::AveragingSampler { window_frac } => {
+                if let Some(b) = b {
+                    out.push(("window", (window_frac - b).abs()))
+                }
+            }
+            Cause::ClockError { clock_error } => {
+                if let (Some(e), Some(x)) = (e, clock_error.get("slow")) {
+                    out.push(("clock", (x - e).abs()))
+                }
+            }
+            _ => {}
+        }
+    }
+    out
+}
+
+fn run_case(seed: u64) -> Outcome {
+    let case = hidden_effect(seed);
+    let t = std::time::Instant::now();
+    let d = diagnose(&case.experiments, &Default::default()).unwrap();
+    let seconds = t.elapsed().as_secs_f64();
+    if std::env::var("DIAG_VERBOSE").is_ok() {
+        println!(
+            "  seed {seed}: {:?} {:?} -> {} {} ranking {:?}",
+            case.effect,
+            case.recording,
             d.cause,
             d.parameters,
             d.ranking
                 .iter()
-                .map(|r| (r.0.as_str(), (r.1 * 100.0).round() / 100.0))
-                .collect::<Vec<_>>(),
-            d.gain_before,
-            d.gain_after
-        );
-        match name {
-            "none" | "common filter" | "common delay" => assert_eq!(
-                (d.verdict.as_str(), d.cause.as_str()),
-                ("consistent", "none")
-            ),
-            "hold delay 0.4" => {
-                assert_eq!(d.cause, "hold_delay");
-                assert!((d.parameters["delay_frac"].as_f64().unwrap() - 0.4).abs() <= 0.04);
-                assert!(d.gain_before / d.gain_after >= 3.0);
-            }
-            "averaging 0.7" => {
-                assert_eq!(d.cause, "averaging_sampler");
-                assert!((d.parameters["window_frac"].as_f64().unwrap() - 0.7).abs() <= 0.1);
-                assert!(d.gain_before / d.gain_after >= 3.0);
-            }
-            _ => {
-                assert_eq!(d.verdict, "discrepancy");
-                assert!(
-                    d.cause != "hold_delay" && d.cause != "averaging_sampler",
-                    "{}",
-                    d.cause
-                );
-            }
-        }
-    }
-}
-
-/// One seeded case: a random plant, rates and noise, one hidden effect. Returns (effect,
-/// diagnosed cause, parameter error or NaN, gain ratio).
-fn random_case(seed: u64) -> (String, String, f64, f64) {
-    // plants whose identification loop the low-bandwidth controller cannot stabilize are
-    // redrawn (the test is about the diagnosis, not about the controller)
-    for attempt in 0..20 {
-        let out = random_case_attempt(seed, attempt);
-        if out.1 != "unstable setup" {
-            return out;
-        }
-    }
-    random_case_attempt(seed, 20)
-}
-
-/// The hidden effects of the random cases, drawn in turn by seed.
-const EFFECTS: [&str; 6] = [
-    "none",
-    "filter",
-    "hold_delay",
-    "averaging",
-    "cubic",
-    "clock",
-];
-fn random_case_attempt(seed: u64, attempt: u64) -> (String, String, f64, f64) {
-    let mut r = sd_tests::gen::Rng::new(seed * 7919 + 1 + attempt * 104_729);
-    let fast_rate = [4000.0, 5000.0, 6000.0][(r.uniform() * 3.0) as usize % 3];
-    let factor = 2 + (r.uniform() * 4.0) as usize % 4; // 2..5
-    let slow_rate = fast_rate / factor as f64;
-    let mass = r.range(5.0, 50.0);
-    let nmodes = 1 + (r.uniform() * 2.0) as usize % 2;
-    let modes: Vec<sd_testbed::ModeSpec> = (0..nmodes)
-        .map(|_| sd_testbed::ModeSpec {
-            freq_hz: r.range(0.6 * slow_rate, 0.4 * fast_rate),
-            zeta: r.range(0.005, 0.03),
-            residue: r.range(0.3, 2.0),
-            cubic: 0.0,
-        })
-        .collect();
-    let mut truth = Truth {
-        mass,
-        modes,
-        ..Truth::default()
-    };
-    let noise = r.range(0.3, 3.0);
-    let effect = EFFECTS[(seed % EFFECTS.len() as u64) as usize];
-    let mut ni = NonIdealities::default();
-    let mut truth_param = f64::NAN;
-    match effect {
-        "filter" => truth.sensor_filters.push(
-            sd_model::TransferFunction::new(
-                vec![1.0],
-                vec![
-                    1.0 / (2.0 * std::f64::consts::PI * r.range(0.3, 0.45) * fast_rate),
-                    1.0,
-                ],
-                sd_model::SampleTime::Continuous,
-            )
-            .unwrap()
-            .to_ss()
-            .unwrap(),
-        ),
-        "hold_delay" => {
-            ni.hold_delay = r.range(0.2, 0.8);
-            truth_param = ni.hold_delay;
-        }
-        "averaging" => {
-            ni.averaging = r.range(0.5, 1.0);
-            truth_param = ni.averaging;
-        }
-        "cubic" => {
-            let m0 = &truth.modes[0];
-            // modal deflection at the high level ~ r·F/(m ω² 2ζ)·(fraction of power near the mode)
-            let w = 2.0 * std::f64::consts::PI * m0.freq_hz;
-            let q = m0.residue * 4.0 / (mass * w * w * 2.0 * m0.zeta) * 0.05;
-            truth.modes[0].cubic = 0.3 / (q * q);
-        }
-        "clock" => {
-            ni.clock_error = r.range(0.005, 0.02) * if r.uniform() < 0.5 { -1.0 } else { 1.0 }
-        }
-        _ => {}
-    }
-    let mk = |name: &str, rate: f64, ni: NonIdealities, rms: f64, s: u64, role: Role| {
-        let scale = (rate / 5000.0).sqrt();
-        identify(
-            &truth,
-            name,
-            rate,
-            10.0,
-            Some(0.2 * rate),
-            rms,
-            (0.02 * noise * rms * scale, 0.1e-9 * noise * scale),
-            slow_rate,
-            ni,
-            s,
-            role,
-            Lines::Full,
-        )
-    };
-    let fast_ni = NonIdealities {
-        clock_error: 0.0,
-        ..ni
-    };
-    let mut exps = Vec::new();
-    let low = 0.5;
-    exps.push(mk(
-        "fast",
-        fast_rate,
-        fast_ni,
-        low,
-        seed * 3 + 1,
-        Role::Model,
-    ));
-    exps.push(mk(
-        "slow",
-        slow_rate,
-        ni,
-        low,
-        seed * 3 + 2,
-        Role::Validation,
-    ));
-    if effect == "cubic" {
-        exps.push(mk(
-            "fast_high",
-            fast_rate,
-            fast_ni,
-            4.0,
-            seed * 3 + 3,
-            Role::Validation,
-        ));
-    }
-    let exps: Option<Vec<Experiment>> = exps.into_iter().collect();
-    let Some(exps) = exps else {
-        return (effect.into(), "unstable setup".into(), f64::NAN, f64::NAN);
-    };
-    let d = diagnose(&exps, &Default::default()).unwrap();
-    if std::env::var("DIAG_VERBOSE").is_ok() {
-        println!(
-            "  seed {seed}: {effect} F {factor} fast {fast_rate} modes {:?} -> ranking {:?}",
-            truth
-                .modes
-                .iter()
-                .map(|m| m.freq_hz.round())
-                .collect::<Vec<_>>(),
-            d.ranking
-                .iter()
-                .map(|r| (r.0.clone(), (r.1 * 100.0).round() / 100.0))
+                .map(|r| (
+                    r.cause.clone(),
+                    (r.cost * 100.0).round() / 100.0,
+                    r.held_out
+                ))
                 .collect::<Vec<_>>()
         );
     }
-    let perr = match d.cause.as_str() {
-        // relative for the delay (within 10 %), absolute for the window (within 0.1)
-        "hold_delay" => {
-            (d.parameters["delay_frac"].as_f64().unwrap() - truth_param).abs() / truth_param
-        }
-        "averaging_sampler" => (d.parameters["window_frac"].as_f64().unwrap() - truth_param).abs(),
-        _ => f64::NAN,
-    };
-    (
-        effect.into(),
-        d.cause,
-        perr,
-        d.gain_before / d.gain_after.max(f64::MIN_POSITIVE),
-    )
-}
-
-fn expected(effect: &str) -> &'static str {
-    match effect {
-        "none" | "filter" => "none",
-        "hold_delay" => "hold_delay",
-        "averaging" => "averaging_sampler",
-        "cubic" => "nonlinearity",
-        _ => "unexplained",
+    Outcome {
+        errors: parameter_errors(case.effect, &d),
+        cause: d.cause.clone(),
+        gain: d.gain.ratio,
+        seconds,
+        case,
     }
 }
 
-fn run_cases(n: u64) -> Vec<(String, String, f64, f64)> {
-    (0..n).map(random_case).collect()
-}
+const KINDS: [&str; 8] = [
+    "none",
+    "common filter",
+    "hold delay",
+    "averaging",
+    "clock error",
+    "delay + averaging",
+    "delay + clock",
+    "cubic stiffness",
+];
+const NAMES: [&str; 8] = [
+    "none",
+    "hold_delay",
+    "averaging_sampler",
+    "clock_error",
+    "averaging_sampler+hold_delay",
+    "clock_error+hold_delay",
+    "nonlinearity",
+    "unexplained",
+];
 
-fn check_and_print(cases: &[(String, String, f64, f64)]) -> usize {
-    let mut wrong = 0;
-    for (i, (effect, cause, perr, gain)) in cases.iter().enumerate() {
-        let want = expected(effect);
-        let ok = cause == want
-            && match effect.as_str() {
-                "hold_delay" => *perr <= 0.1 && *gain >= 3.0,
-                "averaging" => *perr <= 0.1 && *gain >= 3.0,
-                "cubic" => *gain >= 3.0,
-                _ => true,
-            };
-        if !ok {
-            wrong += 1;
-        }
+/// Prints every case and the confusion matrix; returns (wrong names, right, parameter misses).
+fn summarize(out: &[Outcome]) -> (usize, usize, usize) {
+    for (i, o) in out.iter().enumerate() {
         println!(
-            "case {i:3}: {effect:<10} -> {cause:<18} param err {perr:.3} gain {gain:.1}{}",
-            if ok { "" } else { "   WRONG" }
+            "case {i:3}: {:<18} {:<40} -> {:<30} errors {:?} gain {:?} ({:.1} s){}",
+            o.case.effect.kind(),
+            format!("{:?}", o.case.recording),
+            o.cause,
+            o.errors,
+            o.gain.map(|g| (g * 10.0).round() / 10.0),
+            o.seconds,
+            if o.wrong_name() { "   WRONG NAME" } else { "" }
         );
     }
-    wrong
+    println!("\n| truth \\ diagnosed | {} | other |", NAMES.join(" | "));
+    println!("|---|{}---|", "---|".repeat(NAMES.len()));
+    for k in KINDS {
+        let rows: Vec<&Outcome> = out.iter().filter(|o| o.case.effect.kind() == k).collect();
+        let cells: Vec<String> = NAMES
+            .iter()
+            .map(|n| rows.iter().filter(|o| o.cause == *n).count().to_string())
+            .collect();
+        let other = rows
+            .iter()
+            .filter(|o| !NAMES.contains(&o.cause.as_str()))
+            .count();
+        println!("| {k} | {} | {other} |", cells.join(" | "));
+    }
+    for kind in ["delay", "window", "clock"] {
+        let e: Vec<f64> = out
+            .iter()
+            .flat_map(|o| o.errors.iter().filter(|x| x.0 == kind).map(|x| x.1))
+            .collect();
+        if !e.is_empty() {
+            println!(
+                "{kind} error: worst {:.4}, median {:.4} over {}",
+                e.iter().cloned().fold(0.0, f64::max),
+                median(&e),
+                e.len()
+            );
+        }
+    }
+    let gains: Vec<f64> = out
+        .iter()
+        .filter(|o| o.right())
+        .filter_map(|o| o.gain)
+        .collect();
+    if !gains.is_empty() {
+        println!(
+            "held-out gain of the named extensions: median {:.1}, worst {:.1} over {}",
+            median(&gains),
+            gains.iter().cloned().fold(f64::INFINITY, f64::min),
+            gains.len()
+        );
+    }
+    let t: Vec<f64> = out.iter().map(|o| o.seconds).collect();
+    println!(
+        "diagnosis time: median {:.2} s, worst {:.2} s",
+        median(&t),
+        t.iter().cloned().fold(0.0, f64::max)
+    );
+    let wrong = out.iter().filter(|o| o.wrong_name()).count();
+    let right = out.iter().filter(|o| o.right()).count();
+    let pmiss = out.iter().filter(|o| o.right() && !o.params_ok()).count();
+    println!(
+        "right {right} of {}, wrong names {wrong}, parameter misses {pmiss}",
+        out.len()
+    );
+    (wrong, right, pmiss)
 }
 
+fn median(x: &[f64]) -> f64 {
+    let mut v = x.to_vec();
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// The default subset: 32 reported seeds (4 of every effect kind). Never a wrong named cause,
+/// named parameters within their limits, at least 3/4 of the cases right.
 #[test]
-fn issue8_seeded_random_cases() {
-    let cases = run_cases(24);
-    let wrong = check_and_print(&cases);
-    // never a wrong named cause: consistent plants stay consistent, the unknown effect is never
-    // given a catalogued name, nonlinearity is found
-    for (effect, cause, _, _) in &cases {
-        let named =
-            cause == "hold_delay" || cause == "averaging_sampler" || cause == "nonlinearity";
-        assert!(
-            !named || cause == expected(effect),
-            "{effect} diagnosed as {cause}"
-        );
-    }
-    assert_eq!(wrong, 0, "{wrong} of {} cases misdiagnosed", cases.len());
+fn held_out_suite_default_subset() {
+    let start = REPORT_SEEDS.start;
+    let out: Vec<Outcome> = (start..start + 32).map(run_case).collect();
+    let (wrong, right, pmiss) = summarize(&out);
+    assert_eq!(wrong, 0, "wrong named causes");
+    assert_eq!(pmiss, 0, "named parameters outside their limits");
+    assert!(
+        4 * right >= 3 * out.len(),
+        "only {right} of {} right",
+        out.len()
+    );
+}
+
+/// The whole reported seed range (100 cases):
+/// `cargo test --release -p sd-tests --test diagnose_hidden -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn held_out_confusion_matrix_100() {
+    let out: Vec<Outcome> = REPORT_SEEDS.map(run_case).collect();
+    let (wrong, _, pmiss) = summarize(&out);
+    assert_eq!(wrong, 0, "wrong named causes");
+    assert_eq!(pmiss, 0, "named parameters outside their limits");
+}
+
+/// Development seeds (not reported): `DIAG_SEEDS=0..40 cargo test --release -p sd-tests --test
+/// diagnose_hidden development -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn development_seeds() {
+    let spec = std::env::var("DIAG_SEEDS").unwrap_or_else(|_| "0..16".into());
+    let (a, b) = spec.split_once("..").unwrap();
+    let (a, b): (u64, u64) = (a.parse().unwrap(), b.parse().unwrap());
+    assert!(
+        b <= REPORT_SEEDS.start,
+        "development seeds must stay below the reported range"
+    );
+    let out: Vec<Outcome> = (a..b).map(run_case).collect();
+    summarize(&out);
 }
 
 /// A given model that is wrong at a folding frequency (its 1.65 kHz mode placed at 1.55 kHz;
@@ -426,7 +429,7 @@ fn issue8_seeded_random_cases() {
 /// cause is `fast_model_error`, the model-free Lemma 6 prediction is the extension, and the
 /// report points at the band around 350 Hz and its fast origin.
 #[test]
-fn issue8_wrong_given_model_is_a_fast_model_error() {
+fn wrong_given_model_is_a_fast_model_error() {
     let truth = Truth::default();
     let fast = experiment(&truth, "fast", 5000.0, Default::default(), 71, Role::Model);
     let slow = experiment(
@@ -448,11 +451,8 @@ fn issue8_wrong_given_model_is_a_fast_model_error() {
         },
     )
     .unwrap();
-    assert_eq!(
-        (d.verdict.as_str(), d.cause.as_str()),
-        ("consistent", "none")
-    );
-    assert_eq!(d.model_source, "given");
+    assert_eq!((d.verdict, d.cause.as_str()), (Verdict::Consistent, "none"));
+    assert_eq!(d.model_source(), "given");
     // the wrong one
     let mut wrong_truth = truth.clone();
     wrong_truth.modes[1].freq_hz = 1550.0;
@@ -466,10 +466,11 @@ fn issue8_wrong_given_model_is_a_fast_model_error() {
     .unwrap();
     println!("{}", serde_json::to_string_pretty(&d.to_json()).unwrap());
     assert_eq!(
-        (d.verdict.as_str(), d.cause.as_str()),
-        ("discrepancy", "fast_model_error")
+        (d.verdict, d.cause.as_str()),
+        (Verdict::Discrepancy, "fast_model_error")
     );
-    assert!(d.gain_ratio() >= 3.0, "{}", d.gain_ratio());
+    let g = d.gain_ratio().unwrap();
+    assert!(g >= 3.0, "{g}");
     let slow = &d.experiments[1];
     let band = &slow.bands[0];
     assert!(
@@ -485,9 +486,10 @@ fn issue8_wrong_given_model_is_a_fast_model_error() {
     // in the time domain the whole-band error is dominated by low-frequency input noise, but
     // inside the band the model's error stands out above the noise and the extension removes it
     let td = slow.time_domain.as_ref().unwrap();
-    let (noise, err_model, err_ext) = td.in_bands.unwrap();
+    let b = td.in_bands.unwrap();
+    let (noise, err_model, err_ext) = (b.noise_rms, b.error_rms_model, b.error_rms_extended);
     println!(
-        "time domain: output {:.3e}, noise {:.3e}, model {:.3e}, extended {:.3e}; in the bands: noise {noise:.3e}, model {err_model:.3e}, extended {:.3e}",
+        "time domain: output {:.3e}, noise {:?}, model {:.3e}, extended {:.3e}; in the bands: noise {noise:.3e}, model {err_model:.3e}, extended {:.3e}",
         td.output_rms, td.noise_rms, td.error_rms_model, td.error_rms_extended.unwrap(), err_ext.unwrap()
     );
     assert!(err_model > 3.0 * noise);
@@ -495,36 +497,10 @@ fn issue8_wrong_given_model_is_a_fast_model_error() {
     assert!(td.error_rms_extended.unwrap() <= td.error_rms_model * 1.001);
 }
 
-/// The confusion matrix over 100 seeded cases:
-/// `cargo test --release -p sd-tests --test diagnose_hidden -- --ignored --nocapture`.
-#[test]
-#[ignore]
-fn issue8_confusion_matrix_100() {
-    let cases = run_cases(100);
-    let wrong = check_and_print(&cases);
-    let causes = [
-        "none",
-        "hold_delay",
-        "averaging_sampler",
-        "nonlinearity",
-        "unexplained",
-        "unstable setup",
-    ];
-    println!("\neffect \\ diagnosed: {causes:?}");
-    for e in EFFECTS {
-        let row: Vec<usize> = causes
-            .iter()
-            .map(|c| cases.iter().filter(|x| x.0 == e && x.1 == *c).count())
-            .collect();
-        println!("{e:<12} {row:?}");
-    }
-    println!("misdiagnosed: {wrong} of {}", cases.len());
-}
-
 /// Units: the same data in other units (input ×1e6, output ×1e-3, reference ×1e6) give the
 /// same diagnosis — nothing depends on the absolute scale of the signals.
 #[test]
-fn issue8_units_do_not_matter() {
+fn units_do_not_matter() {
     let truth = Truth::default();
     let ni = NonIdealities {
         hold_delay: 0.55,
@@ -553,7 +529,7 @@ fn issue8_units_do_not_matter() {
         (pa - 0.55).abs() < 0.055 && (pa - pb).abs() < 1e-3,
         "{pa} {pb}"
     );
-    assert!((a.gain_ratio() / b.gain_ratio() - 1.0).abs() < 0.05);
+    assert!((a.gain_ratio().unwrap() / b.gain_ratio().unwrap() - 1.0).abs() < 0.05);
 }
 
 /// Step 1 of the diagnosis: distortion levels where the excitation leaves lines out. Random-odd
@@ -565,7 +541,7 @@ fn issue8_units_do_not_matter() {
 /// distortion there. The linear stage's high level is not exactly at the noise either (1.4–1.6):
 /// what is left of the loop's slowest transient after the skipped period leaks into every line.
 #[test]
-fn issue8_distortion_at_non_excited_lines() {
+fn distortion_at_non_excited_lines() {
     let odd = Lines::RandomOdd { group: 3, seed: 9 };
     let run = |truth: &Truth, seed: u64| {
         let mk = |name: &str, rms: f64, s: u64, role: Role| {
@@ -591,9 +567,8 @@ fn issue8_distortion_at_non_excited_lines() {
         ];
         diagnose(&exps, &Default::default()).unwrap()
     };
-    let odd_ratio = |d: &sd_diagnose::Diagnosis, i: usize| {
-        d.experiments[i].distortion.as_ref().unwrap().odd_ratio
-    };
+    let odd_ratio =
+        |d: &Diagnosis, i: usize| d.experiments[i].distortion.as_ref().unwrap().odd_ratio;
     let linear = Truth::default();
     let d = run(&linear, 91);
     for e in d.evidence.iter().filter(|e| e.test.contains("non-excited")) {
@@ -602,10 +577,7 @@ fn issue8_distortion_at_non_excited_lines() {
             e.test, e.statistic, e.threshold
         );
     }
-    assert_eq!(
-        (d.verdict.as_str(), d.cause.as_str()),
-        ("consistent", "none")
-    );
+    assert_eq!((d.verdict, d.cause.as_str()), (Verdict::Consistent, "none"));
     assert!(d.evidence.iter().any(|e| e.test.contains("non-excited")));
     let low_linear = odd_ratio(&d, 0);
     assert!(low_linear < 1.2, "{low_linear}");

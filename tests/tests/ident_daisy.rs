@@ -159,7 +159,9 @@ fn issue8_daisy_robot_arm_halves_are_consistent() {
     let dg = sd_diagnose::diagnose(&exps, &Default::default()).unwrap();
     println!(
         "DaISy robot arm, two halves: {} / {} ({})",
-        dg.verdict, dg.cause, dg.model_source
+        dg.verdict,
+        dg.cause,
+        dg.model_source()
     );
     for e in &dg.evidence {
         println!(
@@ -168,8 +170,8 @@ fn issue8_daisy_robot_arm_halves_are_consistent() {
         );
     }
     assert_eq!(
-        (dg.verdict.as_str(), dg.cause.as_str()),
-        ("consistent", "none")
+        (dg.verdict, dg.cause.as_str()),
+        (sd_diagnose::Verdict::Consistent, "none")
     );
     // the time domain: the second half's measured input through the model fitted on the first
     // half (initial state by least squares) misses the output by no more than the model misses
@@ -192,7 +194,7 @@ fn issue8_daisy_robot_arm_halves_are_consistent() {
         "  with the second half's output scaled by 1.1: {} / {} (model-free statistic {:.1})",
         dc.verdict, dc.cause, dc.evidence[1].statistic
     );
-    assert_eq!(dc.verdict, "discrepancy");
+    assert_eq!(dc.verdict, sd_diagnose::Verdict::Discrepancy);
     // same rate, same level: nothing rate-tied can explain it, and it is no nonlinearity
     assert_eq!(dc.cause, "unexplained");
 }

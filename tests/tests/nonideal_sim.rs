@@ -120,7 +120,13 @@ const CASES: [(usize, usize); 8] = [
 #[test]
 fn delayed_hold_beyond_one_period_vs_fine_simulation() {
     let p = sd_model::stage::paper_stage(0.01).unwrap();
-    let worst = check(&p, 1e-3, 1000, &[(1400, 0), (2000, 0), (1250, 600), (3700, 0)], 4);
+    let worst = check(
+        &p,
+        1e-3,
+        1000,
+        &[(1400, 0), (2000, 0), (1250, 600), (3700, 0)],
+        4,
+    );
     assert!(worst <= 1e-8);
 }
 

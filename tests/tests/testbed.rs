@@ -52,6 +52,7 @@ fn experiment_skip(
         noise: Noise {
             force_rms: noise,
             sensor_rms: noise * 1e-8,
+            sensor_drift: 0.0,
             seed: 1,
         },
         nonideal: ni,
@@ -241,6 +242,7 @@ fn issue7_standstill_nonidealities_tied_to_the_controller_period() {
                 noise: Noise {
                     force_rms: 0.0,
                     sensor_rms: sigma,
+                    sensor_drift: 0.0,
                     seed,
                 },
                 nonideal: ni,
@@ -328,7 +330,8 @@ fn fine_step_route_agrees_with_the_exact_route() {
         assert!(diff < 1e-4, "α {a} β {b} ε {e}: {diff:e}");
         // and the effect itself is far larger than that difference
         if a + b > 0.0 {
-            let ideal = run(PlantSim::new(&truth, h, &NonIdealities::default(), None, false).unwrap());
+            let ideal =
+                run(PlantSim::new(&truth, h, &NonIdealities::default(), None, false).unwrap());
             let eff = exact
                 .iter()
                 .zip(&ideal)

@@ -209,6 +209,7 @@ pub fn run(quick: bool) -> Result<(), String> {
             noise: sd_testbed::Noise {
                 force_rms: 0.05,
                 sensor_rms: 3e-10,
+                sensor_drift: 0.0,
                 seed,
             },
             nonideal: ni,
@@ -255,7 +256,7 @@ pub fn run(quick: bool) -> Result<(), String> {
         "ours_lti_s": t_tb, "ours_nonlinear_s": t_nl, "peer": "none (no virtual stage in python-control or scipy)"});
     let diag_entry = json!({"name": "diagnose", "size": "three experiments of 70 000 samples (5 kHz model, 5 kHz, 1 kHz)",
         "ours_s": t_diag, "cause": diag.cause, "parameters": diag.parameters, "gain_ratio": diag.gain_ratio(),
-        "model": diag.model_source, "peer": "none (no such tool elsewhere)"});
+        "model": diag.model_source(), "peer": "none (no such tool elsewhere)"});
 
     // freqresp: library call and the whole sdctl process
     let (fmin, fmax) = (0.1, 2500.0);

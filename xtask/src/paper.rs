@@ -140,6 +140,7 @@ fn identification(
         noise: Noise {
             force_rms: 0.05 * (rate / 5000.0).sqrt(),
             sensor_rms: 0.3e-9 * (rate / 5000.0).sqrt(),
+            sensor_drift: 0.0,
             seed,
         },
         nonideal: NonIdealities {
@@ -243,8 +244,11 @@ pub fn run(out: &str, quick: bool, averaging: f64) -> Result<(), String> {
     .map_err(s)?;
     let gain_ratio = diag.gain_ratio();
     eprintln!(
-        "  diagnosis: {} / {} {} (gain ×{gain_ratio:.1})",
-        diag.verdict, diag.cause, diag.parameters
+        "  diagnosis: {} / {} {} (held-out gain {})",
+        diag.verdict,
+        diag.cause,
+        diag.parameters,
+        gain_ratio.map_or("not measured".into(), |r| format!("×{r:.1}"))
     );
     let diag_dir = std::path::Path::new(out).join("diagnosis");
     std::fs::create_dir_all(&diag_dir).map_err(s)?;
@@ -356,6 +360,7 @@ pub fn run(out: &str, quick: bool, averaging: f64) -> Result<(), String> {
                     noise: Noise {
                         force_rms: 0.05,
                         sensor_rms: 0.3e-9,
+                        sensor_drift: 0.0,
                         seed,
                     },
                     nonideal: ni,
@@ -665,7 +670,8 @@ pub fn run(out: &str, quick: bool, averaging: f64) -> Result<(), String> {
         "standstill_with_averaging_sensor": with_sensor,
         "figures": figures.iter().map(|f| f.to_string()).chain(diag_figs.iter().map(|f| format!("diagnosis/{f}"))).collect::<Vec<_>>(),
         "diagnosis": {"verdict": diag.verdict, "cause": diag.cause, "parameters": diag.parameters,
-                      "gain_ratio": gain_ratio, "gain_before": diag.gain_before, "gain_after": diag.gain_after},
+                      "gain_ratio": gain_ratio, "gain_before": diag.gain.before, "gain_after": diag.gain.after,
+                      "held_out": diag.gain.held_out, "partial": diag.partial},
     });
     for (name, v) in &ctrl_json {
         report[*name] = v.clone();
@@ -716,7 +722,11 @@ pub fn run(out: &str, quick: bool, averaging: f64) -> Result<(), String> {
         let _ = writeln!(md, "\n![{f}]({f})");
     }
     let _ = writeln!(md, "\n## What it shows\n\nThe 653 Hz mode appears at 347 Hz in the 1 kHz data. The 5 kHz fit, downsampled exactly (Lemma 6), predicts the aliased peak; the measured 1 kHz FRF differs because the sensor averages over a fraction of *each* rate's period — an effect that depends on the sample rate, which Lemma 6 alone cannot carry over. Controller 2 (PID alone) has a large sensitivity peak at the aliased mode; Controller 1, designed by loopshaping on the downsampled model, lowers its gain there. At standstill, Controller 2's error is dominated by the aliased mode (≈347 Hz at 1 kHz, 653 Hz between the samples). Fig. 6, as the paper's, has the controller sample the position ideally; with the identification's averaging sensor in the standstill loop as well (the last rows of the table), its phase lag of about half the window detunes Controller 2's amplification of the aliased mode, and its error is dominated by the loop's own low-frequency peak instead.");
-    let _ = writeln!(md, "\n## Diagnosis (beyond the paper)\n\nThe fit's Lemma 6 simulation was compared with the 1 kHz FRF, and the 1 kHz FRF with the model-free Lemma 6 prediction from the 5 kHz FRF (every fold frequency is a measured line); the rate-tied causes were fitted on a continuous modal model built from the fit's poles (full report in `diagnosis/report.md`): verdict **{}**, cause **{}**, parameters `{}`. On held-out periods the discrepancy statistic (1 = noise level) goes from {:.1} to {:.2} with the extension: a gain of ×{:.0}.", diag.verdict, diag.cause, diag.parameters, diag.gain_before, diag.gain_after, gain_ratio);
+    let _ = writeln!(md, "\n## Diagnosis (beyond the paper)\n\nThe fit's Lemma 6 simulation was compared with the 1 kHz FRF, and the 1 kHz FRF with the model-free Lemma 6 prediction from the 5 kHz FRF (every fold frequency is a measured line); the rate-tied causes were fitted on a continuous modal model built from the fit's poles (full report in `diagnosis/report.md`): verdict **{}**, cause **{}**, parameters `{}`. {}", diag.verdict, diag.cause, diag.parameters,
+        match (diag.gain.before, diag.gain.after, gain_ratio) {
+            (Some(b), Some(a), Some(r)) => format!("On held-out periods ({}) the discrepancy statistic (1 = noise level) goes from {b:.1} for the plain modal model to {a:.2} with the extension: a gain of ×{r:.0}.", diag.gain.held_out.join(", ")),
+            _ => format!("The gain could not be measured on held-out data: {}.", diag.gain.why.as_deref().unwrap_or("no held-out data")),
+        });
     std::fs::write(format!("{out}/report.md"), md).map_err(s)?;
     println!("alias peak measured at {mpk_f:.2} Hz; report in {out}/report.md");
     Ok(())
@@ -771,15 +781,28 @@ mod tests {
         assert!((ss["controller2"]["dominant_hz_fast"].as_f64().expect("f") - 653.0).abs() <= 10.0);
         assert!((ss["controller2"]["dominant_hz_slow"].as_f64().expect("f") - 347.0).abs() <= 10.0);
         assert!(report["fit"]["median_rel_error"].as_f64().expect("fit") <= 0.05);
-        assert_eq!(report["diagnosis"]["cause"], "averaging_sampler");
-        assert!(report["diagnosis"]["gain_ratio"].as_f64().expect("gain") >= 3.0);
-        let beta = report["diagnosis"]["parameters"]["window_frac"]
-            .as_f64()
-            .expect("window");
+        // the reduced run's low-order fit may not carry the extension to the noise level on
+        // held-out periods: then the cause is `unexplained` with the averaging sampler as the
+        // best partial explanation; either way the averaging sampler and a clear gain
+        let cause = report["diagnosis"]["cause"].as_str().expect("cause");
+        let partial = report["diagnosis"]["partial"]["cause"]
+            .as_str()
+            .unwrap_or("");
         assert!(
-            (beta - super::DEFAULT_AVERAGING).abs() <= 0.1,
-            "window {beta}"
+            cause == "averaging_sampler"
+                || (cause == "unexplained" && partial == "averaging_sampler"),
+            "cause {cause}, partial {partial}"
         );
+        assert!(report["diagnosis"]["gain_ratio"].as_f64().expect("gain") >= 3.0);
+        if cause == "averaging_sampler" {
+            let beta = report["diagnosis"]["parameters"]["window_frac"]
+                .as_f64()
+                .expect("window");
+            assert!(
+                (beta - super::DEFAULT_AVERAGING).abs() <= 0.1,
+                "window {beta}"
+            );
+        }
         assert!(dir.join("diagnosis").join("report.md").exists());
     }
 }

@@ -1,0 +1,202 @@
+//! Stage 1, the data: FRF estimates of whole experiments and of their training (earlier) and
+//! held-out (later) parts, with the degrees of freedom of their variances and the correlation
+//! of neighbouring lines ([`crate::stats`]).
+
+use crate::stats::lpm_inflation;
+use crate::{DiagnoseError, Result};
+use sd_ident::{
+    frf_periodic, DistortionReport, Experiment, LpmOptions, PeriodicOptions, MIN_INPUT_SNR,
+};
+use sd_model::Frd;
+
+/// Which part of an experiment's steady data.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub(crate) enum Part {
+    Whole,
+    /// The earlier steady periods (or the first half of a record).
+    Training,
+    /// The later ones (or the second half).
+    HeldOut,
+}
+
+/// An FRF estimate with what the statistic needs to know about it.
+#[derive(Debug, Clone)]
+pub(crate) struct Estimate {
+    pub(crate) frd: Frd,
+    /// Real degrees of freedom of each line's variance estimate.
+    pub(crate) dof: f64,
+    /// Correlation inflation of neighbouring lines (1: independent).
+    pub(crate) inflation: f64,
+    pub(crate) distortion: Option<DistortionReport>,
+}
+
+/// How a held-out part is labelled.
+pub(crate) fn held_out_label(e: &Experiment) -> String {
+    if e.spec.period_samples.is_some() {
+        format!("{} (later periods)", e.spec.name)
+    } else {
+        format!("{} (later part of the record)", e.spec.name)
+    }
+}
+
+/// How the earlier part is labelled when it is held out in turn.
+pub(crate) fn earlier_label(e: &Experiment) -> String {
+    if e.spec.period_samples.is_some() {
+        format!("{} (earlier periods)", e.spec.name)
+    } else {
+        format!("{} (earlier part of the record)", e.spec.name)
+    }
+}
+
+/// The FRF of (part of) an experiment.
+pub(crate) fn estimate(e: &Experiment, part: Part) -> Result<Estimate> {
+    let Some(period) = e.spec.period_samples else {
+        return estimate_lpm(e, part);
+    };
+    let skip = e.spec.skip_periods;
+    let total = e.u.len() / period.max(1);
+    let steady = total.saturating_sub(skip);
+    let (lo, hi) = match part {
+        Part::Whole => (skip, total),
+        Part::Training => (skip, skip + steady / 2),
+        Part::HeldOut => (skip + steady / 2, total),
+    };
+    if hi <= lo {
+        return Err(DiagnoseError::Setup(format!(
+            "`{}` has {steady} steady periods: nothing left for this part",
+            e.spec.name
+        )));
+    }
+    let cut = |x: &[f64]| x[lo * period..hi * period].to_vec();
+    let r = e.r.as_ref().map(|r| cut(r));
+    let est = frf_periodic(
+        e.spec.sample_rate_hz,
+        r.as_deref(),
+        &cut(&e.u),
+        &cut(&e.y),
+        &PeriodicOptions::new(period, 0),
+    )?;
+    let m = hi - lo;
+    // lines whose input is hardly measured (in closed loop: where the loop cancels the
+    // excitation) have a biased ratio and no valid variance: left out
+    let frd = est
+        .frd
+        .select(|i| est.input_snr.get(i).is_none_or(|s| *s >= MIN_INPUT_SNR))?;
+    Ok(Estimate {
+        frd,
+        // 2(M − 1) complex noise bins between two harmonics; with one period the white-noise
+        // level from the many non-excited bins
+        dof: if m >= 2 {
+            4.0 * (m as f64 - 1.0)
+        } else {
+            f64::INFINITY
+        },
+        inflation: 1.0,
+        distortion: est.distortion,
+    })
+}
+
+/// The training and held-out parts of an experiment (`None` when a part has no lines or no
+/// variance). A periodic part of a single period takes its noise level from the whole record
+/// (the per-period variance scaled to one period, with the whole record's degrees of freedom).
+pub(crate) fn parts(e: &Experiment, whole: &Estimate) -> Option<(Estimate, Estimate)> {
+    let steady = e
+        .spec
+        .period_samples
+        .map(|p| (e.u.len() / p.max(1)).saturating_sub(e.spec.skip_periods));
+    let one = |part: Part| -> Option<Estimate> {
+        let mut est = estimate(e, part).ok()?;
+        let m = steady.map(|s| match part {
+            Part::Training => s / 2,
+            _ => s - s / 2,
+        });
+        // one period has no spread of its own (its white-noise level from non-excited bins
+        // ignores the loop's coloured noise): the whole record's per-period variance instead
+        if let (Some(steady), Some(m @ 0..=1)) = (steady, m) {
+            let scale = steady as f64 / m.max(1) as f64;
+            let wf = whole.frd.freq_hz();
+            let wv = whole.frd.variance()?;
+            let at = |f: f64| {
+                let i = wf.partition_point(|&x| x < f - 1e-9);
+                (i < wf.len() && (wf[i] - f).abs() <= 1e-9 * f.max(1.0)).then_some(i)
+            };
+            let keep: Vec<Option<usize>> = est.frd.freq_hz().iter().map(|&f| at(f)).collect();
+            let sel = est.frd.select(|i| keep[i].is_some()).ok()?;
+            let var = keep
+                .iter()
+                .flatten()
+                .map(|&i| wv[i].map(|v| v * scale))
+                .collect();
+            est.frd = sd_model::Frd::new(
+                sel.freq_hz().to_vec(),
+                sel.response().to_vec(),
+                Some(var),
+                sel.time(),
+            )
+            .ok()?;
+            est.dof = whole.dof;
+        }
+        (!est.frd.is_empty()).then_some(est)
+    };
+    Some((one(Part::Training)?, one(Part::HeldOut)?))
+}
+
+/// Non-periodic data: the local polynomial method (transients handled); the parts are the two
+/// halves of the record.
+fn estimate_lpm(e: &Experiment, part: Part) -> Result<Estimate> {
+    let n = e.u.len();
+    let (lo, hi) = match part {
+        Part::Whole => (0, n),
+        Part::Training => (0, n / 2),
+        Part::HeldOut => (n / 2, n),
+    };
+    let opt = LpmOptions::default();
+    let fs = e.spec.sample_rate_hz;
+    let frd = match &e.r {
+        Some(r) => {
+            let (frd, snr) =
+                sd_ident::lpm_closed_loop_snr(fs, &r[lo..hi], &e.u[lo..hi], &e.y[lo..hi], &opt)?;
+            frd.select(|i| snr.get(i).is_none_or(|s| *s >= MIN_INPUT_SNR))?
+        }
+        None => {
+            let x = nalgebra::DMatrix::from_column_slice(hi - lo, 1, &e.u[lo..hi]);
+            let z = nalgebra::DMatrix::from_column_slice(hi - lo, 1, &e.y[lo..hi]);
+            sd_ident::lpm(fs, &x, &z, &opt)?.frd
+        }
+    };
+    // one excitation (the reference, or the input): q = 2(R + 1) local parameters
+    let q = 2 * (opt.degree + 1);
+    let half = opt.half_width.unwrap_or((q + 2).div_ceil(2));
+    let resid = (2 * half + 1).saturating_sub(q).max(1);
+    Ok(Estimate {
+        frd,
+        dof: 2.0 * resid as f64,
+        inflation: lpm_inflation(half, opt.degree),
+        distortion: None,
+    })
+}
+
+/// Rms of the excitation (reference, or input without one) over the steady periods.
+pub(crate) fn level(e: &Experiment) -> f64 {
+    let x = e.r.as_ref().unwrap_or(&e.u);
+    let start = e.spec.skip_periods * e.spec.period_samples.unwrap_or(0);
+    sd_model::rms(&x[start.min(x.len())..])
+}
+
+/// The integer factor model rate / experiment rate, or an error that says what is wrong.
+pub(crate) fn rate_factor(model: &Experiment, e: &Experiment) -> Result<usize> {
+    let ratio = model.spec.sample_rate_hz / e.spec.sample_rate_hz;
+    let factor = ratio.round();
+    if factor < 1.0 || (ratio - factor).abs() > 1e-9 * ratio {
+        return Err(DiagnoseError::Setup(format!(
+            "`{}` runs at {} Hz: the model experiment's {} Hz is {ratio:.6} times that, not a \
+             whole multiple; record it at {} Hz divided by a whole number, or give it the role \
+             \"model\" if it is the fastest",
+            e.spec.name,
+            e.spec.sample_rate_hz,
+            model.spec.sample_rate_hz,
+            model.spec.sample_rate_hz
+        )));
+    }
+    Ok(factor as usize)
+}

@@ -1,0 +1,495 @@
+//! Stage 4, the rate-tied hypotheses: parametric extensions of the continuous modal model
+//! ([`crate::modal`]) that predict experiments at other rates.
+//!
+//! A hypothesis is a [`Family`] (which parameters are free) and its parameters [`RateTied`]:
+//! hold delay α (fraction of each experiment's own period, up to
+//! [`sd_multirate::MAX_HOLD_DELAY`]), averaging window β (fraction), and a clock error `e_j`
+//! per validation experiment (its true period is `T_j(1 + e_j)`; the model experiment's clock
+//! is the reference). For trial (α, β) the modal residues are refitted to the fast FRF with the
+//! fast experiment discretised the same way; a slow experiment's lines are predicted by the
+//! basis discretised at its true period and evaluated at `f/(1 + e_j)` (the measured line f
+//! is at the true frequency `f/(1 + e_j)`: the controller counts samples, not seconds).
+//!
+//! **Search.** Single causes: α on a 0.05 grid over [0, 2], β on a 0.04 grid over [0, 1],
+//! each e_j on a 0.001 grid over [−3 %, 3 %] (per experiment: e_j only moves its own lines),
+//! each refined by golden section in the best cell. Delay + averaging: a 0.2 × 0.2 grid, then
+//! coordinate refinement in shrinking windows. A cause with clock errors: the clock errors
+//! over ±3 % at the other cause's single estimate, then alternately that cause over its whole
+//! range and the clock errors within ±0.4 %. The criterion is the statistic's score sum plus
+//! `½ ln K` per parameter (BIC in the score's units: the score sum is the negative
+//! log-likelihood of exponential scores). The residue covariance used while searching has the
+//! poles fixed; the held-out yardstick adds the poles' uncertainty (`Modal::stat_full`).
+
+use crate::data::Estimate;
+use crate::lemma6::{compare, Pred};
+use crate::modal::{ModalBasis, Residues};
+use crate::stats::{statistic, Line, Statistic};
+use crate::Result;
+use sd_model::linalg::golden_min;
+use sd_multirate::NonIdeal;
+use serde::Serialize;
+
+/// Parameters of a rate-tied extension.
+#[derive(Clone, Debug, PartialEq, Default, Serialize)]
+pub struct RateTied {
+    /// Hold delay α (fraction of each experiment's own period).
+    pub hold_delay: f64,
+    /// Averaging window β (fraction of the period).
+    pub averaging: f64,
+    /// Clock error per validation experiment (in the order of the targets; empty: none).
+    pub clock_error: Vec<f64>,
+}
+
+impl RateTied {
+    /// The non-idealities at every rate.
+    pub fn nonideal(&self) -> NonIdeal {
+        NonIdeal {
+            hold_delay: self.hold_delay,
+            averaging: self.averaging,
+        }
+    }
+
+    /// Clock error of target `j` (0 without one).
+    pub fn clock(&self, j: usize) -> f64 {
+        self.clock_error.get(j).copied().unwrap_or(0.0)
+    }
+}
+
+/// Which parameters are free.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub enum Family {
+    /// The plain modal model.
+    None,
+    /// Hold delay.
+    Delay,
+    /// Averaging sampler.
+    Average,
+    /// Clock error per experiment.
+    Clock,
+    /// Hold delay and averaging sampler.
+    DelayAverage,
+    /// Hold delay and clock error.
+    DelayClock,
+    /// Averaging sampler and clock error.
+    AverageClock,
+}
+
+impl Family {
+    /// All families, simplest first.
+    pub const ALL: [Family; 7] = [
+        Family::None,
+        Family::Delay,
+        Family::Average,
+        Family::Clock,
+        Family::DelayAverage,
+        Family::DelayClock,
+        Family::AverageClock,
+    ];
+
+    /// Has a hold delay.
+    pub fn delay(self) -> bool {
+        matches!(
+            self,
+            Family::Delay | Family::DelayAverage | Family::DelayClock
+        )
+    }
+    /// Has an averaging window.
+    pub fn average(self) -> bool {
+        matches!(
+            self,
+            Family::Average | Family::DelayAverage | Family::AverageClock
+        )
+    }
+    /// Has clock errors.
+    pub fn clock(self) -> bool {
+        matches!(
+            self,
+            Family::Clock | Family::DelayClock | Family::AverageClock
+        )
+    }
+
+    /// The cause names, alphabetical, joined by `+` (`none` for the plain model).
+    pub fn name(self) -> String {
+        let mut v = Vec::new();
+        if self.average() {
+            v.push("averaging_sampler");
+        }
+        if self.clock() {
+            v.push("clock_error");
+        }
+        if self.delay() {
+            v.push("hold_delay");
+        }
+        if v.is_empty() {
+            "none".into()
+        } else {
+            v.join("+")
+        }
+    }
+
+    /// Free parameters with `n` validation experiments.
+    pub fn n_params(self, n: usize) -> usize {
+        usize::from(self.delay()) + usize::from(self.average()) + if self.clock() { n } else { 0 }
+    }
+
+    /// The families with one cause fewer (empty for single causes).
+    pub fn nested(self) -> Vec<Family> {
+        match self {
+            Family::DelayAverage => vec![Family::Delay, Family::Average],
+            Family::DelayClock => vec![Family::Delay, Family::Clock],
+            Family::AverageClock => vec![Family::Average, Family::Clock],
+            _ => Vec::new(),
+        }
+    }
+}
+
+/// A slower experiment to predict (the FRF of a part or the whole).
+pub(crate) struct Target<'a> {
+    pub(crate) factor: usize,
+    pub(crate) est: &'a Estimate,
+}
+
+/// A fitted hypothesis.
+#[derive(Clone, Debug)]
+pub(crate) struct Fitted {
+    pub(crate) family: Family,
+    pub(crate) params: RateTied,
+    pub(crate) stat: Statistic,
+    pub(crate) criterion: f64,
+}
+
+/// The continuous modal model with the fast data it is fitted to.
+pub(crate) struct Modal<'a> {
+    pub(crate) basis: ModalBasis,
+    pub(crate) fast: &'a Estimate,
+    pub(crate) h: f64,
+    pub(crate) alpha: f64,
+}
+
+/// Minimizes `f` on a grid of `n` cells over [lo, hi], then by golden section in the best cell.
+fn min1d(f: &mut dyn FnMut(f64) -> f64, lo: f64, hi: f64, n: usize) -> (f64, f64) {
+    let n = n.max(1);
+    let step = (hi - lo) / n as f64;
+    let (mut best, mut bc) = (lo, f64::INFINITY);
+    for i in 0..=n {
+        let p = lo + step * i as f64;
+        let c = f(p);
+        if c < bc {
+            bc = c;
+            best = p;
+        }
+    }
+    if !bc.is_finite() || step <= 0.0 {
+        return (best, bc);
+    }
+    let (p, c) = golden_min(&mut *f, (best - step).max(lo), (best + step).min(hi), 20);
+    if c < bc {
+        (p, c)
+    } else {
+        (best, bc)
+    }
+}
+
+impl Modal<'_> {
+    /// Residues fitted to the fast FRF under the non-idealities.
+    pub(crate) fn residues(&self, ni: NonIdeal) -> Result<Residues> {
+        let phi = self.basis.responses(self.h, ni, self.fast.frd.freq_hz())?;
+        Ok(Residues::fit(&self.fast.frd, &phi)?
+            .for_estimated_weights(self.fast.dof, self.fast.inflation))
+    }
+
+    /// Residues with the covariance of residues and poles together (the yardstick of the
+    /// verdict and the gain).
+    pub(crate) fn residues_full(&self, ni: NonIdeal) -> Result<Residues> {
+        let f = self.fast.frd.freq_hz();
+        let phi = self.basis.responses(self.h, ni, f)?;
+        let res = Residues::fit(&self.fast.frd, &phi)?;
+        let dphi = self.basis.pole_sensitivities(&res.r, self.h, ni, f)?;
+        Ok(res
+            .with_poles(&self.fast.frd, &phi, &dphi)?
+            .for_estimated_weights(self.fast.dof, self.fast.inflation))
+    }
+
+    /// Lines of a target against the extension's prediction (with the residues' variance; with
+    /// the poles' too when `res` carries it).
+    pub(crate) fn lines(
+        &self,
+        res: &Residues,
+        ni: NonIdeal,
+        clock: f64,
+        t: &Target<'_>,
+    ) -> Result<Vec<Line>> {
+        self.lines_with(res, ni, clock, t, false)
+    }
+
+    fn lines_with(
+        &self,
+        res: &Residues,
+        ni: NonIdeal,
+        clock: f64,
+        t: &Target<'_>,
+        full: bool,
+    ) -> Result<Vec<Line>> {
+        let ts = self.h * t.factor as f64 * (1.0 + clock);
+        let f: Vec<f64> = t
+            .est
+            .frd
+            .freq_hz()
+            .iter()
+            .map(|f| f / (1.0 + clock))
+            .collect();
+        let phi = self.basis.responses(ts, ni, &f)?;
+        let dphi = if full {
+            Some(self.basis.pole_sensitivities(&res.r, ts, ni, &f)?)
+        } else {
+            None
+        };
+        Ok(compare(&t.est.frd, t.est.dof, |i, _| {
+            let (value, var) = match &dphi {
+                Some(d) => res.predict_full(&phi[i], &d[i]),
+                None => res.predict(&phi[i]),
+            };
+            Some(Pred {
+                value,
+                var,
+                dof: f64::INFINITY,
+            })
+        }))
+    }
+
+    /// The pooled statistic of an extension over the targets.
+    pub(crate) fn stat(&self, p: &RateTied, targets: &[Target<'_>]) -> Result<Statistic> {
+        let res = self.residues(p.nonideal())?;
+        self.stat_with(&res, p, targets)
+    }
+
+    /// The pooled statistic with the poles' uncertainty in the prediction variance (the
+    /// verdict's and the gain's yardstick).
+    pub(crate) fn stat_full(&self, p: &RateTied, targets: &[Target<'_>]) -> Result<Statistic> {
+        let res = self.residues_full(p.nonideal())?;
+        self.pooled(&res, p, targets, true)
+    }
+
+    fn stat_with(&self, res: &Residues, p: &RateTied, targets: &[Target<'_>]) -> Result<Statistic> {
+        self.pooled(res, p, targets, false)
+    }
+
+    fn pooled(
+        &self,
+        res: &Residues,
+        p: &RateTied,
+        targets: &[Target<'_>],
+        full: bool,
+    ) -> Result<Statistic> {
+        let sets = targets
+            .iter()
+            .enumerate()
+            .map(|(j, t)| self.lines_with(res, p.nonideal(), p.clock(j), t, full))
+            .collect::<Result<Vec<_>>>()?;
+        Ok(statistic(
+            sets.iter()
+                .zip(targets)
+                .map(|(s, t)| (s.as_slice(), t.est.inflation)),
+            self.alpha,
+        ))
+    }
+
+    /// Lines of one target under an extension with its own clock error, the prediction
+    /// variance including the poles' (the held-out yardstick).
+    pub(crate) fn lines_full(&self, p: &RateTied, clock: f64, t: &Target<'_>) -> Result<Vec<Line>> {
+        let res = self.residues_full(p.nonideal())?;
+        self.lines_with(&res, p.nonideal(), clock, t, true)
+    }
+
+    /// The clock error of one target under an extension's (α, β), over ±3 %.
+    pub(crate) fn clock_of(&self, p: &RateTied, t: &Target<'_>) -> Result<f64> {
+        let res = self.residues(p.nonideal())?;
+        Ok(self.fit_clock(&res, p.nonideal(), t, 0.0, 0.03))
+    }
+
+    /// Clock error of one target for given residues, searched over `[c − w, c + w]`.
+    fn fit_clock(&self, res: &Residues, ni: NonIdeal, t: &Target<'_>, c: f64, w: f64) -> f64 {
+        let mut cost = |e: f64| {
+            self.lines(res, ni, e, t)
+                .map(|l| statistic([(l.as_slice(), 1.0)], self.alpha).value)
+                .unwrap_or(f64::INFINITY)
+        };
+        min1d(&mut cost, c - w, c + w, (2.0 * w / 0.001).round() as usize).0
+    }
+
+    /// Statistic of (α, β) with fixed clock errors.
+    fn eval_fixed(&self, a: f64, b: f64, clocks: &[f64], targets: &[Target<'_>]) -> f64 {
+        let p = RateTied {
+            hold_delay: a,
+            averaging: b,
+            clock_error: clocks.to_vec(),
+        };
+        self.stat(&p, targets)
+            .map(|s| s.value)
+            .unwrap_or(f64::INFINITY)
+    }
+
+    /// Clock errors for (α, β), each searched over `[c − w, c + w]` around `center`.
+    fn fit_clocks(
+        &self,
+        ni: NonIdeal,
+        center: &[f64],
+        w: f64,
+        targets: &[Target<'_>],
+    ) -> Result<Vec<f64>> {
+        let res = self.residues(ni)?;
+        Ok(targets
+            .iter()
+            .enumerate()
+            .map(|(j, t)| {
+                let c = center.get(j).copied().unwrap_or(0.0);
+                self.fit_clock(&res, ni, t, c, w)
+            })
+            .collect())
+    }
+
+    /// Fits one family. `start` holds the single-cause estimates (the pairs start there).
+    /// Single causes: grids over the whole range, then golden section. Delay + averaging: a
+    /// 0.2 × 0.2 grid, then coordinate refinement in shrinking windows. A cause with clock
+    /// errors: clock errors over ±3 % at the other cause's single estimate, then alternately
+    /// the other parameter over its whole range and the clock errors within ±0.4 %.
+    fn fit(&self, fam: Family, targets: &[Target<'_>], start: &RateTied) -> Result<RateTied> {
+        let ideal = NonIdeal::ideal();
+        let (mut a, mut b, mut clocks) = (0.0, 0.0, Vec::new());
+        match fam {
+            Family::None => {}
+            Family::Delay => {
+                a = min1d(&mut |x| self.eval_fixed(x, 0.0, &[], targets), 0.0, 2.0, 40).0
+            }
+            Family::Average => {
+                b = min1d(&mut |x| self.eval_fixed(0.0, x, &[], targets), 0.0, 1.0, 25).0
+            }
+            Family::Clock => clocks = self.fit_clocks(ideal, &[], 0.03, targets)?,
+            Family::DelayAverage => {
+                let mut best = (f64::INFINITY, 0.0, 0.0);
+                for i in 0..=8 {
+                    for j in 0..=5 {
+                        let (x, y) = (0.2 * i as f64, 0.2 * j as f64);
+                        let c = self.eval_fixed(x, y, &[], targets);
+                        if c < best.0 {
+                            best = (c, x, y);
+                        }
+                    }
+                }
+                (a, b) = (best.1, best.2);
+                for w in [0.2, 0.1, 0.05] {
+                    let ev = |x: f64, y: f64| self.eval_fixed(x, y, &[], targets);
+                    a = min1d(&mut |x| ev(x, b), (a - w).max(0.0), (a + w).min(2.0), 4).0;
+                    b = min1d(&mut |y| ev(a, y), (b - w).max(0.0), (b + w).min(1.0), 4).0;
+                }
+            }
+            Family::DelayClock | Family::AverageClock => {
+                let delay = fam == Family::DelayClock;
+                let ni = |x: f64| NonIdeal {
+                    hold_delay: if delay { x } else { 0.0 },
+                    averaging: if delay { 0.0 } else { x },
+                };
+                let (hi, cells) = if delay { (2.0, 40) } else { (1.0, 25) };
+                let mut x = if delay {
+                    start.hold_delay
+                } else {
+                    start.averaging
+                };
+                clocks = self.fit_clocks(ni(x), &start.clock_error, 0.03, targets)?;
+                for round in 0..3 {
+                    let mut cost = |v: f64| {
+                        let n = ni(v);
+                        self.eval_fixed(n.hold_delay, n.averaging, &clocks, targets)
+                    };
+                    x = if round == 0 {
+                        min1d(&mut cost, 0.0, hi, cells).0
+                    } else {
+                        min1d(&mut cost, (x - 0.1).max(0.0), (x + 0.1).min(hi), 4).0
+                    };
+                    clocks = self.fit_clocks(ni(x), &clocks, 0.004, targets)?;
+                }
+                let n = ni(x);
+                (a, b) = (n.hold_delay, n.averaging);
+            }
+        }
+        Ok(RateTied {
+            hold_delay: a,
+            averaging: b,
+            clock_error: clocks,
+        })
+    }
+
+    /// The family's parameters refined on `targets` around `start` (±0.05 for α and β, ±0.2 %
+    /// for the clock errors; two coordinate rounds): the final refit on all data.
+    pub(crate) fn refine(
+        &self,
+        fam: Family,
+        targets: &[Target<'_>],
+        start: &RateTied,
+    ) -> Result<RateTied> {
+        let mut p = start.clone();
+        for _ in 0..2 {
+            if fam.delay() {
+                let (b, c) = (p.averaging, p.clock_error.clone());
+                let a0 = p.hold_delay;
+                p.hold_delay = min1d(
+                    &mut |x| self.eval_fixed(x, b, &c, targets),
+                    (a0 - 0.05).max(0.0),
+                    (a0 + 0.05).min(2.0),
+                    4,
+                )
+                .0;
+            }
+            if fam.average() {
+                let (a, c) = (p.hold_delay, p.clock_error.clone());
+                let b0 = p.averaging;
+                p.averaging = min1d(
+                    &mut |y| self.eval_fixed(a, y, &c, targets),
+                    (b0 - 0.05).max(0.0),
+                    (b0 + 0.05).min(1.0),
+                    4,
+                )
+                .0;
+            }
+            if fam.clock() {
+                p.clock_error = self.fit_clocks(p.nonideal(), &p.clock_error, 0.002, targets)?;
+            }
+            if fam.n_params(targets.len()) <= 1 {
+                break;
+            }
+        }
+        Ok(p)
+    }
+
+    /// Every family fitted on `targets`, ranked by the penalised criterion.
+    pub(crate) fn search(
+        &self,
+        targets: &[Target<'_>],
+        progress: &mut dyn FnMut(&str),
+    ) -> Result<Vec<Fitted>> {
+        let mut out: Vec<Fitted> = Vec::new();
+        let mut start = RateTied::default();
+        for fam in Family::ALL {
+            progress(&format!("rate-tied hypotheses: {}", fam.name()));
+            let params = self.fit(fam, targets, &start)?;
+            match fam {
+                Family::Delay => start.hold_delay = params.hold_delay,
+                Family::Average => start.averaging = params.averaging,
+                Family::Clock => start.clock_error = params.clock_error.clone(),
+                _ => {}
+            }
+            let stat = self.stat(&params, targets)?;
+            let k = stat.lines as f64;
+            let criterion =
+                k * stat.value + 0.5 * fam.n_params(targets.len()) as f64 * k.max(1.0).ln();
+            out.push(Fitted {
+                family: fam,
+                params,
+                stat,
+                criterion,
+            });
+        }
+        out.sort_by(|a, b| a.criterion.total_cmp(&b.criterion));
+        Ok(out)
+    }
+}

@@ -1,0 +1,376 @@
+//! Seeded diagnosis cases on the virtual stage, for the held-out hidden-effect suite and the
+//! calibration of the verdict.
+//!
+//! The linear cases are produced by the testbed's **fine-step route** (sub-step ZOH, the hold
+//! switching and the trapezoidal sensor average on a grid of 50 sub-steps per period, the true
+//! period with the clock error): another numerical form than the diagnosis's hypotheses (block
+//! exponentials of `c2d_nonideal`). The nonlinear ones by the Lawson–RK4 integrator.
+//!
+//! Everything is drawn from the seed: a random plant (mass 5–50 kg, one or two modes between
+//! 0.6× the slow rate and 0.4× the fast rate, ζ 0.005–0.03), fast rate 4/5/6 kHz, factor 2–5 (one that divides the rate),
+//! 2–10 steady periods of a random-phase multisine on the 1 Hz grid (or one record of a
+//! non-periodic excitation, estimated by the LPM), input or reference injection, white or
+//! drifting (random-walk) sensor noise, noise levels over a decade.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use crate::gen::Rng;
+use sd_ident::{Experiment, Lines, MultisineSpec, Phases, Role};
+use sd_testbed::{run_identification, Identification, Injection, Noise, NonIdealities, Truth};
+
+/// Sub-steps per period of the fine-step route.
+pub const FINE_STEPS: usize = 50;
+
+/// The hidden effect of a case.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Effect {
+    /// Nothing.
+    None,
+    /// A first-order sensor filter common to both rates (Hz).
+    Filter(f64),
+    /// Hold delay (fraction of each period).
+    Delay(f64),
+    /// Averaging window (fraction).
+    Averaging(f64),
+    /// Clock error of the slow experiment.
+    Clock(f64),
+    /// Hold delay and averaging window.
+    DelayAveraging(f64, f64),
+    /// Hold delay and clock error.
+    DelayClock(f64, f64),
+    /// Cubic stiffness of the first mode, seen at two excitation levels.
+    Cubic,
+}
+
+impl Effect {
+    /// The cause the diagnosis should name.
+    pub fn expected(&self) -> &'static str {
+        match self {
+            Effect::None | Effect::Filter(_) => "none",
+            Effect::Delay(_) => "hold_delay",
+            Effect::Averaging(_) => "averaging_sampler",
+            Effect::Clock(_) => "clock_error",
+            Effect::DelayAveraging(..) => "averaging_sampler+hold_delay",
+            Effect::DelayClock(..) => "clock_error+hold_delay",
+            Effect::Cubic => "nonlinearity",
+        }
+    }
+
+    /// A short label of the kind (the confusion matrix's rows).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Effect::None => "none",
+            Effect::Filter(_) => "common filter",
+            Effect::Delay(_) => "hold delay",
+            Effect::Averaging(_) => "averaging",
+            Effect::Clock(_) => "clock error",
+            Effect::DelayAveraging(..) => "delay + averaging",
+            Effect::DelayClock(..) => "delay + clock",
+            Effect::Cubic => "cubic stiffness",
+        }
+    }
+
+    fn nonideal(&self) -> NonIdealities {
+        let (hold_delay, averaging, clock_error) = match *self {
+            Effect::Delay(a) => (a, 0.0, 0.0),
+            Effect::Averaging(b) => (0.0, b, 0.0),
+            Effect::Clock(e) => (0.0, 0.0, e),
+            Effect::DelayAveraging(a, b) => (a, b, 0.0),
+            Effect::DelayClock(a, e) => (a, 0.0, e),
+            _ => (0.0, 0.0, 0.0),
+        };
+        NonIdealities {
+            hold_delay,
+            averaging,
+            clock_error,
+            quantization: 0.0,
+        }
+    }
+}
+
+/// How the data are recorded.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Recording {
+    /// Steady periods (after one transient period); for a non-periodic record its length in
+    /// periods.
+    pub steady: usize,
+    /// Reference (true) or input injection.
+    pub reference: bool,
+    /// Random-walk sensor drift on (its step rms relative to the white sensor noise: 0.05).
+    pub drift: bool,
+    /// Periodic multisine (true) or one non-periodic record (LPM).
+    pub periodic: bool,
+}
+
+/// A generated case.
+#[derive(Debug, Clone)]
+pub struct Case {
+    /// The hidden effect.
+    pub effect: Effect,
+    /// The recording.
+    pub recording: Recording,
+    /// Fast rate and factor.
+    pub rates: (f64, usize),
+    /// The experiments (the model experiment first).
+    pub experiments: Vec<Experiment>,
+}
+
+struct Stage {
+    truth: Truth,
+    fast_rate: f64,
+    factor: usize,
+    noise: f64,
+}
+
+fn stage(r: &mut Rng) -> Stage {
+    let fast_rate = [4000.0, 5000.0, 6000.0][(r.uniform() * 3.0) as usize % 3];
+    // a factor that divides the rate: both records of one second then hold whole samples and
+    // share the 1 Hz line grid
+    let divisors: Vec<usize> = (2..=5).filter(|f| fast_rate as usize % f == 0).collect();
+    let factor = divisors[(r.uniform() * divisors.len() as f64) as usize % divisors.len()];
+    let slow_rate = fast_rate / factor as f64;
+    let mass = r.range(5.0, 50.0);
+    let nmodes = 1 + (r.uniform() * 2.0) as usize % 2;
+    let modes = (0..nmodes)
+        .map(|_| sd_testbed::ModeSpec {
+            freq_hz: r.range(0.6 * slow_rate, 0.4 * fast_rate),
+            zeta: r.range(0.005, 0.03),
+            residue: r.range(0.3, 2.0),
+            cubic: 0.0,
+        })
+        .collect();
+    Stage {
+        truth: Truth {
+            mass,
+            modes,
+            ..Truth::default()
+        },
+        fast_rate,
+        factor,
+        noise: r.range(0.3, 3.0),
+    }
+}
+
+struct Exp<'a> {
+    name: &'a str,
+    rate: f64,
+    rms: f64,
+    ni: NonIdealities,
+    seed: u64,
+    role: Role,
+}
+
+/// One closed-loop experiment; `None` when the loop is unstable.
+fn identify(st: &Stage, rec: &Recording, x: &Exp<'_>) -> Option<Experiment> {
+    let ts = 1.0 / x.rate;
+    let bw = 10.0;
+    let opt = sd_hinf::weights::PidOptions {
+        lowpass_ratio: 0.2 * x.rate / bw,
+        ..Default::default()
+    };
+    let k = sd_hinf::weights::pid(bw, st.truth.mass, Some(ts), &opt).ok()?;
+    let period = x.rate as usize;
+    let periods = if rec.periodic { 1 + rec.steady } else { 1 };
+    let len = if rec.periodic {
+        period
+    } else {
+        period * (1 + rec.steady)
+    };
+    // a reference of the position that makes about the same force as `rms` N would
+    let wc = 2.0 * std::f64::consts::PI * bw;
+    let rms = if rec.reference {
+        x.rms / (st.truth.mass * wc * wc)
+    } else {
+        x.rms
+    };
+    let excitation = sd_ident::design(&MultisineSpec {
+        fs: x.rate,
+        period: len,
+        f_min: x.rate / len as f64,
+        f_max: 0.5 * x.rate - x.rate / len as f64,
+        lines: Lines::Full,
+        phases: Phases::Random { seed: x.seed },
+        rms,
+        fold_rate_hz: Some(st.fast_rate / st.factor as f64),
+    })
+    .ok()?;
+    let scale = (x.rate / 5000.0).sqrt();
+    let sensor = 0.1e-9 * st.noise * scale;
+    let mut d = run_identification(
+        &st.truth,
+        &Identification {
+            name: x.name.into(),
+            controller: k,
+            excitation,
+            periods,
+            transient_periods: if rec.periodic { 1 } else { 0 },
+            injection: if rec.reference {
+                Injection::Reference
+            } else {
+                Injection::Input
+            },
+            noise: Noise {
+                force_rms: 0.02 * st.noise * x.rms * scale,
+                sensor_rms: sensor,
+                sensor_drift: if rec.drift { 0.05 * sensor } else { 0.0 },
+                seed: x.seed + 1000,
+            },
+            nonideal: x.ni,
+            role: x.role,
+            substeps: None,
+            fine_steps: (!st.truth.is_nonlinear()).then_some(FINE_STEPS),
+        },
+    )
+    .ok()?;
+    if !rec.periodic {
+        d.period = None;
+    }
+    Some(d.to_experiment())
+}
+
+/// The case of `seed` with the given effect and recording (`None`: the drawn plant's loop is
+/// unstable).
+pub fn build(seed: u64, effect: Effect, rec: Recording) -> Option<Case> {
+    let mut r = Rng::new(seed * 7919 + 17);
+    let mut st = stage(&mut r);
+    match effect {
+        Effect::Filter(fc) => st.truth.sensor_filters.push(
+            sd_model::TransferFunction::new(
+                vec![1.0],
+                vec![1.0 / (2.0 * std::f64::consts::PI * fc), 1.0],
+                sd_model::SampleTime::Continuous,
+            )
+            .ok()?
+            .to_ss()
+            .ok()?,
+        ),
+        Effect::Cubic => {
+            let m0 = &st.truth.modes[0];
+            let w = 2.0 * std::f64::consts::PI * m0.freq_hz;
+            let q = m0.residue * 4.0 / (st.truth.mass * w * w * 2.0 * m0.zeta) * 0.05;
+            st.truth.modes[0].cubic = 0.3 / (q * q);
+        }
+        _ => {}
+    }
+    let ni = effect.nonideal();
+    // the model experiment's clock is the reference: only the slow one is off
+    let fast_ni = NonIdealities {
+        clock_error: 0.0,
+        ..ni
+    };
+    let slow_rate = st.fast_rate / st.factor as f64;
+    let mut exps = vec![
+        identify(
+            &st,
+            &rec,
+            &Exp {
+                name: "fast",
+                rate: st.fast_rate,
+                rms: 0.5,
+                ni: fast_ni,
+                seed: seed * 3 + 1,
+                role: Role::Model,
+            },
+        )?,
+        identify(
+            &st,
+            &rec,
+            &Exp {
+                name: "slow",
+                rate: slow_rate,
+                rms: 0.5,
+                ni,
+                seed: seed * 3 + 2,
+                role: Role::Validation,
+            },
+        )?,
+    ];
+    if effect == Effect::Cubic {
+        exps.push(identify(
+            &st,
+            &rec,
+            &Exp {
+                name: "fast_high",
+                rate: st.fast_rate,
+                rms: 4.0,
+                ni: fast_ni,
+                seed: seed * 3 + 3,
+                role: Role::Validation,
+            },
+        )?);
+    }
+    Some(Case {
+        effect,
+        recording: rec,
+        rates: (st.fast_rate, st.factor),
+        experiments: exps,
+    })
+}
+
+fn sign(r: &mut Rng) -> f64 {
+    if r.uniform() < 0.5 {
+        -1.0
+    } else {
+        1.0
+    }
+}
+
+/// A random recording: 3–8 steady periods, either injection, drift in 30 %, non-periodic in
+/// 20 % of the cases (`periodic_only` for the nonlinear cases).
+pub fn random_recording(r: &mut Rng, periodic_only: bool) -> Recording {
+    Recording {
+        steady: 3 + (r.uniform() * 6.0) as usize % 6,
+        reference: r.uniform() < 0.5,
+        drift: r.uniform() < 0.3,
+        periodic: periodic_only || r.uniform() >= 0.2,
+    }
+}
+
+/// The hidden-effect case of `seed`: the effect kind cycles with the seed, its size and the
+/// recording are drawn; plants whose loop is unstable are redrawn.
+pub fn hidden_effect(seed: u64) -> Case {
+    for attempt in 0..20u64 {
+        let mut r = Rng::new(seed * 104_729 + attempt * 31 + 5);
+        let effect = match seed % 8 {
+            0 => Effect::None,
+            1 => Effect::Filter(0.0), // frequency set below from the drawn rate
+            2 => Effect::Delay(r.range(0.05, 1.5)),
+            3 => Effect::Averaging(r.range(0.2, 1.0)),
+            4 => Effect::Clock(sign(&mut r) * r.range(0.002, 0.02)),
+            5 => Effect::DelayAveraging(r.range(0.1, 0.8), r.range(0.3, 1.0)),
+            6 => Effect::DelayClock(r.range(0.1, 1.0), sign(&mut r) * r.range(0.003, 0.02)),
+            _ => Effect::Cubic,
+        };
+        let rec = random_recording(&mut r, effect == Effect::Cubic);
+        let effect = match effect {
+            Effect::Filter(_) => Effect::Filter(r.range(1200.0, 2400.0)),
+            e => e,
+        };
+        if let Some(c) = build(seed * 20 + attempt, effect, rec) {
+            return c;
+        }
+    }
+    panic!("no stable plant for seed {seed}")
+}
+
+/// A consistent case for the calibration: no effect (or a common filter), `steady` periods
+/// (2–10), periodic or not, either injection, white or drifting noise, all from the seed.
+pub fn consistent(seed: u64) -> Case {
+    for attempt in 0..20u64 {
+        let mut r = Rng::new(seed * 15_485_863 + attempt * 7 + 3);
+        let rec = Recording {
+            steady: 2 + (r.uniform() * 9.0) as usize % 9,
+            reference: r.uniform() < 0.5,
+            drift: r.uniform() < 0.5,
+            periodic: r.uniform() >= 0.25,
+        };
+        let effect = if r.uniform() < 0.2 {
+            Effect::Filter(r.range(1200.0, 2400.0))
+        } else {
+            Effect::None
+        };
+        if let Some(c) = build(seed * 20 + attempt + 7_000_000, effect, rec) {
+            return c;
+        }
+    }
+    panic!("no stable plant for seed {seed}")
+}
