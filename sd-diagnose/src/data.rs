@@ -97,46 +97,19 @@ pub(crate) fn estimate(e: &Experiment, part: Part) -> Result<Estimate> {
 }
 
 /// The training and held-out parts of an experiment (`None` when a part has no lines or no
-/// variance). A periodic part of a single period takes its noise level from the whole record
-/// (the per-period variance scaled to one period, with the whole record's degrees of freedom).
-pub(crate) fn parts(e: &Experiment, whole: &Estimate) -> Option<(Estimate, Estimate)> {
-    let steady = e
-        .spec
-        .period_samples
-        .map(|p| (e.u.len() / p.max(1)).saturating_sub(e.spec.skip_periods));
-    let one = |part: Part| -> Option<Estimate> {
-        let mut est = estimate(e, part).ok()?;
-        let m = steady.map(|s| match part {
-            Part::Training => s / 2,
-            _ => s - s / 2,
-        });
-        // one period has no spread of its own (its white-noise level from non-excited bins
-        // ignores the loop's coloured noise): the whole record's per-period variance instead
-        if let (Some(steady), Some(m @ 0..=1)) = (steady, m) {
-            let scale = steady as f64 / m.max(1) as f64;
-            let wf = whole.frd.freq_hz();
-            let wv = whole.frd.variance()?;
-            let at = |f: f64| {
-                let i = wf.partition_point(|&x| x < f - 1e-9);
-                (i < wf.len() && (wf[i] - f).abs() <= 1e-9 * f.max(1.0)).then_some(i)
-            };
-            let keep: Vec<Option<usize>> = est.frd.freq_hz().iter().map(|&f| at(f)).collect();
-            let sel = est.frd.select(|i| keep[i].is_some()).ok()?;
-            let var = keep
-                .iter()
-                .flatten()
-                .map(|&i| wv[i].map(|v| v * scale))
-                .collect();
-            est.frd = sd_model::Frd::new(
-                sel.freq_hz().to_vec(),
-                sel.response().to_vec(),
-                Some(var),
-                sel.time(),
-            )
-            .ok()?;
-            est.dof = whole.dof;
+/// variance). A periodic experiment is split only from four steady periods on: a single
+/// period has no spread of its own, and a drifting sensor's leakage, which telescopes in the
+/// mean over many periods, does not within one.
+pub(crate) fn parts(e: &Experiment, _whole: &Estimate) -> Option<(Estimate, Estimate)> {
+    if let Some(p) = e.spec.period_samples {
+        let steady = (e.u.len() / p.max(1)).saturating_sub(e.spec.skip_periods);
+        if steady < 4 {
+            return None;
         }
-        (!est.frd.is_empty()).then_some(est)
+    }
+    let one = |part: Part| -> Option<Estimate> {
+        let est = estimate(e, part).ok()?;
+        (est.frd.variance().is_some() && !est.frd.is_empty()).then_some(est)
     };
     Some((one(Part::Training)?, one(Part::HeldOut)?))
 }

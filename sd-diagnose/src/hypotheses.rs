@@ -13,11 +13,11 @@
 //! **Search.** Single causes: α on a 0.05 grid over [0, 2], β on a 0.04 grid over [0, 1],
 //! each e_j on a 0.001 grid over [−3 %, 3 %] (per experiment: e_j only moves its own lines),
 //! each refined by golden section in the best cell. Delay + averaging: a 0.2 × 0.2 grid, then
-//! coordinate refinement in shrinking windows. A cause with clock errors: the clock errors
+//! coordinate refinement in shrinking windows along σ = α + β/2 (the delay both act like) and β. A cause with clock errors: the clock errors
 //! over ±3 % at the other cause's single estimate, then alternately that cause over its whole
-//! range and the clock errors within ±0.4 %. The criterion is the statistic's score sum plus
-//! `½ ln K` per parameter (BIC in the score's units: the score sum is the negative
-//! log-likelihood of exponential scores). The residue covariance used while searching has the
+//! range and the clock errors within ±0.4 %. The criterion is the statistic's score sum on the
+//! effective scale (`K'/K` of it for correlated LPM lines) plus `½ ln K'` per parameter (BIC in
+//! the score's units: the score sum is the negative log-likelihood of exponential scores). The residue covariance used while searching has the
 //! poles fixed; the held-out yardstick adds the poles' uncertainty (`Modal::stat_full`).
 
 use crate::data::Estimate;
@@ -143,6 +143,13 @@ impl Family {
     }
 }
 
+/// The penalised criterion of a statistic with `p` parameters: the score sum on the effective
+/// scale (K'/K of it: correlated lines carry less information) plus `½ ln K'` per parameter.
+pub(crate) fn penalised(s: &Statistic, p: usize) -> f64 {
+    let k = s.effective_lines.max(1.0);
+    s.value * k + 0.5 * p as f64 * k.ln()
+}
+
 /// A slower experiment to predict (the FRF of a part or the whole).
 pub(crate) struct Target<'a> {
     pub(crate) factor: usize,
@@ -182,7 +189,7 @@ fn min1d(f: &mut dyn FnMut(f64) -> f64, lo: f64, hi: f64, n: usize) -> (f64, f64
     if !bc.is_finite() || step <= 0.0 {
         return (best, bc);
     }
-    let (p, c) = golden_min(&mut *f, (best - step).max(lo), (best + step).min(hi), 20);
+    let (p, c) = golden_min(&mut *f, (best - step).max(lo), (best + step).min(hi), 14);
     if c < bc {
         (p, c)
     } else {
@@ -350,7 +357,7 @@ impl Modal<'_> {
 
     /// Fits one family. `start` holds the single-cause estimates (the pairs start there).
     /// Single causes: grids over the whole range, then golden section. Delay + averaging: a
-    /// 0.2 × 0.2 grid, then coordinate refinement in shrinking windows. A cause with clock
+    /// 0.2 × 0.2 grid, then coordinate refinement in shrinking windows along σ = α + β/2 (the delay both act like) and β. A cause with clock
     /// errors: clock errors over ±3 % at the other cause's single estimate, then alternately
     /// the other parameter over its whole range and the clock errors within ±0.4 %.
     fn fit(&self, fam: Family, targets: &[Target<'_>], start: &RateTied) -> Result<RateTied> {
@@ -376,12 +383,28 @@ impl Modal<'_> {
                         }
                     }
                 }
-                (a, b) = (best.1, best.2);
-                for w in [0.2, 0.1, 0.05] {
-                    let ev = |x: f64, y: f64| self.eval_fixed(x, y, &[], targets);
-                    a = min1d(&mut |x| ev(x, b), (a - w).max(0.0), (a + w).min(2.0), 4).0;
-                    b = min1d(&mut |y| ev(a, y), (b - w).max(0.0), (b + w).min(1.0), 4).0;
+                // refined in (σ, β) with σ = α + β/2, the delay both act like to first order:
+                // the valley of the cost runs along constant σ, so the coordinates decouple
+                let (mut sg, mut bb) = (best.1 + 0.5 * best.2, best.2);
+                let ev = |sg: f64, y: f64| {
+                    let x = sg - 0.5 * y;
+                    if x < 0.0 {
+                        f64::INFINITY
+                    } else {
+                        self.eval_fixed(x, y, &[], targets)
+                    }
+                };
+                for w in [0.2, 0.1, 0.05, 0.02] {
+                    sg = min1d(&mut |x| ev(x, bb), (sg - w).max(0.0), sg + w, 4).0;
+                    bb = min1d(
+                        &mut |y| ev(sg, y),
+                        (bb - 2.0 * w).max(0.0),
+                        (bb + 2.0 * w).min(1.0),
+                        4,
+                    )
+                    .0;
                 }
+                (a, b) = ((sg - 0.5 * bb).max(0.0), bb);
             }
             Family::DelayClock | Family::AverageClock => {
                 let delay = fam == Family::DelayClock;
@@ -479,9 +502,7 @@ impl Modal<'_> {
                 _ => {}
             }
             let stat = self.stat(&params, targets)?;
-            let k = stat.lines as f64;
-            let criterion =
-                k * stat.value + 0.5 * fam.n_params(targets.len()) as f64 * k.max(1.0).ln();
+            let criterion = penalised(&stat, fam.n_params(targets.len()));
             out.push(Fitted {
                 family: fam,
                 params,

@@ -348,6 +348,15 @@ impl Residues {
         self
     }
 
+    /// The covariances times `k`.
+    pub(crate) fn scaled(mut self, k: f64) -> Self {
+        self.cov *= k;
+        if let Some(f) = &mut self.full {
+            *f *= k;
+        }
+        self
+    }
+
     /// The prediction `Σ r_j φ_j` and its variance (residues only).
     pub(crate) fn predict(&self, phi: &[C]) -> (C, f64) {
         let p = phi.iter().zip(&self.r).map(|(f, r)| f * *r).sum();

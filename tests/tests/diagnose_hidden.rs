@@ -3,8 +3,8 @@
 //! matrix reported on seeds disjoint from those the method was developed on.
 //!
 //! Seed ranges: development (looked at while building the search and the naming rule)
-//! `0..100`; reported (never looked at before the figures were taken) `1000..1100`. The default
-//! run takes the first 32 reported seeds; the whole range:
+//! `0..100` and `1000..1100`; the CI subset `3000..3032` (a regression check, run at every
+//! commit); reported (not looked at before the figures were taken) `2000..2100`:
 //! `cargo test --release -p sd-tests --test diagnose_hidden -- --ignored --nocapture`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -13,8 +13,10 @@ use sd_ident::{Experiment, Lines, MultisineSpec, Phases, Role};
 use sd_testbed::{run_identification, Identification, Injection, Noise, NonIdealities, Truth};
 use sd_tests::diagcases::{hidden_effect, Case, Effect};
 
-/// Seeds the confusion matrix is reported on (disjoint from the development seeds 0..100).
-const REPORT_SEEDS: std::ops::Range<u64> = 1000..1100;
+/// Seeds the confusion matrix is reported on (disjoint from the development seeds).
+const REPORT_SEEDS: std::ops::Range<u64> = 2000..2100;
+/// The default run's regression subset (disjoint from both).
+const CI_SEEDS: std::ops::Range<u64> = 3000..3032;
 
 /// One closed-loop identification experiment on the virtual stage, as the diagnosis reads it:
 /// a PID-like controller (bandwidth `bw`, low-pass at `lowpass` Hz or none), a full random-phase
@@ -381,12 +383,11 @@ fn median(x: &[f64]) -> f64 {
     v[v.len() / 2]
 }
 
-/// The default subset: 32 reported seeds (4 of every effect kind). Never a wrong named cause,
-/// named parameters within their limits, at least 3/4 of the cases right.
+/// The default subset: 32 seeds (4 of every effect kind). Never a wrong named cause, named
+/// parameters within their limits, at least 3/4 of the cases right.
 #[test]
 fn held_out_suite_default_subset() {
-    let start = REPORT_SEEDS.start;
-    let out: Vec<Outcome> = (start..start + 32).map(run_case).collect();
+    let out: Vec<Outcome> = CI_SEEDS.map(run_case).collect();
     let (wrong, right, pmiss) = summarize(&out);
     assert_eq!(wrong, 0, "wrong named causes");
     assert_eq!(pmiss, 0, "named parameters outside their limits");
@@ -603,4 +604,30 @@ fn distortion_at_non_excited_lines() {
         .evidence
         .iter()
         .any(|e| e.test.contains("non-excited odd lines of `low`") && !e.passed));
+}
+
+/// Two same-level slower experiments (1 kHz and 2.5 kHz): each is left out in turn, the cause
+/// chosen on the other; `gain.held_out` names the whole experiments.
+#[test]
+fn two_slow_experiments_are_left_out_in_turn() {
+    let truth = Truth::default();
+    let ni = NonIdealities {
+        hold_delay: 0.3,
+        ..Default::default()
+    };
+    let fast = experiment(&truth, "fast", 5000.0, ni, 61, Role::Model);
+    let slow = experiment(&truth, "slow", 1000.0, ni, 62, Role::Validation);
+    let mid = experiment(&truth, "mid", 2500.0, ni, 63, Role::Validation);
+    let d = diagnose(&[fast, slow, mid], &Default::default()).unwrap();
+    println!("{} {} {:?}", d.cause, d.parameters, d.gain);
+    assert_eq!(d.cause, "hold_delay");
+    assert!((d.parameters["delay_frac"].as_f64().unwrap() - 0.3).abs() < 0.02);
+    assert_eq!(
+        d.gain.held_out,
+        vec![
+            "slow (whole experiment, left out)".to_string(),
+            "mid (whole experiment, left out)".to_string()
+        ]
+    );
+    assert!(d.gain.ratio.unwrap() >= 3.0);
 }

@@ -164,7 +164,7 @@ pub fn run(out: &str, quick: bool, averaging: f64) -> Result<(), String> {
         )
     };
     let truth = Truth::default();
-    let periods = if quick { 3 } else { 8 };
+    let periods = if quick { 5 } else { 8 };
 
     say(1, "virtual stage: closed-loop identification at 5 kHz and 1 kHz (sensor averaging over part of each period)");
     let fast = run_identification(
