@@ -613,8 +613,10 @@ fn halves(j: &Judged<'_>, tied: &[&Val<'_>], progress: &mut dyn FnMut(&str)) -> 
     let held_stats: Vec<Option<Statistic>> = fitted
         .iter()
         .map(|f| {
+            // hypotheses are compared with the residue covariance only: a hypothesis under
+            // which a pole is ill-determined must not win by the width of its prediction
             held.as_ref()
-                .map(|h| j.modal.stat_full(&f.params, h))
+                .map(|h| j.modal.stat(&f.params, h))
                 .transpose()
         })
         .collect::<Result<_>>()?;
@@ -630,7 +632,13 @@ fn halves(j: &Judged<'_>, tied: &[&Val<'_>], progress: &mut dyn FnMut(&str)) -> 
         return Ok(Settled {
             family: chosen.family,
             params: chosen.params.clone(),
-            named: chosen.family != Family::None && explains(&chosen.stat, j.modal.alpha),
+            // without held-out data the discrepancy must stand at the naming level itself
+            named: chosen.family != Family::None
+                && explains(&chosen.stat, j.modal.alpha)
+                && fitted
+                    .iter()
+                    .find(|f| f.family == Family::None)
+                    .is_some_and(|f| !explains(&f.stat, j.modal.alpha)),
             partial: ranked(chosen, None),
             ranking,
             gain: Gain::none(
@@ -644,7 +652,10 @@ fn halves(j: &Judged<'_>, tied: &[&Val<'_>], progress: &mut dyn FnMut(&str)) -> 
     progress("cross-check: the chosen extension fitted on the later part");
     let alpha = j.modal.alpha;
     let second = j.modal.refine(chosen.family, &held, &chosen.params)?;
-    let after = judge(k).pool(&j.modal.stat_full(&second, &train)?, alpha);
+    let after = j
+        .modal
+        .stat_full(&chosen.params, &held)?
+        .pool(&j.modal.stat_full(&second, &train)?, alpha);
     let none = RateTied::default();
     let before = j
         .modal
@@ -666,9 +677,11 @@ fn halves(j: &Judged<'_>, tied: &[&Val<'_>], progress: &mut dyn FnMut(&str)) -> 
 /// The lines of held-out experiment `v` under an extension fitted without it: on the whole
 /// experiment, or — when the extension has clock errors, which belong to each experiment —
 /// its clock error fitted on the earlier periods and the lines of the later ones.
-fn held_out_lines(j: &Judged<'_>, f: &Fitted, v: &Val<'_>) -> Result<Vec<Line>> {
+fn held_out_lines(j: &Judged<'_>, f: &Fitted, v: &Val<'_>, full: bool) -> Result<Vec<Line>> {
     if !f.family.clock() {
-        return j.modal.lines_full(&f.params, 0.0, &target(v, Part::Whole));
+        return j
+            .modal
+            .lines_for(&f.params, 0.0, &target(v, Part::Whole), full);
     }
     let Some((a, b)) = &v.parts else {
         return Ok(Vec::new());
@@ -684,7 +697,7 @@ fn held_out_lines(j: &Judged<'_>, f: &Fitted, v: &Val<'_>) -> Result<Vec<Line>> 
         },
     );
     let e = j.modal.clock_of(&f.params, &ta)?;
-    j.modal.lines_full(&f.params, e, &tb)
+    j.modal.lines_for(&f.params, e, &tb, full)
 }
 
 /// Two or more same-level slower experiments: each left out in turn, the family and
@@ -710,7 +723,7 @@ fn leave_one_out(
         let fitted = j.modal.search(&train, progress)?;
         let held = fitted
             .iter()
-            .map(|f| held_out_lines(j, f, v))
+            .map(|f| held_out_lines(j, f, v, false))
             .collect::<Result<Vec<_>>>()?;
         let c = v.whole.inflation;
         let stat_of = |i: usize| statistic([(held[i].as_slice(), c)], j.modal.alpha);
@@ -728,8 +741,8 @@ fn leave_one_out(
             .iter()
             .position(|f| f.family == Family::None)
             .unwrap_or(p);
-        before.push((held[none_idx].clone(), c));
-        after.push((held[p].clone(), c));
+        before.push((held_out_lines(j, &fitted[none_idx], v, true)?, c));
+        after.push((held_out_lines(j, &fitted[p], v, true)?, c));
     }
     let pooled = |sets: &[(Vec<Line>, f64)]| {
         statistic(sets.iter().map(|(l, c)| (l.as_slice(), *c)), j.modal.alpha)

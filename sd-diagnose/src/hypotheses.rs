@@ -301,11 +301,21 @@ impl Modal<'_> {
         ))
     }
 
-    /// Lines of one target under an extension with its own clock error, the prediction
-    /// variance including the poles' (the held-out yardstick).
-    pub(crate) fn lines_full(&self, p: &RateTied, clock: f64, t: &Target<'_>) -> Result<Vec<Line>> {
-        let res = self.residues_full(p.nonideal())?;
-        self.lines_with(&res, p.nonideal(), clock, t, true)
+    /// Lines of one target under an extension with its own clock error; with `full` the
+    /// prediction variance includes the poles' (the naming yardstick).
+    pub(crate) fn lines_for(
+        &self,
+        p: &RateTied,
+        clock: f64,
+        t: &Target<'_>,
+        full: bool,
+    ) -> Result<Vec<Line>> {
+        let res = if full {
+            self.residues_full(p.nonideal())?
+        } else {
+            self.residues(p.nonideal())?
+        };
+        self.lines_with(&res, p.nonideal(), clock, t, full)
     }
 
     /// The clock error of one target under an extension's (α, β), over ±3 %.
