@@ -174,6 +174,11 @@ impl Judged<'_> {
                 value: resp[i],
                 var,
                 dof: f64::INFINITY,
+                params: if self.given {
+                    0
+                } else {
+                    self.plain.n_params(true)
+                },
             })
         }))
     }
@@ -632,13 +637,14 @@ fn halves(j: &Judged<'_>, tied: &[&Val<'_>], progress: &mut dyn FnMut(&str)) -> 
         return Ok(Settled {
             family: chosen.family,
             params: chosen.params.clone(),
-            // without held-out data the discrepancy must stand at the naming level itself
+            // without held-out data the discrepancy must stand at the naming level itself,
+            // on the naming yardstick (residue and pole covariance)
             named: chosen.family != Family::None
-                && explains(&chosen.stat, j.modal.alpha)
-                && fitted
-                    .iter()
-                    .find(|f| f.family == Family::None)
-                    .is_some_and(|f| !explains(&f.stat, j.modal.alpha)),
+                && explains(&j.modal.stat_full(&chosen.params, &train)?, j.modal.alpha)
+                && !explains(
+                    &j.modal.stat_full(&RateTied::default(), &train)?,
+                    j.modal.alpha,
+                ),
             partial: ranked(chosen, None),
             ranking,
             gain: Gain::none(
@@ -846,6 +852,7 @@ pub fn diagnose_with_progress(
                     value: r[i],
                     var: 0.0,
                     dof: f64::INFINITY,
+                    params: 0,
                 })
             });
             Ok(statistic([(l.as_slice(), 1.0)], opt.alpha).value)
@@ -882,6 +889,7 @@ pub fn diagnose_with_progress(
                 value: r[i],
                 var: 0.0,
                 dof: f64::INFINITY,
+                params: 0,
             })
         });
         let own = statistic([(l.as_slice(), data.fast.inflation)], opt.alpha).value;

@@ -260,6 +260,7 @@ impl Modal<'_> {
                 value,
                 var,
                 dof: f64::INFINITY,
+                params: res.n_params(full),
             })
         }))
     }

@@ -67,6 +67,7 @@ impl Pair<'_> {
             value: sum,
             var: parts.iter().map(|p| p.0).sum(),
             dof: satterthwaite(&parts),
+            params: 0,
         })
     }
 }
@@ -77,6 +78,8 @@ pub(crate) struct Pred {
     pub(crate) value: C,
     pub(crate) var: f64,
     pub(crate) dof: f64,
+    /// Parameters of a fitted prediction whose errors all lines share (0: independent).
+    pub(crate) params: usize,
 }
 
 /// The lines of `val` (its variances estimated with `dof` degrees of freedom) where `pred`
@@ -96,6 +99,8 @@ pub(crate) fn compare(val: &Frd, dof: f64, pred: impl Fn(usize, f64) -> Option<P
                 pred: p.value,
                 var: v,
                 dof: satterthwaite(&[(vm, dof), (p.var, p.dof)]),
+                shared: if p.params > 0 { p.var / v } else { 0.0 },
+                params: p.params,
             })
         })
         .collect()

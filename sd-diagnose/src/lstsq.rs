@@ -10,12 +10,9 @@ pub(crate) struct LstSq {
     pub(crate) cov: DMatrix<f64>,
 }
 
-/// `min ‖J x − g‖` by the SVD of J with its columns scaled to unit norm (so the rank cut
-/// `1e-10·σ_max` sees the conditioning of the basis, not the units of its columns); `None` when J
-/// has no finite nonzero singular value.
-pub(crate) fn scaled_lstsq(j: &DMatrix<f64>, g: &DVector<f64>) -> Option<LstSq> {
-    let n = j.ncols();
-    let scale: Vec<f64> = (0..n)
+/// The Euclidean norm of each column (1 for a zero or non-finite one).
+fn column_scales(j: &DMatrix<f64>) -> Vec<f64> {
+    (0..j.ncols())
         .map(|c| {
             let s = j.column(c).norm();
             if s > 0.0 && s.is_finite() {
@@ -24,7 +21,27 @@ pub(crate) fn scaled_lstsq(j: &DMatrix<f64>, g: &DVector<f64>) -> Option<LstSq> 
                 1.0
             }
         })
-        .collect();
+        .collect()
+}
+
+/// The solution and covariance of the column-scaled problem back in the original columns.
+fn unscaled(mut x: DVector<f64>, mut cov: DMatrix<f64>, scale: &[f64]) -> LstSq {
+    let n = scale.len();
+    for r in 0..n {
+        x[r] /= scale[r];
+        for c in 0..n {
+            cov[(r, c)] /= scale[r] * scale[c];
+        }
+    }
+    LstSq { x, cov }
+}
+
+/// `min ‖J x − g‖` by the SVD of J with its columns scaled to unit norm (so the rank cut
+/// `1e-10·σ_max` sees the conditioning of the basis, not the units of its columns); `None` when J
+/// has no finite nonzero singular value.
+pub(crate) fn scaled_lstsq(j: &DMatrix<f64>, g: &DVector<f64>) -> Option<LstSq> {
+    let n = j.ncols();
+    let scale = column_scales(j);
     let mut js = j.clone();
     for (c, s) in scale.iter().enumerate() {
         js.column_mut(c).scale_mut(1.0 / s);
@@ -44,13 +61,7 @@ pub(crate) fn scaled_lstsq(j: &DMatrix<f64>, g: &DVector<f64>) -> Option<LstSq> 
             cov += &v * v.transpose() / (sv * sv);
         }
     }
-    for a in 0..n {
-        x[a] /= scale[a];
-        for b in 0..n {
-            cov[(a, b)] /= scale[a] * scale[b];
-        }
-    }
-    Some(LstSq { x, cov })
+    Some(unscaled(x, cov, &scale))
 }
 
 /// `min ‖J x − g‖` by the normal equations of the column-scaled J, `(JₛᵀJₛ) y = Jₛᵀ g`, solved
@@ -61,16 +72,7 @@ pub(crate) fn scaled_lstsq(j: &DMatrix<f64>, g: &DVector<f64>) -> Option<LstSq> 
 /// agrees with it to the cut (tested).
 pub(crate) fn normal_lstsq(j: &DMatrix<f64>, g: &DVector<f64>) -> Option<LstSq> {
     let n = j.ncols();
-    let scale: Vec<f64> = (0..n)
-        .map(|c| {
-            let s = j.column(c).norm();
-            if s > 0.0 && s.is_finite() {
-                s
-            } else {
-                1.0
-            }
-        })
-        .collect();
+    let scale = column_scales(j);
     let mut a = j.transpose() * j;
     let mut b = j.transpose() * g;
     for r in 0..n {
@@ -96,13 +98,7 @@ pub(crate) fn normal_lstsq(j: &DMatrix<f64>, g: &DVector<f64>) -> Option<LstSq> 
             cov += v * v.transpose() / l;
         }
     }
-    for r in 0..n {
-        x[r] /= scale[r];
-        for c in 0..n {
-            cov[(r, c)] /= scale[r] * scale[c];
-        }
-    }
-    Some(LstSq { x, cov })
+    Some(unscaled(x, cov, &scale))
 }
 
 #[cfg(test)]

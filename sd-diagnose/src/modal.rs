@@ -348,6 +348,15 @@ impl Residues {
         self
     }
 
+    /// Parameters behind a prediction: the residues, and the pole parameters with `full` when
+    /// their covariance is known.
+    pub(crate) fn n_params(&self, full: bool) -> usize {
+        match (&self.full, full) {
+            (Some(f), true) => f.nrows(),
+            _ => self.r.len(),
+        }
+    }
+
     /// The covariances times `k`.
     pub(crate) fn scaled(mut self, k: f64) -> Self {
         self.cov *= k;

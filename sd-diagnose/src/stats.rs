@@ -20,7 +20,10 @@
 //! polynomial's hat matrix, so neighbouring errors correlate with `ρ(d) = Σ_r w(r)w(r+d)/Σ w²`
 //! and scores (squared magnitudes) with `ρ(d)²`. The statistic's variance is inflated by
 //! `c = Σ_d ρ(d)²` and it is judged as `c·Gamma(K/c, 1)/K` (K/c effective lines). Periodic
-//! estimates at different harmonics are independent (`c = 1`).
+//! estimates at different harmonics are independent (`c = 1`). A fitted model's prediction
+//! errors are shared by all lines through its p parameters: the part `M = Σ σ²_pred/σ²` of the
+//! score sum fluctuates like `M·χ²_p/p`, so the sum's variance is `c(K − M) + 2M²/p` and the
+//! effective number of lines `K' = K²/(c(K − M) + 2M²/p)`.
 //!
 //! **Threshold** at false-alarm probability α: the `1 − α` quantile of `Gamma(K', 1)/K'`,
 //! `K' = K/c`, by the Wilson–Hilferty cube-root approximation of the χ² quantile
@@ -40,6 +43,11 @@ pub(crate) struct Line {
     pub(crate) var: f64,
     /// Effective real degrees of freedom of `var` (infinite: known).
     pub(crate) dof: f64,
+    /// Share of `var` that comes from a fitted parametric prediction (its errors are shared by
+    /// all lines through its parameters).
+    pub(crate) shared: f64,
+    /// Parameters of that prediction (0: none).
+    pub(crate) params: usize,
 }
 
 impl Line {
@@ -119,11 +127,16 @@ pub(crate) type LineSet<'a> = (&'a [Line], f64);
 /// The pooled statistic of several sets at false-alarm probability `alpha`. No lines: an
 /// infinite value.
 pub(crate) fn statistic<'a>(sets: impl IntoIterator<Item = LineSet<'a>>, alpha: f64) -> Statistic {
-    let (mut s, mut k, mut keff) = (0.0, 0usize, 0.0);
+    let (mut s, mut k) = (0.0, 0usize);
+    let (mut noise_var, mut shared, mut params) = (0.0, 0.0, 0usize);
     for (lines, c) in sets {
         s += lines.iter().map(Line::score).sum::<f64>();
         k += lines.len();
-        keff += lines.len() as f64 / c.max(1.0);
+        for l in lines {
+            noise_var += c.max(1.0) * (1.0 - l.shared);
+            shared += l.shared;
+            params = params.max(l.params);
+        }
     }
     if k == 0 {
         return Statistic {
@@ -133,6 +146,15 @@ pub(crate) fn statistic<'a>(sets: impl IntoIterator<Item = LineSet<'a>>, alpha: 
             threshold: f64::INFINITY,
         };
     }
+    // a fitted prediction's errors are p-dimensional: their part of the sum fluctuates like
+    // M·χ²_p/p (variance 2M²/p), not like M independent lines
+    let var = noise_var
+        + if params > 0 {
+            2.0 * shared * shared / params as f64
+        } else {
+            0.0
+        };
+    let keff = (k as f64 * k as f64 / var.max(f64::MIN_POSITIVE)).min(k as f64);
     Statistic {
         value: s / k as f64,
         lines: k,
