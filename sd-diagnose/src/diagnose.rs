@@ -174,11 +174,7 @@ impl Judged<'_> {
                 value: resp[i],
                 var,
                 dof: f64::INFINITY,
-                params: if self.given {
-                    0
-                } else {
-                    self.plain.n_params(true)
-                },
+                params: if self.given { 0 } else { self.plain.n_params() },
             })
         }))
     }

@@ -348,13 +348,10 @@ impl Residues {
         self
     }
 
-    /// Parameters behind a prediction: the residues, and the pole parameters with `full` when
-    /// their covariance is known.
-    pub(crate) fn n_params(&self, full: bool) -> usize {
-        match (&self.full, full) {
-            (Some(f), true) => f.nrows(),
-            _ => self.r.len(),
-        }
+    /// Parameters behind a prediction: the residues and, when their covariance is known, the
+    /// pole parameters.
+    pub(crate) fn n_params(&self) -> usize {
+        self.full.as_ref().map_or(self.r.len(), |f| f.nrows())
     }
 
     /// The covariances times `k`.
