@@ -4,7 +4,8 @@
 //!
 //! Seed ranges: development (looked at while building the search and the naming rule)
 //! `0..100` and `1000..1100`; the CI subset `3000..3032` (a regression check, run at every
-//! commit); reported (not looked at before the figures were taken) `2000..2100`:
+//! commit); `2000..2100` was reported once for an earlier version and is spent; reported now
+//! (not looked at before the figures were taken) `4000..4100`:
 //! `cargo test --release -p sd-tests --test diagnose_hidden -- --ignored --nocapture`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -14,7 +15,7 @@ use sd_testbed::{run_identification, Identification, Injection, Noise, NonIdeali
 use sd_tests::diagcases::{hidden_effect, Case, Effect};
 
 /// Seeds the confusion matrix is reported on (disjoint from the development seeds).
-const REPORT_SEEDS: std::ops::Range<u64> = 2000..2100;
+const REPORT_SEEDS: std::ops::Range<u64> = 4000..4100;
 /// The default run's regression subset (disjoint from both).
 const CI_SEEDS: std::ops::Range<u64> = 3000..3032;
 
