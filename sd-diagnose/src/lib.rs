@@ -41,11 +41,12 @@
 //!   averaging + clock. Each is discretised exactly at each experiment's (true) period
 //!   ([`sd_multirate::c2d_nonideal`]); the modal residues are refitted to the fast FRF per
 //!   trial. Parameters and the family are chosen on the *training* part of the data only
-//!   (earlier periods, or the first part of a record) by a penalised criterion (sum of scores
-//!   + ½ ln K per parameter); the chosen extension is named only when its statistic on the
-//!   *held-out* part (later periods) passes the calibrated threshold, and a pair only when its
-//!   second parameter pays for itself there too; otherwise `unexplained`, with the best
-//!   partial explanation reported as such. Reported parameters are refitted on all data.
+//!   (earlier periods, or the first part of a record) by a penalised criterion (the sum of
+//!   scores plus ½ ln K per parameter); the chosen extension is named only when its statistic
+//!   on the *held-out* part (later periods, then the earlier ones in turn; or whole left-out
+//!   experiments) passes the naming threshold, and a pair only when its second parameter pays
+//!   for itself there too; otherwise `unexplained`, with the best partial explanation reported
+//!   as such. Reported parameters are refined on all data (`docs/diagnosis.md`).
 //!
 //! **Gain** is measured on the held-out part: the plain modal model (the same poles, residues
 //! refitted to the fast data) before, the extension with the training parameters after; the

@@ -59,6 +59,9 @@ fn mean(x: impl Iterator<Item = f64>) -> f64 {
     v.iter().sum::<f64>() / v.len().max(1) as f64
 }
 
+/// A named subset of the cases.
+type RowFilter = Box<dyn Fn(&Row) -> bool>;
+
 fn summary(rows: &[Row]) -> (f64, f64, f64) {
     let rate = rows.iter().filter(|r| r.false_alarm).count() as f64 / rows.len() as f64;
     let free = mean(rows.iter().map(|r| r.free));
@@ -68,7 +71,7 @@ fn summary(rows: &[Row]) -> (f64, f64, f64) {
         rows.len(),
         100.0 * rate
     );
-    let groups: [(&str, Box<dyn Fn(&Row) -> bool>); 8] = [
+    let groups: [(&str, RowFilter); 8] = [
         (
             "2–3 periods",
             Box::new(|r: &Row| r.periodic && r.steady <= 3),
