@@ -801,6 +801,102 @@ fn causes_of(fam: Family, p: &RateTied, names: &[String], data: &Data<'_>) -> Ve
     out
 }
 
+/// Mean score of a model on the model experiment's own lines (no prediction variance).
+fn own_statistic(m: &StateSpace, fast: &Estimate, alpha: f64) -> Result<f64> {
+    let r = responses(m, fast.frd.freq_hz())?;
+    let l = compare(&fast.frd, fast.dof, |i, _| {
+        Some(Pred {
+            value: r[i],
+            var: 0.0,
+            dof: f64::INFINITY,
+            params: 0,
+        })
+    });
+    Ok(statistic([(l.as_slice(), fast.inflation)], alpha).value)
+}
+
+/// Stage 2: the model (given, or fitted and then its residues refitted on the continuous
+/// modal basis of its poles, kept when it fits its data as well: the basis drops poles
+/// without a continuous counterpart), its source, and that basis.
+fn judged_model(
+    data: &Data<'_>,
+    opt: &DiagnoseOptions,
+    progress: &mut dyn FnMut(&str),
+) -> Result<(StateSpace, String, ModalBasis)> {
+    let (fitted, mut source) = crate::model::model_for(&data.fast.frd, data.h, opt, progress)?;
+    let basis = ModalBasis::from_model(&fitted)?;
+    if opt.model.is_some() {
+        return Ok((fitted, source, basis));
+    }
+    let phi = basis.responses(data.h, NonIdeal::ideal(), data.fast.frd.freq_hz())?;
+    let res = Residues::fit(&data.fast.frd, &phi)?;
+    let refit = basis.model(&res.r, data.h, NonIdeal::ideal())?;
+    let own = |m: &StateSpace| own_statistic(m, &data.fast, opt.alpha);
+    if own(&refit)? <= own(&fitted)? * 1.02 {
+        source.push_str("; residues refitted on the continuous modal basis");
+        return Ok((refit, source, basis));
+    }
+    Ok((fitted, source, basis))
+}
+
+/// The model with its modal form and prediction covariance: residues and poles, for a fitted
+/// model scaled by its misfit on its own data when above 1 (the residual-variance factor of
+/// least squares: unmodelled detail widens its prediction).
+fn judge_model<'a>(
+    data: &'a Data<'_>,
+    opt: &DiagnoseOptions,
+    model: StateSpace,
+    source: String,
+    basis: ModalBasis,
+) -> Result<Judged<'a>> {
+    let given = opt.model.is_some();
+    let modal = Modal {
+        basis,
+        fast: &data.fast,
+        h: data.h,
+        alpha: opt.alpha,
+    };
+    let mut plain = modal.residues_full(NonIdeal::ideal())?;
+    if !given {
+        plain = plain.scaled(own_statistic(&model, &data.fast, opt.alpha)?.max(1.0));
+    }
+    Ok(Judged {
+        info: ModelInfo {
+            source,
+            order: model.n(),
+            ts: model.ts(),
+            own_data: None,
+            own_fit: None,
+        },
+        given,
+        model,
+        modal,
+        plain,
+    })
+}
+
+/// How far the model is from its own experiment, and whether that excess is noise,
+/// distortion (the non-excited lines) or fit error.
+fn own_fit(data: &Data<'_>, ch: &Checks, info: &mut ModelInfo) {
+    let own = statistic(
+        [(ch.fast_model.as_slice(), data.fast.inflation)],
+        ch.alpha_test,
+    );
+    let distorted = data.fast.distortion.as_ref().is_some_and(|d| {
+        distortion_evidence(&data.model_exp.spec.name, d, ch.alpha_test)
+            .iter()
+            .any(|e| !e.passed)
+    });
+    info.own_fit = Some(if own.passes() {
+        OwnFit::Noise
+    } else if distorted {
+        OwnFit::Distortion
+    } else {
+        OwnFit::FitError
+    });
+    info.own_data = Some(own);
+}
+
 /// [`diagnose_with_progress`] without progress messages.
 ///
 /// # Errors
@@ -828,38 +924,7 @@ pub fn diagnose_with_progress(
         )));
     }
     let mut data = Data::read(experiments, progress)?;
-    let (fitted, mut source) = crate::model::model_for(&data.fast.frd, data.h, opt, progress)?;
-    let basis = ModalBasis::from_model(&fitted)?;
-    let given = opt.model.is_some();
-    let model = if given {
-        fitted
-    } else {
-        // the fitted poles with the residues refitted by weighted least squares on the modal
-        // basis: the best model with these poles, and one whose prediction variance is known
-        let phi = basis.responses(data.h, NonIdeal::ideal(), data.fast.frd.freq_hz())?;
-        let res = Residues::fit(&data.fast.frd, &phi)?;
-        let refit = basis.model(&res.r, data.h, NonIdeal::ideal())?;
-        // kept only when it fits its data as well (the basis drops poles without a continuous
-        // counterpart)
-        let own = |m: &StateSpace| -> Result<f64> {
-            let r = responses(m, data.fast.frd.freq_hz())?;
-            let l = compare(&data.fast.frd, data.fast.dof, |i, _| {
-                Some(Pred {
-                    value: r[i],
-                    var: 0.0,
-                    dof: f64::INFINITY,
-                    params: 0,
-                })
-            });
-            Ok(statistic([(l.as_slice(), 1.0)], opt.alpha).value)
-        };
-        if own(&refit)? <= own(&fitted)? * 1.02 {
-            source.push_str("; residues refitted on the continuous modal basis");
-            refit
-        } else {
-            fitted
-        }
-    };
+    let (model, source, basis) = judged_model(&data, opt, progress)?;
     for v in &mut data.vals {
         v.model = if v.factor == 1 {
             model.clone()
@@ -867,62 +932,9 @@ pub fn diagnose_with_progress(
             downsample(&model, v.factor)?
         };
     }
-    let modal = Modal {
-        basis,
-        fast: &data.fast,
-        h: data.h,
-        alpha: opt.alpha,
-    };
-    let plain = modal.residues_full(NonIdeal::ideal())?;
-    // a fitted model's covariance scaled by its misfit on its own data when above 1 (the
-    // residual-variance factor of least squares): unmodelled detail widens its prediction
-    let plain = if given {
-        plain
-    } else {
-        let r = responses(&model, data.fast.frd.freq_hz())?;
-        let l = compare(&data.fast.frd, data.fast.dof, |i, _| {
-            Some(Pred {
-                value: r[i],
-                var: 0.0,
-                dof: f64::INFINITY,
-                params: 0,
-            })
-        });
-        let own = statistic([(l.as_slice(), data.fast.inflation)], opt.alpha).value;
-        plain.scaled(own.max(1.0))
-    };
-    let judged = Judged {
-        info: ModelInfo {
-            source: source.clone(),
-            order: model.n(),
-            ts: model.ts(),
-            own_data: None,
-            own_fit: None,
-        },
-        given,
-        model,
-        modal,
-        plain,
-    };
-    let mut judged = judged;
+    let mut judged = judge_model(&data, opt, model, source, basis)?;
     let mut ch = checks(&data, &judged, opt.alpha)?;
-    let own = statistic(
-        [(ch.fast_model.as_slice(), data.fast.inflation)],
-        ch.alpha_test,
-    );
-    let distorted = data.fast.distortion.as_ref().is_some_and(|d| {
-        distortion_evidence(&data.model_exp.spec.name, d, ch.alpha_test)
-            .iter()
-            .any(|e| !e.passed)
-    });
-    judged.info.own_fit = Some(if own.passes() {
-        OwnFit::Noise
-    } else if distorted {
-        OwnFit::Distortion
-    } else {
-        OwnFit::FitError
-    });
-    judged.info.own_data = Some(own);
+    own_fit(&data, &ch, &mut judged.info);
     let outcome = decide(&data, &judged, &mut ch, progress)?;
     progress("reports");
     let experiments = reports(&data, &judged, &ch, &outcome.extension)?;

@@ -292,6 +292,65 @@ fn cell(v: Option<f64>, sci: bool) -> String {
     }
 }
 
+/// The hypotheses, the evidence and the held-out gain of `report.md`.
+fn hypotheses_section(md: &mut String, d: &Diagnosis) {
+    let _ = writeln!(
+        md,
+        "\n## Hypotheses\n\nFitted on the training data (earlier periods), ranked by the penalised criterion \
+         (score sum + ½ ln K per parameter), judged on the held-out data.\n\n| hypothesis | \
+         parameters | statistic (training) | criterion | statistic (held out) |\n|---|---|---|---|---|"
+    );
+    for r in &d.ranking {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {:.3} | {:.1} | {} |",
+            r.cause,
+            r.n_params,
+            r.cost,
+            r.criterion,
+            cell(r.held_out, false)
+        );
+    }
+    if let Some(p) = &d.partial {
+        let _ = writeln!(
+            md,
+            "\nBest partial explanation (not named: its held-out statistic {} is above the \
+             threshold): {}.",
+            cell(p.held_out, false),
+            p.cause
+        );
+    }
+    let _ = writeln!(
+        md,
+        "\nExtension: {}.\n\n## Evidence\n\n| test | statistic | threshold | passed |\n|---|---|---|---|",
+        describe(&d.extension)
+    );
+    for e in &d.evidence {
+        let _ = writeln!(
+            md,
+            "| {} | {:.3} | {:.3} | {} |",
+            e.test,
+            e.statistic,
+            e.threshold,
+            if e.passed { "yes" } else { "**no**" }
+        );
+    }
+    let g = &d.gain;
+    let _ = match (g.before, g.after, g.ratio) {
+        (Some(b), Some(a), Some(r)) => writeln!(
+            md,
+            "\n## Gain on held-out data\n\nStatistic {b:.3} before (plain modal model) and {a:.3} \
+             after the extension: ratio {r:.1} (held out: {}).",
+            g.held_out.join(", ")
+        ),
+        _ => writeln!(
+            md,
+            "\n## Gain on held-out data\n\nNot measured: {}.",
+            g.why.as_deref().unwrap_or("no held-out data")
+        ),
+    };
+}
+
 /// The text of `report.md`.
 pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> String {
     let mut md = String::new();
@@ -418,61 +477,7 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> String {
             }
         }
     }
-    let _ = writeln!(
-        md,
-        "\n## Hypotheses\n\nFitted on the training data (earlier periods), ranked by the penalised criterion \
-         (score sum + ½ ln K per parameter), judged on the held-out data.\n\n| hypothesis | \
-         parameters | statistic (training) | criterion | statistic (held out) |\n|---|---|---|---|---|"
-    );
-    for r in &d.ranking {
-        let _ = writeln!(
-            md,
-            "| {} | {} | {:.3} | {:.1} | {} |",
-            r.cause,
-            r.n_params,
-            r.cost,
-            r.criterion,
-            cell(r.held_out, false)
-        );
-    }
-    if let Some(p) = &d.partial {
-        let _ = writeln!(
-            md,
-            "\nBest partial explanation (not named: its held-out statistic {} is above the \
-             threshold): {}.",
-            cell(p.held_out, false),
-            p.cause
-        );
-    }
-    let _ = writeln!(
-        md,
-        "\nExtension: {}.\n\n## Evidence\n\n| test | statistic | threshold | passed |\n|---|---|---|---|",
-        describe(&d.extension)
-    );
-    for e in &d.evidence {
-        let _ = writeln!(
-            md,
-            "| {} | {:.3} | {:.3} | {} |",
-            e.test,
-            e.statistic,
-            e.threshold,
-            if e.passed { "yes" } else { "**no**" }
-        );
-    }
-    let g = &d.gain;
-    let _ = match (g.before, g.after, g.ratio) {
-        (Some(b), Some(a), Some(r)) => writeln!(
-            md,
-            "\n## Gain on held-out data\n\nStatistic {b:.3} before (plain modal model) and {a:.3} \
-             after the extension: ratio {r:.1} (held out: {}).",
-            g.held_out.join(", ")
-        ),
-        _ => writeln!(
-            md,
-            "\n## Gain on held-out data\n\nNot measured: {}.",
-            g.why.as_deref().unwrap_or("no held-out data")
-        ),
-    };
+    hypotheses_section(&mut md, d);
     if !figures.is_empty() {
         let _ = writeln!(md, "\n## Figures\n");
         for f in figures {
