@@ -247,8 +247,9 @@ enum Cmd {
         /// this often).
         #[arg(long, default_value_t = 0.01)]
         alpha: f64,
-        /// Highest model order tried when the model is fitted.
-        #[arg(long, default_value_t = 20)]
+        /// Highest model order tried when the model is fitted (the scan stops six orders
+        /// past the best held-out error).
+        #[arg(long, default_value_t = 60)]
         max_order: usize,
     },
     /// Loopshaping weights as model JSON (continuous unless --ts is given).

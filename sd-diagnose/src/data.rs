@@ -2,7 +2,10 @@
 //! held-out (later) parts, with the degrees of freedom of their variances and the correlation
 //! of neighbouring lines ([`crate::stats`]).
 
-use crate::stats::lpm_inflation;
+use crate::stats::{lpm_inflation, satterthwaite, threshold};
+
+/// False-alarm probability of the per-line distortion gate.
+const NL_ALPHA: f64 = 0.01;
 use crate::{DiagnoseError, Result};
 use sd_ident::{
     frf_periodic, DistortionReport, Experiment, LpmOptions, PeriodicOptions, MIN_INPUT_SNR,
@@ -77,23 +80,59 @@ pub(crate) fn estimate(e: &Experiment, part: Part) -> Result<Estimate> {
         &PeriodicOptions::new(period, 0),
     )?;
     let m = hi - lo;
+    let noise_dof = if m >= 2 {
+        4.0 * (m as f64 - 1.0)
+    } else {
+        f64::INFINITY
+    };
+    let (frd, dof) = with_distortion(est.frd.clone(), est.nl_variance.as_deref(), noise_dof)?;
     // lines whose input is hardly measured (in closed loop: where the loop cancels the
     // excitation) have a biased ratio and no valid variance: left out
-    let frd = est
-        .frd
-        .select(|i| est.input_snr.get(i).is_none_or(|s| *s >= MIN_INPUT_SNR))?;
+    let frd = frd.select(|i| est.input_snr.get(i).is_none_or(|s| *s >= MIN_INPUT_SNR))?;
     Ok(Estimate {
         frd,
-        // 2(M − 1) complex noise bins between two harmonics; with one period the white-noise
-        // level from the many non-excited bins
-        dof: if m >= 2 {
-            4.0 * (m as f64 - 1.0)
-        } else {
-            f64::INFINITY
-        },
+        dof,
         inflation: 1.0,
         distortion: est.distortion,
     })
+}
+
+/// The FRF with the stochastic nonlinear distortion's variance (odd multisines' detection
+/// lines, [`sd_ident::FrfEstimate::nl_variance`]) added to the noise variance: a model, or
+/// another experiment with its own phase realisation, can only be expected to agree within
+/// both. Only where the detection lines' level is significant (their ratio to the noise above
+/// the `1 − NL_ALPHA` quantile of `Gamma(K, 1)/K`, K = `NL_NEIGHBOURS`): the clamped level
+/// of a linear system would otherwise add about a third of the noise variance everywhere.
+/// Degrees of freedom: the noise's `noise_dof` (2(M − 1) complex noise bins between two
+/// harmonics; infinite with one period, whose white-noise level comes from the many
+/// non-excited bins) and the distortion level's `2·NL_NEIGHBOURS`, combined per line by
+/// Satterthwaite and averaged over the lines.
+fn with_distortion(frd: Frd, nl: Option<&[(f64, f64)]>, noise_dof: f64) -> Result<(Frd, f64)> {
+    let (Some(nl), Some(var)) = (nl, frd.variance()) else {
+        return Ok((frd, noise_dof));
+    };
+    let k = sd_ident::NL_NEIGHBOURS as f64;
+    let nl_dof = 2.0 * k;
+    let gate = threshold(k, NL_ALPHA);
+    let mut dof_sum = 0.0;
+    let total: Vec<nalgebra::DMatrix<f64>> = var
+        .iter()
+        .zip(nl)
+        .map(|(v, &(d, ratio))| {
+            let d = if ratio > gate { d } else { 0.0 };
+            let vn = v[(0, 0)];
+            dof_sum += satterthwaite(&[(vn, noise_dof), (d, nl_dof)]);
+            nalgebra::DMatrix::from_element(1, 1, vn + d)
+        })
+        .collect();
+    let dof = dof_sum / total.len().max(1) as f64;
+    let out = Frd::new(
+        frd.freq_hz().to_vec(),
+        frd.response().to_vec(),
+        Some(total),
+        frd.time(),
+    )?;
+    Ok((out, dof))
 }
 
 /// The training and held-out parts of an experiment (`None` when a part has no lines or no

@@ -1,17 +1,19 @@
 //! The diagnosis as named stages (crate documentation): data → FRFs → model → consistency
 //! checks → hypotheses → validation → findings.
 
+use crate::amplitude::{candidates, fit_level, kinds, AmplitudeModel, Level, LevelFit};
 use crate::data::{
     earlier_label, estimate, held_out_label, level, parts, rate_factor, Estimate, Part,
 };
 use crate::findings::{bands, dominant_fold, responses, time_domain};
-use crate::hypotheses::{penalised, Family, Fitted, Modal, Target};
+use crate::hypotheses::{penalised, Family, Fitted, Modal, StdErrors, Target};
 use crate::lemma6::{compare, Pair, Pred};
 use crate::modal::{ModalBasis, Residues};
-use crate::stats::{statistic, Line, Statistic};
+use crate::stats::{normal_quantile, statistic, Line, Statistic};
 use crate::{
-    joined, merged_parameters, Cause, Curves, DiagnoseError, DiagnoseOptions, Diagnosis, Evidence,
-    ExperimentReport, Extension, Gain, ModelInfo, OwnFit, Ranked, RateTied, Result, Verdict,
+    joined, merged_parameters, Cause, Curves, DampingTrend, DiagnoseError, DiagnoseOptions,
+    Diagnosis, Evidence, ExperimentReport, Extension, FreqTrend, Gain, HeldOut, ModelInfo, OwnFit,
+    Ranked, RateTied, Result, Verdict,
 };
 use num_complex::Complex64 as C;
 use sd_ident::{DistortionReport, Experiment, Role};
@@ -301,6 +303,11 @@ struct Outcome {
     ranking: Vec<Ranked>,
     partial: Option<Ranked>,
     gain: Gain,
+    /// The extended model per experiment where the extension is not rate-tied (the
+    /// amplitude-dependent model at each level).
+    models: BTreeMap<String, StateSpace>,
+    /// Per whole held-out experiment, its statistics before and after.
+    held: BTreeMap<String, HeldOut>,
 }
 
 impl Outcome {
@@ -312,6 +319,8 @@ impl Outcome {
             ranking: Vec::new(),
             partial: None,
             gain,
+            models: BTreeMap::new(),
+            held: BTreeMap::new(),
         }
     }
 }
@@ -354,7 +363,7 @@ fn decide(
         .filter(|(_, s)| !s.passes())
         .collect();
     if !nonlinear.is_empty() {
-        return Ok(nonlinearity(data, &nonlinear, a));
+        return nonlinearity(data, j, ch, &nonlinear, progress);
     }
     if s_free.lines == 0 {
         // only other levels, and they agree
@@ -404,14 +413,293 @@ fn decide(
     rate_tied(data, j, progress)
 }
 
-fn nonlinearity(data: &Data<'_>, found: &[(usize, Statistic)], alpha: f64) -> Outcome {
-    let mut levels = BTreeMap::new();
+/// Experiments at other levels disagree: the amplitude-dependent modal model
+/// ([`crate::amplitude`]) over every experiment at the model experiment's rate, its gain on
+/// whole levels left out in turn (three or more levels) or on the later periods of the other
+/// level (two). A same-level repeat that disagrees as well is drift, not nonlinearity.
+fn nonlinearity(
+    data: &Data<'_>,
+    j: &Judged<'_>,
+    ch: &mut Checks,
+    found: &[(usize, Statistic)],
+    progress: &mut dyn FnMut(&str),
+) -> Result<Outcome> {
+    let alpha = ch.alpha_test;
+    let relative_levels: BTreeMap<String, f64> = found
+        .iter()
+        .map(|(i, _)| (data.vals[*i].exp.spec.name.clone(), data.vals[*i].level))
+        .collect();
+    let drift = data
+        .vals
+        .iter()
+        .enumerate()
+        .filter(|(_, v)| v.factor == 1 && v.same_level())
+        .map(|(i, v)| {
+            (
+                v,
+                statistic([(ch.free[i].as_slice(), v.whole.inflation)], alpha),
+            )
+        })
+        .find(|(_, s)| !s.passes());
+    if let Some((v, s)) = drift {
+        ch.evidence.push(Evidence::of(
+            format!(
+                "`{}` repeats the model experiment's level and rate yet disagrees: the plant \
+                 changed with time, not with amplitude",
+                v.exp.spec.name
+            ),
+            &s,
+        ));
+        return Ok(Outcome::plain(
+            Verdict::Discrepancy,
+            Cause::Unexplained,
+            Gain::none("a same-level repeat disagrees: drift, which no amplitude model explains"),
+        ));
+    }
+    let mut levels = vec![Level {
+        name: data.model_exp.spec.name.clone(),
+        exp: data.model_exp,
+        est: &data.fast,
+    }];
+    let mut at: Vec<Option<usize>> = vec![None];
+    for (i, v) in data.vals.iter().enumerate().filter(|(_, v)| v.factor == 1) {
+        levels.push(Level {
+            name: v.exp.spec.name.clone(),
+            exp: v.exp,
+            est: &v.whole,
+        });
+        at.push(Some(i));
+    }
+    let basis = &j.modal.basis;
+    let cand = candidates(basis, &data.fast);
+    progress("modal fit of every level");
+    let fits = levels
+        .iter()
+        .map(|lv| fit_level(basis, &cand, data.h, lv))
+        .collect::<Result<Vec<_>>>();
+    let Ok(first) = fits else {
+        return Ok(per_level(data, found, relative_levels, alpha));
+    };
+    // modes the model experiment itself does not determine are no candidates; the others
+    // are fitted again without them
+    let cand: Vec<usize> = cand
+        .iter()
+        .enumerate()
+        .filter(|(m, _)| first.first().is_some_and(|f| f.determines(*m)))
+        .map(|(_, c)| *c)
+        .collect();
+    if cand.is_empty() {
+        return Ok(per_level(data, found, relative_levels, alpha));
+    }
+    let Ok(fits) = levels
+        .iter()
+        .map(|lv| fit_level(basis, &cand, data.h, lv))
+        .collect::<Result<Vec<_>>>()
+    else {
+        return Ok(per_level(data, found, relative_levels, alpha));
+    };
+    let all: Vec<&Level<'_>> = levels.iter().collect();
+    let fit_refs: Vec<&LevelFit> = fits.iter().collect();
+    let model = AmplitudeModel::fit(basis, data.h, &cand, &all, &fit_refs, alpha)?;
+    progress("amplitude model: levels left out in turn");
+    let (gain, loo, held) = if levels.len() >= 3 {
+        levels_left_out(data, j, ch, &levels, &fits, &at, (&cand, alpha))?
+    } else {
+        (
+            later_periods(data, j, &levels, &fits, &cand, alpha)?,
+            Vec::new(),
+            BTreeMap::new(),
+        )
+    };
+    let modes = model.report(&all, &fit_refs, &loo);
+    let (kind, damping_trend) = kinds(&modes, normal_quantile(1.0 - alpha / 2.0));
+    let mut models = BTreeMap::new();
+    for lv in &levels {
+        models.insert(lv.name.clone(), model.model_at(lv)?);
+    }
+    Ok(Outcome {
+        verdict: Verdict::Discrepancy,
+        causes: vec![Cause::Nonlinearity {
+            relative_levels,
+            kind,
+            damping_trend,
+            modes: modes.clone(),
+        }],
+        extension: Extension::Amplitude(modes),
+        ranking: Vec::new(),
+        partial: None,
+        gain,
+        models,
+        held,
+    })
+}
+
+/// Per level, the frequencies and dampings the model fitted without it predicted.
+type LeftOut = Vec<Option<Vec<(f64, f64)>>>;
+
+/// Three or more levels: each validation level left out in turn, the amplitude model fitted
+/// on the others (the model experiment always among them) and judged on it; before: the
+/// linear model's simulation of it.
+fn levels_left_out(
+    data: &Data<'_>,
+    j: &Judged<'_>,
+    ch: &Checks,
+    levels: &[Level<'_>],
+    fits: &[LevelFit],
+    at: &[Option<usize>],
+    (cand, alpha): (&[usize], f64),
+) -> Result<(Gain, LeftOut, BTreeMap<String, HeldOut>)> {
+    let (mut before, mut after, mut held) = (Vec::new(), Vec::new(), Vec::new());
+    let mut per = BTreeMap::new();
+    let mut loo: LeftOut = vec![None; levels.len()];
+    for (k, lv) in levels.iter().enumerate().skip(1) {
+        let Some(i) = at[k] else { continue };
+        let train: Vec<&Level<'_>> = levels
+            .iter()
+            .enumerate()
+            .filter(|(m, _)| *m != k)
+            .map(|(_, l)| l)
+            .collect();
+        let tf: Vec<&LevelFit> = fits
+            .iter()
+            .enumerate()
+            .filter(|(m, _)| *m != k)
+            .map(|(_, f)| f)
+            .collect();
+        let m = AmplitudeModel::fit(&j.modal.basis, data.h, cand, &train, &tf, alpha)?;
+        loo[k] = Some(m.predicted(lv));
+        let c = lv.est.inflation;
+        let bands = m.moving_bands(lv);
+        let (a, b) = (
+            in_bands(m.lines(lv)?, &bands),
+            in_bands(ch.model[i].clone(), &bands),
+        );
+        let (sa, sb) = (
+            statistic([(a.as_slice(), c)], alpha).value,
+            statistic([(b.as_slice(), c)], alpha).value,
+        );
+        per.insert(
+            lv.name.clone(),
+            HeldOut {
+                before: sb,
+                after: sa,
+                ratio: sb / sa,
+                lines: a.len(),
+            },
+        );
+        after.push((a, c));
+        before.push((b, c));
+        let extrapolated = m.extrapolates(lv, &tf);
+        held.push(format!(
+            "{} (whole experiment, left out{})",
+            lv.name,
+            if extrapolated {
+                "; beyond the fitted amplitudes: extrapolated"
+            } else {
+                ""
+            }
+        ));
+    }
+    let pooled =
+        |sets: &[(Vec<Line>, f64)]| statistic(sets.iter().map(|(l, c)| (l.as_slice(), *c)), alpha);
+    Ok((
+        Gain::measured(pooled(&before).value, pooled(&after).value, held)
+            .with_metric(Gain::METRIC_BANDS),
+        loo,
+        per,
+    ))
+}
+
+/// The lines inside any of `bands` (all of them when there are no bands).
+fn in_bands(lines: Vec<Line>, bands: &[(f64, f64)]) -> Vec<Line> {
+    if bands.is_empty() {
+        return lines;
+    }
+    lines
+        .into_iter()
+        .filter(|l| bands.iter().any(|(lo, hi)| l.f >= *lo && l.f <= *hi))
+        .collect()
+}
+
+/// Two levels: the amplitude model fitted on the model experiment and the other level's
+/// earlier periods, judged on its later ones (labelled so).
+fn later_periods(
+    data: &Data<'_>,
+    j: &Judged<'_>,
+    levels: &[Level<'_>],
+    fits: &[LevelFit],
+    cand: &[usize],
+    alpha: f64,
+) -> Result<Gain> {
+    let Some(other) = levels.get(1) else {
+        return Ok(Gain::none("one level only"));
+    };
+    let Some(v) = data.vals.iter().find(|v| std::ptr::eq(v.exp, other.exp)) else {
+        return Ok(Gain::none("one level only"));
+    };
+    let Some((early, late)) = &v.parts else {
+        return Ok(Gain::none(
+            "two levels only, and the other level has fewer than four steady periods (or too \
+             short a record) to hold part of it out",
+        ));
+    };
+    let train_lv = Level {
+        name: other.name.clone(),
+        exp: other.exp,
+        est: early,
+    };
+    let held_lv = Level {
+        name: other.name.clone(),
+        exp: other.exp,
+        est: late,
+    };
+    let tf = fit_level(&j.modal.basis, cand, data.h, &train_lv)?;
+    let m = AmplitudeModel::fit(
+        &j.modal.basis,
+        data.h,
+        cand,
+        &[&levels[0], &train_lv],
+        &[&fits[0], &tf],
+        alpha,
+    )?;
+    let bands = m.moving_bands(&held_lv);
+    let after = statistic(
+        [(
+            in_bands(m.lines(&held_lv)?, &bands).as_slice(),
+            late.inflation,
+        )],
+        alpha,
+    );
+    let before = statistic(
+        [(
+            in_bands(j.lines(&v.model, 1, late)?, &bands).as_slice(),
+            late.inflation,
+        )],
+        alpha,
+    );
+    Ok(Gain::measured(
+        before.value,
+        after.value,
+        vec![format!(
+            "{} (two levels only: fitted on its earlier periods)",
+            held_out_label(v.exp)
+        )],
+    )
+    .with_metric(Gain::METRIC_BANDS))
+}
+
+/// Without in-band modes to move: one FRF per level (the level's own earlier periods predict
+/// its later ones).
+fn per_level(
+    data: &Data<'_>,
+    found: &[(usize, Statistic)],
+    relative_levels: BTreeMap<String, f64>,
+    alpha: f64,
+) -> Outcome {
     let (mut b, mut af, mut held) = (0.0, 0.0, Vec::new());
     for (i, _) in found {
         let v = &data.vals[*i];
-        levels.insert(v.exp.spec.name.clone(), v.level);
         if let Some((v1, v2)) = &v.parts {
-            // the model experiment's FRF before, this level's own earlier periods after
             b += statistic(
                 [(free_lines(&data.pair(1), v2).as_slice(), v2.inflation)],
                 alpha,
@@ -436,12 +724,17 @@ fn nonlinearity(data: &Data<'_>, found: &[(usize, Statistic)], alpha: f64) -> Ou
     Outcome {
         verdict: Verdict::Discrepancy,
         causes: vec![Cause::Nonlinearity {
-            relative_levels: levels,
+            relative_levels,
+            kind: FreqTrend::None,
+            damping_trend: DampingTrend::None,
+            modes: Vec::new(),
         }],
         extension: Extension::PerLevel,
         ranking: Vec::new(),
         partial: None,
         gain,
+        models: BTreeMap::new(),
+        held: BTreeMap::new(),
     }
 }
 
@@ -477,6 +770,8 @@ fn fast_model_error(data: &Data<'_>, j: &Judged<'_>, ch: &Checks) -> Result<Outc
         } else {
             Gain::measured(b / n, a / n, held)
         },
+        models: BTreeMap::new(),
+        held: BTreeMap::new(),
     })
 }
 
@@ -585,19 +880,24 @@ fn rate_tied(data: &Data<'_>, j: &Judged<'_>, progress: &mut dyn FnMut(&str)) ->
             partial: Some(s.partial),
             ranking: s.ranking,
             gain: s.gain,
+            models: BTreeMap::new(),
+            held: BTreeMap::new(),
         });
     }
     progress("refitting the chosen extension on all data");
     let all: Vec<Target<'_>> = tied.iter().map(|v| target(v, Part::Whole)).collect();
     let params = j.modal.refine(s.family, &all, &s.params)?;
+    let std = j.modal.std_errors(s.family, &all, &params)?;
     let names: Vec<String> = tied.iter().map(|v| v.exp.spec.name.clone()).collect();
     Ok(Outcome {
         verdict: Verdict::Discrepancy,
-        causes: causes_of(s.family, &params, &names, data),
+        causes: causes_of(s.family, (&params, &std), &names, data),
         extension: Extension::RateTied(params),
         ranking: s.ranking,
         partial: None,
         gain: s.gain,
+        models: BTreeMap::new(),
+        held: BTreeMap::new(),
     })
 }
 
@@ -768,11 +1068,18 @@ fn leave_one_out(
     })
 }
 
-fn causes_of(fam: Family, p: &RateTied, names: &[String], data: &Data<'_>) -> Vec<Cause> {
+/// The named causes of a family with its parameters and their standard errors.
+fn causes_of(
+    fam: Family,
+    (p, std): (&RateTied, &StdErrors),
+    names: &[String],
+    data: &Data<'_>,
+) -> Vec<Cause> {
     let mut out = Vec::new();
     if fam.average() {
         out.push(Cause::AveragingSampler {
             window_frac: p.averaging,
+            window_frac_std: std.averaging,
         });
     }
     if fam.clock() {
@@ -781,6 +1088,11 @@ fn causes_of(fam: Family, p: &RateTied, names: &[String], data: &Data<'_>) -> Ve
                 .iter()
                 .cloned()
                 .zip(p.clock_error.iter().copied())
+                .collect(),
+            clock_error_std: names
+                .iter()
+                .zip(&std.clock_error)
+                .filter_map(|(n, s)| Some((n.clone(), (*s)?)))
                 .collect(),
         });
     }
@@ -795,6 +1107,7 @@ fn causes_of(fam: Family, p: &RateTied, names: &[String], data: &Data<'_>) -> Ve
         }
         out.push(Cause::HoldDelay {
             delay_frac: p.hold_delay,
+            delay_frac_std: std.hold_delay,
             delay_s,
         });
     }
@@ -803,16 +1116,7 @@ fn causes_of(fam: Family, p: &RateTied, names: &[String], data: &Data<'_>) -> Ve
 
 /// Mean score of a model on the model experiment's own lines (no prediction variance).
 fn own_statistic(m: &StateSpace, fast: &Estimate, alpha: f64) -> Result<f64> {
-    let r = responses(m, fast.frd.freq_hz())?;
-    let l = compare(&fast.frd, fast.dof, |i, _| {
-        Some(Pred {
-            value: r[i],
-            var: 0.0,
-            dof: f64::INFINITY,
-            params: 0,
-        })
-    });
-    Ok(statistic([(l.as_slice(), fast.inflation)], alpha).value)
+    Ok(crate::model::own_statistic(m, fast, alpha)?.value)
 }
 
 /// Stage 2: the model (given, or fitted and then its residues refitted on the continuous
@@ -823,7 +1127,14 @@ fn judged_model(
     opt: &DiagnoseOptions,
     progress: &mut dyn FnMut(&str),
 ) -> Result<(StateSpace, String, ModalBasis)> {
-    let (fitted, mut source) = crate::model::model_for(&data.fast.frd, data.h, opt, progress)?;
+    let parts = if opt.model.is_none() {
+        progress("FRFs of the model experiment's earlier and later periods");
+        parts(data.model_exp, &data.fast)
+    } else {
+        None
+    };
+    let (fitted, mut source) =
+        crate::model::model_for(&data.fast, parts.as_ref(), data.h, opt, progress)?;
     let basis = ModalBasis::from_model(&fitted)?;
     if opt.model.is_some() {
         return Ok((fitted, source, basis));
@@ -937,7 +1248,10 @@ pub fn diagnose_with_progress(
     own_fit(&data, &ch, &mut judged.info);
     let outcome = decide(&data, &judged, &mut ch, progress)?;
     progress("reports");
-    let experiments = reports(&data, &judged, &ch, &outcome.extension)?;
+    let mut experiments = reports(&data, &judged, &ch, (&outcome.extension, &outcome.models))?;
+    for x in &mut experiments {
+        x.held_out = outcome.held.get(&x.name).copied();
+    }
     Ok(Diagnosis {
         verdict: outcome.verdict,
         cause: joined(&outcome.causes),
@@ -980,7 +1294,7 @@ fn reports(
     data: &Data<'_>,
     j: &Judged<'_>,
     ch: &Checks,
-    ext: &Extension,
+    (ext, models): (&Extension, &BTreeMap<String, StateSpace>),
 ) -> Result<Vec<ExperimentReport>> {
     let res = match ext {
         Extension::RateTied(p) => Some((j.modal.residues(p.nonideal())?, p)),
@@ -1010,6 +1324,9 @@ fn reports(
         ext,
     };
     let em = |factor: usize, name: &str| -> Result<Option<StateSpace>> {
+        if let Some(m) = models.get(name) {
+            return Ok(Some(m.clone()));
+        }
         res.as_ref()
             .map(|(r, p)| extended_model(j, r, p, factor, clock_of(name)))
             .transpose()
@@ -1132,6 +1449,7 @@ impl ReportCtx<'_, '_> {
             },
             time_domain: td,
             distortion: est.distortion.clone(),
+            held_out: None,
         })
     }
 }

@@ -52,6 +52,7 @@
 //! refitted to the fast data) before, the extension with the training parameters after; the
 //! same yardstick for both. Where no part can be held out the gain is `null` with the reason.
 
+mod amplitude;
 mod data;
 mod findings;
 pub mod hypotheses;
@@ -106,7 +107,7 @@ pub struct DiagnoseOptions {
     /// A given model of the plant (SISO; discrete at the model experiment's period, or
     /// continuous and then ZOH-discretised there). `None`: fitted to the model experiment.
     pub model: Option<StateSpace>,
-    /// Highest order tried when fitting (FPE picks one).
+    /// Highest order tried when fitting (the error on held-out periods picks one; default 60).
     pub max_order: usize,
     /// False-alarm probability of a verdict (default 0.01).
     pub alpha: f64,
@@ -116,7 +117,7 @@ impl Default for DiagnoseOptions {
     fn default() -> Self {
         DiagnoseOptions {
             model: None,
-            max_order: 20,
+            max_order: 60,
             alpha: 0.01,
         }
     }
@@ -151,6 +152,8 @@ pub enum Cause {
     HoldDelay {
         /// Fraction of the period (may exceed 1).
         delay_frac: f64,
+        /// Its standard error (null where the data do not bound it).
+        delay_frac_std: Option<f64>,
         /// The delay in seconds per experiment.
         delay_s: BTreeMap<String, f64>,
     },
@@ -158,16 +161,26 @@ pub enum Cause {
     AveragingSampler {
         /// Fraction of the period.
         window_frac: f64,
+        /// Its standard error (null where the data do not bound it).
+        window_frac_std: Option<f64>,
     },
     /// A validation experiment's true period is nominal·(1 + e).
     ClockError {
         /// e per experiment.
         clock_error: BTreeMap<String, f64>,
+        /// Standard error of e per experiment (those the data bound).
+        clock_error_std: BTreeMap<String, f64>,
     },
     /// Experiments at other excitation levels disagree.
     Nonlinearity {
         /// Level of each disagreeing experiment relative to the model experiment's.
         relative_levels: BTreeMap<String, f64>,
+        /// Whether the dominant moving mode's frequency rises or falls with amplitude.
+        kind: FreqTrend,
+        /// Whether its damping rises or falls with amplitude.
+        damping_trend: DampingTrend,
+        /// The modes that move with amplitude, with every level's points and the trends.
+        modes: Vec<MovingMode>,
     },
     /// The model is wrong where the data agree with each other.
     FastModelError {
@@ -271,6 +284,17 @@ pub struct Gain {
 impl Gain {
     pub(crate) const METRIC: &'static str =
         "mean calibrated score per line (1 = noise level), plain modal model before, extension after";
+    /// The amplitude model's metric: only the lines it changes.
+    pub(crate) const METRIC_BANDS: &'static str =
+        "mean calibrated score per line (1 = noise level) in the moving modes' bands (their \
+         linear and predicted frequencies ± max(5ζ, 2 %)), linear model before, amplitude \
+         model after";
+
+    /// This gain measured with another metric.
+    pub(crate) fn with_metric(mut self, metric: &'static str) -> Self {
+        self.metric = metric;
+        self
+    }
 
     pub(crate) fn measured(before: f64, after: f64, held_out: Vec<String>) -> Self {
         let ok = before.is_finite() && after.is_finite() && after > 0.0;
@@ -296,6 +320,89 @@ impl Gain {
     }
 }
 
+/// How a mode's frequency changes with amplitude.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FreqTrend {
+    /// It rises (a stiffening spring, e.g. cubic stiffness κ > 0).
+    Hardening,
+    /// It falls.
+    Softening,
+    /// No change beyond its uncertainty.
+    None,
+}
+
+/// How a mode's damping changes with amplitude.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DampingTrend {
+    /// It rises with amplitude.
+    Increasing,
+    /// It falls with amplitude (e.g. Coulomb friction, whose equivalent damping is ∝ 1/A).
+    Decreasing,
+    /// No change beyond its uncertainty.
+    None,
+}
+
+/// A trend `p(ρ) = at_reference + slope·(ρ^exponent − 1)` in the relative amplitude ρ (1 at
+/// the model experiment).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Trend {
+    /// 2, 1 or −1.
+    pub exponent: i32,
+    /// The value at the model experiment's amplitude.
+    pub at_reference: f64,
+    /// Its standard error.
+    pub at_reference_std: f64,
+    /// The coefficient of `ρ^exponent − 1`.
+    pub slope: f64,
+    /// Its standard error.
+    pub slope_std: f64,
+    /// Covariance of `at_reference` and `slope`.
+    pub covariance: f64,
+}
+
+/// One level's modal frequency and damping of a moving mode.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ModePoint {
+    /// The experiment.
+    pub experiment: String,
+    /// Rms of the measured output in the mode's band (output units).
+    pub amplitude: f64,
+    /// Relative to the model experiment's.
+    pub relative_amplitude: f64,
+    /// Natural frequency (Hz).
+    pub freq_hz: f64,
+    /// Its standard error (Hz).
+    pub freq_hz_std: f64,
+    /// Damping ratio.
+    pub damping: f64,
+    /// Its standard error.
+    pub damping_std: f64,
+    /// Natural frequency (Hz) and damping that the amplitude model fitted without this level
+    /// predicted for it (left-out levels only).
+    pub held_out_prediction: Option<(f64, f64)>,
+}
+
+/// A mode whose frequency or damping moves with amplitude.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MovingMode {
+    /// The linear model's natural frequency (Hz).
+    pub linear_freq_hz: f64,
+    /// The linear model's damping ratio.
+    pub linear_damping: f64,
+    /// The frequencies differ beyond their errors.
+    pub frequency_moves: bool,
+    /// The dampings differ beyond their errors.
+    pub damping_moves: bool,
+    /// Natural frequency (Hz) against relative amplitude.
+    pub frequency: Trend,
+    /// Damping ratio against relative amplitude.
+    pub damping: Trend,
+    /// Every level's fit.
+    pub points: Vec<ModePoint>,
+}
+
 /// The extension of the model that the diagnosis settled on.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Extension {
@@ -305,8 +412,10 @@ pub enum Extension {
     RateTied(RateTied),
     /// The fast FRF itself replaces the model at the folding frequencies.
     FastFrf,
-    /// One best linear approximation per excitation level.
+    /// One best linear approximation per excitation level (no in-band mode to move).
     PerLevel,
+    /// The amplitude-dependent modal model: these modes move with amplitude.
+    Amplitude(Vec<MovingMode>),
 }
 
 /// A band of lines where a prediction misses the data beyond the noise.
@@ -418,6 +527,22 @@ pub struct ExperimentReport {
     /// Noise and distortion levels at the non-excited lines of a periodic experiment.
     #[serde(serialize_with = "distortion_json")]
     pub distortion: Option<sd_ident::DistortionReport>,
+    /// When this whole experiment was held out of the extension's fit: the statistics
+    /// before and after on it (in the metric of `gain`).
+    pub held_out: Option<HeldOut>,
+}
+
+/// One held-out experiment's statistics before and after the extension.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct HeldOut {
+    /// The linear (plain) model's statistic.
+    pub before: f64,
+    /// The extension's, fitted without this experiment.
+    pub after: f64,
+    /// before / after.
+    pub ratio: f64,
+    /// Lines compared.
+    pub lines: usize,
 }
 
 fn distortion_json<S: serde::Serializer>(

@@ -129,6 +129,28 @@ impl ModalBasis {
         Ok(blocks)
     }
 
+    /// The complex pole pairs (upper half plane, rad/s).
+    pub(crate) fn pairs(&self) -> &[C] {
+        &self.pairs
+    }
+
+    /// The same basis with the pole pairs replaced (same count and order).
+    pub(crate) fn with_pairs(&self, pairs: &[C]) -> Result<Self> {
+        if pairs.len() != self.pairs.len() {
+            return Err(DiagnoseError::Numerical(format!(
+                "{} pole pairs given for a basis of {}",
+                pairs.len(),
+                self.pairs.len()
+            )));
+        }
+        Self::build(self.rigid, &self.real, pairs)
+    }
+
+    /// The column of pair `m`'s σ in [`ModalBasis::pole_sensitivities`] (ω is the next).
+    pub(crate) fn pair_sensitivity_column(&self, m: usize) -> usize {
+        self.real.len() + 2 * m
+    }
+
     /// Columns of the residue vector that belong to the rigid-body block.
     fn rigid_columns(&self) -> usize {
         match self.rigid {
@@ -272,20 +294,32 @@ impl Residues {
                 rows.len()
             )));
         }
-        let m = 2 * rows.len();
-        let mut j = DMatrix::zeros(m, nb);
-        let mut g = DVector::zeros(m);
-        for (k, &i) in rows.iter().enumerate() {
+        let mut phis = Vec::with_capacity(rows.len());
+        let mut g = Vec::with_capacity(rows.len());
+        for &i in &rows {
             let w = 1.0 / var[i][(0, 0)].sqrt();
-            let y = frd.response()[i][(0, 0)];
-            g[2 * k] = w * y.re;
-            g[2 * k + 1] = w * y.im;
-            for c in 0..nb {
-                j[(2 * k, c)] = w * phi[i][c].re;
-                j[(2 * k + 1, c)] = w * phi[i][c].im;
+            phis.push(phi[i].iter().map(|v| v * w).collect::<Vec<C>>());
+            g.push(frd.response()[i][(0, 0)] * w);
+        }
+        Self::fit_weighted(&phis, &g)
+    }
+
+    /// Least squares of `g ≈ Σ r_j φ_j` over rows already weighted by `1/σ` (real and
+    /// imaginary parts as separate equations).
+    pub(crate) fn fit_weighted(phi: &[Vec<C>], g: &[C]) -> Result<Self> {
+        let nb = phi.first().map(|p| p.len()).unwrap_or(0);
+        let m = 2 * phi.len();
+        let mut j = DMatrix::zeros(m, nb);
+        let mut y = DVector::zeros(m);
+        for (k, (row, gk)) in phi.iter().zip(g).enumerate() {
+            y[2 * k] = gk.re;
+            y[2 * k + 1] = gk.im;
+            for c in 0..nb.min(row.len()) {
+                j[(2 * k, c)] = row[c].re;
+                j[(2 * k + 1, c)] = row[c].im;
             }
         }
-        let Some(ls) = crate::lstsq::normal_lstsq(&j, &g) else {
+        let Some(ls) = crate::lstsq::normal_lstsq(&j, &y) else {
             return Err(DiagnoseError::Setup(
                 "the modal basis has no finite response on the model experiment's lines".into(),
             ));

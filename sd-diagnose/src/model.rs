@@ -1,7 +1,12 @@
 //! Stage 2, the model: given (checked, ZOH-discretised if continuous) or fitted to the model
-//! experiment's FRF (SK over the orders, Akaike's FPE, Levenberg–Marquardt on the chosen order;
-//! rigid-body poles from the low-frequency slope).
+//! experiment's FRF (SK over the orders, the order chosen by the error on held-out periods —
+//! FPE where there are none —, Levenberg–Marquardt on the chosen order; rigid-body poles from
+//! the low-frequency slope).
 
+use crate::data::Estimate;
+use crate::findings::responses;
+use crate::lemma6::{compare, Pred};
+use crate::stats::{statistic, Statistic};
 use crate::{DiagnoseError, DiagnoseOptions, Result};
 use sd_ident::{FitOptions, Weighting};
 use sd_model::{Frd, SampleTime, StateSpace};
@@ -43,34 +48,89 @@ fn rigid_body_count(frd: &Frd) -> usize {
     }
 }
 
-/// The model at the fast period: given (checked, ZOH-discretised if continuous) or fitted.
+/// The model at the fast period: given (checked, ZOH-discretised if continuous) or fitted
+/// ([`fit_model`]).
 pub(crate) fn model_for(
-    fast: &Frd,
+    fast: &Estimate,
+    parts: Option<&(Estimate, Estimate)>,
     h: f64,
     opt: &DiagnoseOptions,
     progress: &mut dyn FnMut(&str),
 ) -> Result<(StateSpace, String)> {
-    if let Some(m) = &opt.model {
-        if m.nu() != 1 || m.ny() != 1 {
-            return Err(DiagnoseError::Setup(format!(
-                "the given model has {} inputs and {} outputs; the diagnosis needs a SISO model",
-                m.nu(),
-                m.ny()
-            )));
-        }
-        let m = match m.time() {
-            SampleTime::Continuous => sd_model::c2d(m, h, sd_model::Discretization::Zoh)?,
-            SampleTime::Discrete { ts } if (ts - h).abs() <= 1e-9 * h => m.clone(),
-            SampleTime::Discrete { ts } => {
-                return Err(DiagnoseError::Setup(format!(
-                    "the given model samples at {ts} s but the model experiment at {h} s: give \
-                     it at the model experiment's rate, or as a continuous model"
-                )))
-            }
-        };
-        return Ok((m, "given".into()));
+    let Some(m) = &opt.model else {
+        return fit_model(fast, parts, opt, progress);
+    };
+    if m.nu() != 1 || m.ny() != 1 {
+        return Err(DiagnoseError::Setup(format!(
+            "the given model has {} inputs and {} outputs; the diagnosis needs a SISO model",
+            m.nu(),
+            m.ny()
+        )));
     }
-    let rigid = rigid_body_count(fast);
+    let m = match m.time() {
+        SampleTime::Continuous => sd_model::c2d(m, h, sd_model::Discretization::Zoh)?,
+        SampleTime::Discrete { ts } if (ts - h).abs() <= 1e-9 * h => m.clone(),
+        SampleTime::Discrete { ts } => {
+            return Err(DiagnoseError::Setup(format!(
+                "the given model samples at {ts} s but the model experiment at {h} s: give \
+                 it at the model experiment's rate, or as a continuous model"
+            )))
+        }
+    };
+    Ok((m, "given".into()))
+}
+
+/// Mean score of a model on an estimate's lines (no prediction variance; [`crate::stats`]).
+pub(crate) fn own_statistic(m: &StateSpace, est: &Estimate, alpha: f64) -> Result<Statistic> {
+    let r = responses(m, est.frd.freq_hz())?;
+    let l = compare(&est.frd, est.dof, |i, _| {
+        Some(Pred {
+            value: r[i],
+            var: 0.0,
+            dof: f64::INFINITY,
+            params: 0,
+        })
+    });
+    Ok(statistic([(l.as_slice(), est.inflation)], alpha))
+}
+
+/// How the order of a fitted model is chosen.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum OrderRule {
+    /// Fitted on the earlier periods (or first half of the record), judged on the later ones.
+    HeldOut,
+    /// Akaike's final prediction error on the whole estimate (no held-out part).
+    Fpe,
+}
+
+/// Orders scanned past the best one before the scan stops.
+const ORDER_PATIENCE: usize = 6;
+
+/// Two-fold cross-validation of one order: fitted (SK) on each part, the mean score of its
+/// prediction of the other part, averaged over the two folds (infinite when a fit fails).
+fn two_fold(a: &Estimate, b: &Estimate, fo: &FitOptions, alpha: f64) -> f64 {
+    let fold = |train: &Estimate, held: &Estimate| -> f64 {
+        sd_ident::fit(&train.frd, fo)
+            .ok()
+            .and_then(|r| own_statistic(&r.model, held, alpha).ok())
+            .map_or(f64::INFINITY, |s| s.value)
+    };
+    0.5 * (fold(a, b) + fold(b, a))
+}
+
+/// The order scan: Sanathanan–Koerner fits of every order from the rigid-body count + 1 up to
+/// `opt.max_order`, each judged by two-fold cross-validation between the earlier and later
+/// periods ([`OrderRule::HeldOut`]: a fit that follows one part's noise, or misses a mode,
+/// predicts the other part worse, so the score turns up past the order the data support) or,
+/// without held-out data, by FPE. The scan stops [`ORDER_PATIENCE`] orders past the best; the
+/// best order is fitted to the whole estimate and refined by Levenberg–Marquardt.
+fn fit_model(
+    fast: &Estimate,
+    parts: Option<&(Estimate, Estimate)>,
+    opt: &DiagnoseOptions,
+    progress: &mut dyn FnMut(&str),
+) -> Result<(StateSpace, String)> {
+    let rigid = rigid_body_count(&fast.frd);
     let base = FitOptions {
         rigid_body: rigid,
         feedthrough: true,
@@ -78,55 +138,58 @@ pub(crate) fn model_for(
         lm_iterations: 0,
         ..Default::default()
     };
-    let mut best: Option<(f64, usize, StateSpace, f64)> = None;
+    let rule = if parts.is_some() {
+        OrderRule::HeldOut
+    } else {
+        OrderRule::Fpe
+    };
+    let mut best: Option<(usize, f64)> = None;
     for order in rigid + 1..=opt.max_order.max(rigid + 1) {
-        if let Some(b) = &best {
-            // FPE has not improved for 4 orders: stop
-            if order > b.1 + 4 {
-                break;
-            }
+        if best.is_some_and(|b| order > b.0 + ORDER_PATIENCE) {
+            break;
         }
         progress(&format!("fitting order {order}"));
         let opt_n = FitOptions {
             order,
             ..base.clone()
         };
-        let Ok(r) = sd_ident::fit(fast, &opt_n) else {
-            continue;
+        let crit = match parts {
+            Some((a, b)) => two_fold(a, b, &opt_n, opt.alpha),
+            None => sd_ident::fit(&fast.frd, &opt_n)
+                .map(|r| sd_ident::final_prediction_error(r.cost, &opt_n, fast.frd.len()))
+                .unwrap_or(f64::INFINITY),
         };
-        let fpe = sd_ident::final_prediction_error(r.cost, &opt_n, fast.len());
-        if !fpe.is_finite() {
-            continue;
-        }
-        if best.as_ref().map(|b| fpe < b.0).unwrap_or(true) {
-            best = Some((fpe, order, r.model, r.cost));
+        if crit.is_finite() && best.is_none_or(|b| crit < b.1) {
+            best = Some((order, crit));
         }
     }
-    // the scan uses SK only; the chosen order is refined by Levenberg–Marquardt
-    if let Some(b) = &mut best {
-        progress(&format!("refining order {}", b.1));
-        if let Ok(r) = sd_ident::fit(
-            fast,
+    let Some((order, _)) = best else {
+        return Err(DiagnoseError::Setup(
+            "no model order could be fitted to the model experiment's FRF".into(),
+        ));
+    };
+    progress(&format!("fitting order {order} to the whole record"));
+    let whole = |lm: usize| {
+        sd_ident::fit(
+            &fast.frd,
             &FitOptions {
-                order: b.1,
-                lm_iterations: FitOptions::default().lm_iterations,
+                order,
+                lm_iterations: lm,
                 ..base.clone()
             },
-        ) {
-            if r.cost <= b.3 {
-                b.2 = r.model;
-            }
-        }
-    }
-    match best {
-        Some((_, order, m, _)) => Ok((
-            m,
-            format!(
-                "fitted to the model experiment (order {order} by FPE, {rigid} rigid-body poles)"
-            ),
-        )),
-        None => Err(DiagnoseError::Setup(
-            "no model order could be fitted to the model experiment's FRF".into(),
-        )),
-    }
+        )
+    };
+    let sk = whole(0)?;
+    let refined = whole(FitOptions::default().lm_iterations)
+        .ok()
+        .filter(|r| r.cost <= sk.cost);
+    let model = refined.map_or(sk.model, |r| r.model);
+    let how = match rule {
+        OrderRule::HeldOut => "by held-out error",
+        OrderRule::Fpe => "by FPE: no held-out part",
+    };
+    Ok((
+        model,
+        format!("fitted to the model experiment (order {order} {how}, {rigid} rigid-body poles)"),
+    ))
 }

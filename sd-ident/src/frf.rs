@@ -89,12 +89,61 @@ pub struct FrfEstimate {
     pub y_mean: Vec<C>,
     /// Mean input spectrum `Ū` at the excited lines.
     pub u_mean: Vec<C>,
+    /// Variance of the stochastic nonlinear distortion per excited line (FRF units), from
+    /// the odd non-excited (detection) lines of an odd multisine: `max(0, mean(|Ȳ_j|² −
+    /// σ²_Ȳj))` over the [`NL_NEIGHBOURS`] nearest detection lines, over `|Ū_k|²`, with the
+    /// ratio `mean |Ȳ_j|²/mean σ²_Ȳj` (≈ Gamma(K, 1)/K for K lines without distortion: a user
+    /// gates on it, since the clamp biases the level of a linear system upward). An FRF measured with one phase realisation of a multisine carries this
+    /// contribution as an error that does not average out over periods (Pintelon & Schoukens,
+    /// *System Identification*, 2nd ed., §3.4–3.5: the best linear approximation and its
+    /// stochastic nonlinear contributions). `None` without detection lines or with one period.
+    pub nl_variance: Option<Vec<(f64, f64)>>,
     /// Input signal-to-noise ratio `|Ū|²/σ²_Ū` per excited line (infinite with one period).
     /// The first-order variance holds where it is large; below [`MIN_INPUT_SNR`] the ratio
     /// estimate is biased by more than 0.1 σ (noise in the denominator) and its variance
     /// formula no longer applies — in closed loop the lowest lines, where the loop cancels the
     /// excitation, are such.
     pub input_snr: Vec<f64>,
+}
+
+/// Detection lines averaged for each excited line's distortion level (real degrees of
+/// freedom of that level: 2 per line).
+pub const NL_NEIGHBOURS: usize = 6;
+
+/// The local distortion variance of each excited line (see [`FrfEstimate::nl_variance`]):
+/// `(|Ȳ_j|², σ²_Ȳj)` at the odd non-excited lines `quiet` (ascending), `u` the input at
+/// `lines`; per line (variance, ratio).
+fn local_distortion(
+    lines: &[usize],
+    u: &[C],
+    quiet: &[usize],
+    level: &[(f64, f64)],
+) -> Vec<(f64, f64)> {
+    lines
+        .iter()
+        .zip(u)
+        .map(|(&k, uk)| {
+            let pos = quiet.partition_point(|&j| j < k);
+            let (mut lo, mut hi) = (pos, pos);
+            while hi - lo < NL_NEIGHBOURS.min(quiet.len()) {
+                let below = (lo > 0).then(|| k.abs_diff(quiet[lo - 1]));
+                let above = (hi < quiet.len()).then(|| k.abs_diff(quiet[hi]));
+                match (below, above) {
+                    (Some(b), Some(a)) if b <= a => lo -= 1,
+                    (Some(_), None) => lo -= 1,
+                    (_, Some(_)) => hi += 1,
+                    (None, None) => break,
+                }
+            }
+            let n = (hi - lo).max(1) as f64;
+            let y2 = level[lo..hi].iter().map(|l| l.0).sum::<f64>() / n;
+            let s2 = level[lo..hi].iter().map(|l| l.1).sum::<f64>() / n;
+            (
+                (y2 - s2).max(0.0) / uk.norm_sqr().max(f64::MIN_POSITIVE),
+                if s2 > 0.0 { y2 / s2 } else { f64::INFINITY },
+            )
+        })
+        .collect()
 }
 
 /// The input SNR below which a line of a ratio estimate is not trusted (bias of `Ȳ/Ū` with
@@ -282,11 +331,28 @@ pub fn frf_periodic(
     } else {
         None
     };
+    let nl_variance = if m >= 2 {
+        let excited: std::collections::HashSet<usize> = lines.iter().cloned().collect();
+        let (kmin, kmax) = (lines[0], lines[lines.len() - 1]);
+        let quiet: Vec<usize> = (kmin..=kmax)
+            .filter(|k| k % 2 == 1 && !excited.contains(k))
+            .collect();
+        (quiet.len() >= NL_NEIGHBOURS).then(|| {
+            let level: Vec<(f64, f64)> = quiet
+                .iter()
+                .map(|&j| (mean_at(&yl, j).norm_sqr(), noise(j).1))
+                .collect();
+            local_distortion(&lines, &um, &quiet, &level)
+        })
+    } else {
+        None
+    };
     Ok(FrfEstimate {
         frd,
         lines,
         periods: m,
         distortion,
+        nl_variance,
         y_mean: ym,
         u_mean: um,
         input_snr: snr,

@@ -25,6 +25,8 @@ pub use fit::{
     final_prediction_error, fit, fit_with_progress, model_cost, select_order, FitOptions,
     FitProgress, FitResult, Weighting,
 };
-pub use frf::{frf_periodic, DistortionReport, FrfEstimate, PeriodicOptions, MIN_INPUT_SNR};
+pub use frf::{
+    frf_periodic, DistortionReport, FrfEstimate, PeriodicOptions, MIN_INPUT_SNR, NL_NEIGHBOURS,
+};
 pub use lpm::{lpm, lpm_closed_loop, lpm_closed_loop_snr, LpmEstimate, LpmOptions};
 pub use multisine::{crest_factor, design, write_csv, Lines, Multisine, MultisineSpec, Phases};

@@ -10,7 +10,7 @@ use crate::plot::{line_plot, magnitude_plot, Curve, Line};
 use crate::{ReportError, Result};
 use num_complex::Complex64 as C;
 use plotters::style::RGBColor;
-use sd_diagnose::{Diagnosis, ExperimentReport, Extension};
+use sd_diagnose::{Cause, DampingTrend, Diagnosis, ExperimentReport, Extension, FreqTrend};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -72,6 +72,27 @@ pub fn describe(h: &Extension) -> String {
             "the measured fast FRF in place of the model (model-free Lemma 6)".into()
         }
         Extension::PerLevel => "one best linear approximation per excitation level".into(),
+        Extension::Amplitude(modes) => {
+            let m: Vec<String> = modes
+                .iter()
+                .map(|m| {
+                    format!(
+                        "the {:.1} Hz mode's {}",
+                        m.linear_freq_hz,
+                        match (m.frequency_moves, m.damping_moves) {
+                            (true, true) => "frequency and damping",
+                            (true, false) => "frequency",
+                            _ => "damping",
+                        }
+                    )
+                })
+                .collect();
+            format!(
+                "the modal model with amplitude-dependent modes: {}, as trends in the mode's \
+                 output amplitude",
+                m.join("; ")
+            )
+        }
     }
 }
 
@@ -351,23 +372,120 @@ fn hypotheses_section(md: &mut String, d: &Diagnosis) {
     };
 }
 
+/// `x ± s` with the standard error when there is one.
+fn pm(x: f64, s: Option<f64>, scale: f64, digits: usize) -> String {
+    match s {
+        Some(s) => format!("{:.digits$} ± {:.digits$}", x * scale, s * scale),
+        None => format!("{:.digits$}", x * scale),
+    }
+}
+
+/// A named cause's parameters in words, with their standard errors (`None` for causes
+/// without parameters).
+fn cause_text(c: &Cause) -> Option<String> {
+    Some(match c {
+        Cause::HoldDelay {
+            delay_frac,
+            delay_frac_std,
+            delay_s,
+        } => {
+            let per: Vec<String> = delay_s
+                .iter()
+                .map(|(n, t)| format!("{:.1} µs at `{n}`", t * 1e6))
+                .collect();
+            format!(
+                "The hold switches {} of each sample period late ({})",
+                pm(*delay_frac, *delay_frac_std, 1.0, 3),
+                per.join(", ")
+            )
+        }
+        Cause::AveragingSampler {
+            window_frac,
+            window_frac_std,
+        } => format!(
+            "The sensor averages over {} of each sample period",
+            pm(*window_frac, *window_frac_std, 1.0, 3)
+        ),
+        Cause::ClockError {
+            clock_error,
+            clock_error_std,
+        } => {
+            let per: Vec<String> = clock_error
+                .iter()
+                .map(|(n, e)| {
+                    format!(
+                        "`{n}` {} %",
+                        pm(*e, clock_error_std.get(n).copied(), 100.0, 3)
+                    )
+                })
+                .collect();
+            format!(
+                "The sample clock runs off its nominal period (true = nominal·(1 + e)): {}",
+                per.join(", ")
+            )
+        }
+        Cause::Nonlinearity {
+            relative_levels,
+            kind,
+            damping_trend,
+            modes,
+        } => {
+            let per: Vec<String> = relative_levels
+                .iter()
+                .map(|(n, l)| format!("`{n}` at {l:.2}×"))
+                .collect();
+            let kind = match kind {
+                FreqTrend::Hardening => {
+                    "the dominant moving mode hardens (its frequency rises \
+                                         with amplitude)"
+                }
+                FreqTrend::Softening => {
+                    "the dominant moving mode softens (its frequency falls \
+                                         with amplitude)"
+                }
+                FreqTrend::None => "no mode's frequency moves beyond its uncertainty",
+            };
+            let damp = match damping_trend {
+                DampingTrend::Increasing => "its damping rises with amplitude",
+                DampingTrend::Decreasing => "its damping falls with amplitude",
+                DampingTrend::None => "no damping trend beyond the uncertainty",
+            };
+            format!(
+                "Experiments at other excitation levels disagree with the model \
+                 experiment's ({}); {kind}, {damp}; {} moving mode(s)",
+                per.join(", "),
+                modes.len()
+            )
+        }
+        Cause::FastModelError {
+            model_misfit_on_fast_data,
+            worst_fast_hz,
+        } => {
+            let f: Vec<String> = worst_fast_hz.iter().map(|f| format!("{f:.1}")).collect();
+            format!(
+                "The model misses its own fast data (statistic {model_misfit_on_fast_data:.3}); \
+                 worst lines {} Hz",
+                f.join(", ")
+            )
+        }
+        Cause::None | Cause::Unexplained => return None,
+    })
+}
+
 /// The text of `report.md`.
 pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> String {
     let mut md = String::new();
     let _ = writeln!(md, "# Diagnosis of {title}\n");
+    let named: Vec<String> = d.causes.iter().filter_map(cause_text).collect();
     let _ = writeln!(
         md,
         "**Verdict: {}. Cause: {}.**{}\n",
         d.verdict,
         d.cause,
-        if d.parameters
-            .as_object()
-            .map(|o| o.is_empty())
-            .unwrap_or(true)
-        {
+        if named.is_empty() {
             String::new()
         } else {
-            format!(" Parameters: `{}`.", d.parameters)
+            format!(" {}.", named.join("; "))
         }
     );
     let _ = writeln!(

@@ -1,0 +1,738 @@
+//! Nonlinearity as a model: modal frequencies and dampings as functions of the amplitude each
+//! mode is driven at.
+//!
+//! **Per level.** Every experiment at the model experiment's rate is one level. Its FRF is
+//! fitted with the linear model's continuous modal basis ([`crate::modal`]) whose in-band pole
+//! pairs are free: Gauss–Newton on residues and pole parameters `(σ, ω)` together (variable
+//! projection for the line search: the residues are re-solved by weighted least squares at
+//! every trial), from the linear poles. The covariance of the poles is the Gauss–Newton
+//! `(JᵀWJ)⁻¹`, widened for estimated weights (`ν/(ν − 2)`, line correlation) and by the
+//! level's misfit when above 1. Each pair gives a natural frequency `f = |s|/2π` and damping
+//! `ζ = −σ/|s|` with standard errors (first-order propagation).
+//!
+//! **Amplitude.** A mode's amplitude in an experiment is the rms of the measured output in the
+//! mode's band (`f(1 ± max(3ζ, 2 %))`), from the DFT of the steady record; the trend uses it
+//! relative to the model experiment's, `ρ = a/a_ref`.
+//!
+//! **Trend.** Per mode and quantity `p(ρ) = p_ref + c·(ρ^k − 1)` by weighted least squares over
+//! the levels, with `k ∈ {2, 1, −1}` chosen by the weighted residual (with two levels, where
+//! every `k` fits exactly, `k = 2`: the backbone of a cubic stiffness, `ω² ≈ ω₀²(1 + ¾κA²)`).
+//! Coulomb friction gives `k = −1` in the damping (`c_eq = 4F/(πωA)`). A mode *moves* when
+//! its frequencies (or dampings) over the levels differ beyond their errors (χ² with
+//! `levels − 1` degrees of freedom at the verdict's α, Bonferroni over the modes); modes that
+//! do not move keep their linear poles.
+//!
+//! **Prediction of a level** from the trend at that level's measured amplitudes: the moving
+//! poles from the trend, the others linear, the residues fitted jointly to the training levels
+//! (each with its own poles). Its variance carries the residues' covariance and the trend's.
+
+use crate::data::Estimate;
+use crate::lemma6::{compare, Pred};
+use crate::lstsq::scaled_lstsq;
+use crate::modal::{ModalBasis, Residues};
+use crate::stats::{normal_quantile, threshold, Line};
+use crate::{DampingTrend, DiagnoseError, FreqTrend, ModePoint, MovingMode, Result, Trend};
+use nalgebra::{DMatrix, DVector};
+use num_complex::Complex64 as C;
+use sd_ident::Experiment;
+use sd_model::StateSpace;
+use sd_multirate::NonIdeal;
+use std::f64::consts::TAU;
+
+/// Exponents tried for a trend, the default first.
+const EXPONENTS: [i32; 3] = [2, 1, -1];
+/// Gauss–Newton iterations of a level fit.
+const GN_ITERATIONS: usize = 20;
+
+/// One excitation level at the model experiment's rate.
+pub(crate) struct Level<'a> {
+    pub(crate) name: String,
+    pub(crate) exp: &'a Experiment,
+    pub(crate) est: &'a Estimate,
+}
+
+/// One level's modal fit.
+#[derive(Clone, Debug)]
+pub(crate) struct LevelFit {
+    /// Natural frequency (Hz) and damping of each candidate with their standard errors.
+    modal: Vec<(f64, f64, f64, f64)>,
+    /// Mode amplitudes (rms of the output in each candidate's band).
+    amplitude: Vec<f64>,
+    /// The linear basis's frequency and damping of each candidate.
+    linear: Vec<(f64, f64, f64, f64)>,
+}
+
+impl LevelFit {
+    /// Whether this fit determines candidate `m` (in the order of the candidates).
+    pub(crate) fn determines(&self, m: usize) -> bool {
+        self.modal
+            .get(m)
+            .zip(self.linear.get(m))
+            .is_some_and(|(f, l)| determined(*f, *l))
+    }
+}
+
+/// The fitted amplitude-dependent model.
+#[derive(Clone, Debug)]
+pub(crate) struct AmplitudeModel {
+    basis: ModalBasis,
+    h: f64,
+    /// Candidate pair indices.
+    cand: Vec<usize>,
+    /// Per candidate: frequency and damping trends, and whether each moves.
+    trends: Vec<(Trend, Trend, bool, bool)>,
+    /// Reference amplitude per candidate (the model experiment's).
+    reference: Vec<f64>,
+    /// Residues common to the levels (set by [`AmplitudeModel::fit`]).
+    residues: Option<Residues>,
+}
+
+/// Weighted rows of a modal fit: `(line, 1/σ)` for lines with a variance.
+fn rows(est: &Estimate) -> Vec<(usize, f64)> {
+    est.frd.variance().map_or_else(Vec::new, |v| {
+        (0..est.frd.len())
+            .filter(|&i| v[i][(0, 0)] > 0.0)
+            .map(|i| (i, 1.0 / v[i][(0, 0)].sqrt()))
+            .collect()
+    })
+}
+
+/// Weighted cost `Σ |G − Φ r|²/σ²` and the residues of a basis on an estimate.
+fn project(basis: &ModalBasis, h: f64, est: &Estimate) -> Result<(f64, Residues)> {
+    let f = est.frd.freq_hz();
+    let phi = basis.responses(h, NonIdeal::ideal(), f)?;
+    let res = Residues::fit(&est.frd, &phi)?;
+    let cost = rows(est)
+        .iter()
+        .map(|&(i, w)| {
+            let p: C = phi[i].iter().zip(&res.r).map(|(a, b)| a * *b).sum();
+            (w * (est.frd.response()[i][(0, 0)] - p)).norm_sqr()
+        })
+        .sum();
+    Ok((cost, res))
+}
+
+/// Natural frequency (Hz), damping and their standard errors from a pair and the covariance
+/// of its `(σ, ω)`.
+fn natural(s: C, cov: [[f64; 2]; 2]) -> (f64, f64, f64, f64) {
+    let m = s.norm();
+    let (sg, w) = (s.re, s.im);
+    let df = [sg / (TAU * m), w / (TAU * m)];
+    let dz = [-w * w / m.powi(3), sg * w / m.powi(3)];
+    let q = |g: [f64; 2]| {
+        (g[0] * g[0] * cov[0][0] + 2.0 * g[0] * g[1] * cov[0][1] + g[1] * g[1] * cov[1][1])
+            .max(0.0)
+            .sqrt()
+    };
+    (m / TAU, -sg / m, q(df), q(dz))
+}
+
+/// The pair of natural frequency `f` (Hz) and damping `z`.
+fn pair_of(f: f64, z: f64) -> C {
+    let w = TAU * f;
+    C::new(-z * w, w * (1.0 - z * z).max(0.0).sqrt())
+}
+
+/// Rms of `x` sampled at `fs` in the band `[lo, hi]` Hz (one-sided DFT).
+pub(crate) fn band_rms(x: &[f64], fs: f64, lo: f64, hi: f64) -> f64 {
+    let n = x.len();
+    if n < 2 {
+        return 0.0;
+    }
+    let mean = x.iter().sum::<f64>() / n as f64;
+    let mut buf: Vec<C> = x.iter().map(|v| C::new(v - mean, 0.0)).collect();
+    rustfft::FftPlanner::new()
+        .plan_fft_forward(n)
+        .process(&mut buf);
+    let df = fs / n as f64;
+    let k0 = (lo / df).ceil().max(1.0) as usize;
+    let k1 = ((hi / df).floor() as usize).min(n / 2);
+    let power: f64 = (k0..=k1).map(|k| buf[k].norm_sqr()).sum();
+    (2.0 * power).sqrt() / n as f64
+}
+
+/// The band of a mode: `f(1 ± max(3ζ, 2 %))`.
+fn band(f: f64, z: f64) -> (f64, f64) {
+    let w = (3.0 * z).max(0.02);
+    (f * (1.0 - w), f * (1.0 + w))
+}
+
+/// The steady output of an experiment.
+fn steady_output(e: &Experiment) -> &[f64] {
+    let start = e.spec.skip_periods * e.spec.period_samples.unwrap_or(0);
+    &e.y[start.min(e.y.len())..]
+}
+
+/// One level's modal fit (module documentation): the candidates' pole pairs free, from the
+/// linear basis.
+pub(crate) fn fit_level(
+    basis: &ModalBasis,
+    cand: &[usize],
+    h: f64,
+    lv: &Level<'_>,
+) -> Result<LevelFit> {
+    let est = lv.est;
+    let f = est.frd.freq_hz();
+    let rw = rows(est);
+    let mut b = basis.clone();
+    let (mut cost, mut res) = project(&b, h, est)?;
+    let mut jac_cov: Option<DMatrix<f64>> = None;
+    for it in 0..=GN_ITERATIONS {
+        let phi = b.responses(h, NonIdeal::ideal(), f)?;
+        let dphi = b.pole_sensitivities(&res.r, h, NonIdeal::ideal(), f)?;
+        let nb = res.r.len();
+        let np = 2 * cand.len();
+        let mut j = DMatrix::zeros(2 * rw.len(), nb + np);
+        let mut e = DVector::zeros(2 * rw.len());
+        for (k, &(i, w)) in rw.iter().enumerate() {
+            let p: C = phi[i].iter().zip(&res.r).map(|(a, r)| a * *r).sum();
+            let d = w * (est.frd.response()[i][(0, 0)] - p);
+            e[2 * k] = d.re;
+            e[2 * k + 1] = d.im;
+            for c in 0..nb {
+                j[(2 * k, c)] = w * phi[i][c].re;
+                j[(2 * k + 1, c)] = w * phi[i][c].im;
+            }
+            for (m, &pm) in cand.iter().enumerate() {
+                let col = b.pair_sensitivity_column(pm);
+                for t in 0..2 {
+                    j[(2 * k, nb + 2 * m + t)] = w * dphi[i][col + t].re;
+                    j[(2 * k + 1, nb + 2 * m + t)] = w * dphi[i][col + t].im;
+                }
+            }
+        }
+        let Some(ls) = scaled_lstsq(&j, &e) else {
+            break;
+        };
+        jac_cov = Some(ls.cov.view((nb, nb), (np, np)).into_owned());
+        if it == GN_ITERATIONS {
+            break;
+        }
+        // halving line search on the poles, residues re-solved (variable projection)
+        let mut improved = false;
+        for step in (0..8).map(|k| 0.5f64.powi(k)) {
+            let mut pairs = b.pairs().to_vec();
+            for (m, &pm) in cand.iter().enumerate() {
+                let old = pairs[pm];
+                let new = old + C::new(ls.x[nb + 2 * m], ls.x[nb + 2 * m + 1]) * step;
+                // a step may not leave the stable upper half plane: at most halfway to it
+                pairs[pm] = C::new(new.re.min(0.5 * old.re), new.im.max(0.5 * old.im));
+            }
+            let trial = b.with_pairs(&pairs)?;
+            let Ok((c2, r2)) = project(&trial, h, est) else {
+                continue;
+            };
+            if c2 < cost {
+                let rel = (cost - c2) / cost.max(f64::MIN_POSITIVE);
+                (b, cost, res) = (trial, c2, r2);
+                improved = rel > 1e-9;
+                break;
+            }
+        }
+        if !improved {
+            // one more pass computes the covariance at the final point
+            let cov = jac_cov.take();
+            return finish((b, basis), cand, (cost, rw.len()), est, lv, cov);
+        }
+    }
+    finish((b, basis), cand, (cost, rw.len()), est, lv, jac_cov)
+}
+
+/// The level fit's frequencies and dampings with errors, and its amplitudes.
+fn finish(
+    (b, linear_basis): (ModalBasis, &ModalBasis),
+    cand: &[usize],
+    (cost, lines): (f64, usize),
+    est: &Estimate,
+    lv: &Level<'_>,
+    cov: Option<DMatrix<f64>>,
+) -> Result<LevelFit> {
+    let cov = cov.ok_or_else(|| {
+        DiagnoseError::Numerical(format!("the modal fit of `{}` is singular", lv.name))
+    })?;
+    let nu = est.dof;
+    let weights = if nu.is_finite() && nu > 2.0 {
+        nu / (nu - 2.0)
+    } else {
+        1.0
+    };
+    let misfit = (cost / lines.max(1) as f64).max(1.0);
+    let k = weights * est.inflation.max(1.0) * misfit;
+    let pairs = b.pairs().to_vec();
+    let y = steady_output(lv.exp);
+    let fs = lv.exp.spec.sample_rate_hz;
+    let mut modal = Vec::new();
+    let mut amplitude = Vec::new();
+    for (m, &pm) in cand.iter().enumerate() {
+        let c = |r: usize, s: usize| k * cov[(2 * m + r, 2 * m + s)];
+        let nat = natural(pairs[pm], [[c(0, 0), c(0, 1)], [c(1, 0), c(1, 1)]]);
+        let (lo, hi) = band(nat.0, nat.1);
+        amplitude.push(band_rms(y, fs, lo, hi));
+        modal.push(nat);
+    }
+    let linear = cand
+        .iter()
+        .map(|&pm| natural(linear_basis.pairs()[pm], [[0.0; 2]; 2]))
+        .collect();
+    Ok(LevelFit {
+        modal,
+        amplitude,
+        linear,
+    })
+}
+
+/// Whether a level's fit determines a mode: its frequency within 30 % of the linear one and
+/// known to better than half the linear half-power half-width `ζf` (a weak or band-edge mode
+/// wanders off in a level fit; such points are left out of the trends).
+fn determined(fit: (f64, f64, f64, f64), lin: (f64, f64, f64, f64)) -> bool {
+    let (f, _, sf, sz) = fit;
+    f.is_finite()
+        && sf.is_finite()
+        && sz.is_finite()
+        && (f / lin.0 - 1.0).abs() < 0.3
+        && sf < 0.5 * lin.1 * lin.0
+}
+
+/// Weighted least squares of `p(ρ) = p_ref + c(ρ^k − 1)` over points `(ρ, p, σ)`: the trend
+/// and its weighted residual.
+fn trend_fit(pts: &[(f64, f64, f64)], k: i32) -> Option<(Trend, f64)> {
+    let n = pts.len();
+    if n < 2 {
+        return None;
+    }
+    let x = DMatrix::from_fn(n, 2, |i, c| {
+        let w = 1.0 / pts[i].2.max(f64::MIN_POSITIVE);
+        w * if c == 0 { 1.0 } else { pts[i].0.powi(k) - 1.0 }
+    });
+    let g = DVector::from_fn(n, |i, _| pts[i].1 / pts[i].2.max(f64::MIN_POSITIVE));
+    let ls = scaled_lstsq(&x, &g)?;
+    let r = &g - &x * &ls.x;
+    let chi2 = r.norm_squared();
+    // the points' scatter beyond their errors widens the trend's
+    let scale = if n > 2 {
+        (chi2 / (n - 2) as f64).max(1.0)
+    } else {
+        1.0
+    };
+    Some((
+        Trend {
+            exponent: k,
+            at_reference: ls.x[0],
+            at_reference_std: (ls.cov[(0, 0)] * scale).sqrt(),
+            slope: ls.x[1],
+            slope_std: (ls.cov[(1, 1)] * scale).sqrt(),
+            covariance: ls.cov[(0, 1)] * scale,
+        },
+        chi2,
+    ))
+}
+
+/// The trend: exponent 2 (the cubic-stiffness backbone) unless another exponent lowers the
+/// weighted residual by more than the `1 − alpha` quantile of χ²₁ (the data must insist on a
+/// different law; with two points every exponent fits exactly and 2 stays).
+fn best_trend(pts: &[(f64, f64, f64)], alpha: f64) -> Option<Trend> {
+    let (default, c0) = trend_fit(pts, EXPONENTS[0])?;
+    let margin = normal_quantile(1.0 - alpha / 2.0).powi(2);
+    let mut best = (default, c0);
+    if pts.len() > 2 {
+        for k in &EXPONENTS[1..] {
+            if let Some((t, c)) = trend_fit(pts, *k) {
+                if c < best.1 && c0 - c > margin {
+                    best = (t, c);
+                }
+            }
+        }
+    }
+    Some(best.0)
+}
+
+/// Whether values `(p, σ)` differ beyond their errors (χ² against the weighted mean).
+fn moves(vals: &[(f64, f64)], alpha: f64) -> bool {
+    let w: Vec<f64> = vals
+        .iter()
+        .map(|v| 1.0 / v.1.max(f64::MIN_POSITIVE).powi(2))
+        .collect();
+    let sw: f64 = w.iter().sum();
+    let mean = vals.iter().zip(&w).map(|(v, w)| v.0 * w).sum::<f64>() / sw;
+    let chi2: f64 = vals
+        .iter()
+        .zip(&w)
+        .map(|(v, w)| (v.0 - mean).powi(2) * w)
+        .sum();
+    let dof = vals.len().saturating_sub(1);
+    // χ²_ν/ν is Gamma(ν/2, 1)/(ν/2)
+    dof > 0 && chi2 / dof as f64 > threshold(dof as f64 / 2.0, alpha)
+}
+
+impl Trend {
+    /// The value at relative amplitude `rho` and its standard error.
+    pub(crate) fn at(&self, rho: f64) -> (f64, f64) {
+        let g = rho.powi(self.exponent) - 1.0;
+        let v = self.at_reference_std.powi(2)
+            + 2.0 * g * self.covariance
+            + g * g * self.slope_std.powi(2);
+        (self.at_reference + self.slope * g, v.max(0.0).sqrt())
+    }
+
+    /// The sign of `dp/dρ` when the slope differs from zero beyond `z` standard errors.
+    fn direction(&self, z: f64) -> i32 {
+        if self.slope.abs() <= z * self.slope_std {
+            0
+        } else if (self.slope * self.exponent as f64) > 0.0 {
+            1
+        } else {
+            -1
+        }
+    }
+}
+
+/// Candidate pairs: those inside the estimate's band with at least a few lines around them,
+/// apart from every other pair by more than twice their half-power half-widths together (two modes
+/// closer than that trade frequency and damping in a fit; they keep their linear poles).
+pub(crate) fn candidates(basis: &ModalBasis, est: &Estimate) -> Vec<usize> {
+    let f = est.frd.freq_hz();
+    let (lo, hi) = (
+        f.first().copied().unwrap_or(0.0),
+        f.last().copied().unwrap_or(0.0),
+    );
+    let nat: Vec<(f64, f64)> = basis
+        .pairs()
+        .iter()
+        .map(|p| {
+            let n = natural(*p, [[0.0; 2]; 2]);
+            (n.0, n.1)
+        })
+        .collect();
+    (0..nat.len())
+        .filter(|&i| {
+            let (fi, zi) = nat[i];
+            let lines = f.iter().filter(|x| (**x - fi).abs() < 0.05 * fi).count();
+            let apart = nat
+                .iter()
+                .enumerate()
+                .all(|(j, (fj, zj))| j == i || (fi - fj).abs() > 2.0 * (zi * fi + zj * fj));
+            fi > lo && fi < hi && lines >= 3 && apart
+        })
+        .collect()
+}
+
+impl AmplitudeModel {
+    /// Fits the trends and the shared residues on `fits` (level fits of `levels`; the first
+    /// level is the reference).
+    pub(crate) fn fit(
+        basis: &ModalBasis,
+        h: f64,
+        cand: &[usize],
+        levels: &[&Level<'_>],
+        fits: &[&LevelFit],
+        alpha: f64,
+    ) -> Result<Self> {
+        let reference: Vec<f64> = fits
+            .first()
+            .map(|f| f.amplitude.clone())
+            .ok_or_else(|| DiagnoseError::Setup("no level to fit".into()))?;
+        let a_mode = alpha / (2.0 * cand.len().max(1) as f64);
+        let mut trends = Vec::new();
+        for m in 0..cand.len() {
+            let rho = |f: &LevelFit| f.amplitude[m] / reference[m].max(f64::MIN_POSITIVE);
+            let lin = natural(basis.pairs()[cand[m]], [[0.0; 2]; 2]);
+            // levels where the fit determines the mode (module documentation)
+            let good: Vec<&&LevelFit> = fits
+                .iter()
+                .filter(|f| determined(f.modal[m], lin))
+                .collect();
+            let fp: Vec<(f64, f64, f64)> = good
+                .iter()
+                .map(|f| (rho(f), f.modal[m].0, f.modal[m].2))
+                .collect();
+            let zp: Vec<(f64, f64, f64)> = good
+                .iter()
+                .map(|f| (rho(f), f.modal[m].1, f.modal[m].3))
+                .collect();
+            let fallback = Trend {
+                exponent: EXPONENTS[0],
+                at_reference: lin.0,
+                at_reference_std: f64::INFINITY,
+                slope: 0.0,
+                slope_std: f64::INFINITY,
+                covariance: 0.0,
+            };
+            if fp.len() < 2 {
+                let zfall = Trend {
+                    at_reference: lin.1,
+                    ..fallback.clone()
+                };
+                trends.push((fallback, zfall, false, false));
+                continue;
+            }
+            let (ft, zt) = (
+                best_trend(&fp, alpha)
+                    .ok_or_else(|| DiagnoseError::Numerical("frequency trend".into()))?,
+                best_trend(&zp, alpha)
+                    .ok_or_else(|| DiagnoseError::Numerical("damping trend".into()))?,
+            );
+            let fm = moves(&fp.iter().map(|p| (p.1, p.2)).collect::<Vec<_>>(), a_mode);
+            let zm = moves(&zp.iter().map(|p| (p.1, p.2)).collect::<Vec<_>>(), a_mode);
+            trends.push((ft, zt, fm, zm));
+        }
+        let mut me = AmplitudeModel {
+            basis: basis.clone(),
+            h,
+            cand: cand.to_vec(),
+            trends,
+            reference,
+            residues: None,
+        };
+        me.residues = Some(me.reference_residues(levels)?);
+        Ok(me)
+    }
+
+    fn res(&self) -> Result<&Residues> {
+        self.residues
+            .as_ref()
+            .ok_or_else(|| DiagnoseError::Numerical("amplitude model without residues".into()))
+    }
+
+    /// The pairs at amplitudes `amp` (one per candidate): moving modes from their trends,
+    /// the others linear.
+    fn pairs_at(&self, amp: &[f64]) -> Vec<C> {
+        let mut pairs = self.basis.pairs().to_vec();
+        for (m, &pm) in self.cand.iter().enumerate() {
+            let (ft, zt, fm, zm) = &self.trends[m];
+            if !(*fm || *zm) {
+                continue;
+            }
+            let rho = amp[m] / self.reference[m].max(f64::MIN_POSITIVE);
+            let lin = natural(pairs[pm], [[0.0; 2]; 2]);
+            let f = if *fm { ft.at(rho).0 } else { lin.0 };
+            let z = if *zm || *fm { zt.at(rho).0 } else { lin.1 };
+            pairs[pm] = pair_of(f, z.clamp(1e-6, 0.999));
+        }
+        pairs
+    }
+
+    /// Residues fitted to the reference level (the model experiment) at its trend poles: the
+    /// modes' strengths do not depend on amplitude in a stiffness or damping nonlinearity,
+    /// and the reference is the level the linear model was made for.
+    fn reference_residues(&self, levels: &[&Level<'_>]) -> Result<Residues> {
+        let lv = levels
+            .first()
+            .ok_or_else(|| DiagnoseError::Setup("no level to fit".into()))?;
+        let amp = self.amplitudes(lv);
+        let b = self.basis.with_pairs(&self.pairs_at(&amp))?;
+        let phi = b.responses(self.h, NonIdeal::ideal(), lv.est.frd.freq_hz())?;
+        Residues::fit(&lv.est.frd, &phi)
+    }
+
+    /// A level's mode amplitudes: the rms of its output in each candidate's band around the
+    /// frequency the model predicts at that amplitude (a fixed point from the linear band,
+    /// three rounds: a moving mode leaves its linear band), as the level fits measure it.
+    pub(crate) fn amplitudes(&self, lv: &Level<'_>) -> Vec<f64> {
+        let y = steady_output(lv.exp);
+        let fs = lv.exp.spec.sample_rate_hz;
+        let mut pairs = self.basis.pairs().to_vec();
+        let mut amp = Vec::new();
+        for _ in 0..3 {
+            amp = self
+                .cand
+                .iter()
+                .map(|&pm| {
+                    let nat = natural(pairs[pm], [[0.0; 2]; 2]);
+                    let (lo, hi) = band(nat.0, nat.1);
+                    band_rms(y, fs, lo, hi)
+                })
+                .collect();
+            pairs = self.pairs_at(&amp);
+        }
+        amp
+    }
+
+    /// The prediction of a level's FRF lines, with the residues' variance (the trend's poles
+    /// enter through their propagated errors).
+    pub(crate) fn lines(&self, lv: &Level<'_>) -> Result<Vec<Line>> {
+        let amp = self.amplitudes(lv);
+        let b = self.basis.with_pairs(&self.pairs_at(&amp))?;
+        let f = lv.est.frd.freq_hz();
+        let phi = b.responses(self.h, NonIdeal::ideal(), f)?;
+        let res = self.res()?;
+        let np = res.n_params();
+        Ok(compare(&lv.est.frd, lv.est.dof, |i, _| {
+            let (value, var) = res.predict(&phi[i]);
+            Some(Pred {
+                value,
+                var,
+                dof: f64::INFINITY,
+                params: np,
+            })
+        }))
+    }
+
+    /// Whether a level's amplitude lies outside the range of the levels the model was
+    /// fitted on (for any moving mode).
+    pub(crate) fn extrapolates(&self, lv: &Level<'_>, fits: &[&LevelFit]) -> bool {
+        let amp = self.amplitudes(lv);
+        self.cand.iter().enumerate().any(|(m, _)| {
+            let (fm, zm) = (self.trends[m].2, self.trends[m].3);
+            let (lo, hi) = fits.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), f| {
+                (lo.min(f.amplitude[m]), hi.max(f.amplitude[m]))
+            });
+            (fm || zm) && (amp[m] < lo * 0.999 || amp[m] > hi * 1.001)
+        })
+    }
+
+    /// The bands of the moving modes at a level: from the lower to the higher of the linear
+    /// and the predicted frequency, widened by `max(5ζ, 2 %)` (empty when nothing moves).
+    pub(crate) fn moving_bands(&self, lv: &Level<'_>) -> Vec<(f64, f64)> {
+        let pred = self.predicted(lv);
+        self.cand
+            .iter()
+            .enumerate()
+            .filter(|(m, _)| self.trends[*m].2 || self.trends[*m].3)
+            .map(|(m, &pm)| {
+                let lin = natural(self.basis.pairs()[pm], [[0.0; 2]; 2]);
+                let (f, z) = pred[m];
+                let w = (5.0 * lin.1.max(z)).max(0.02);
+                (lin.0.min(f) * (1.0 - w), lin.0.max(f) * (1.0 + w))
+            })
+            .collect()
+    }
+
+    /// The discrete model at a level.
+    pub(crate) fn model_at(&self, lv: &Level<'_>) -> Result<StateSpace> {
+        let amp = self.amplitudes(lv);
+        self.basis.with_pairs(&self.pairs_at(&amp))?.model(
+            &self.res()?.r,
+            self.h,
+            NonIdeal::ideal(),
+        )
+    }
+
+    /// Natural frequency (Hz) and damping of every candidate predicted at a level's
+    /// amplitudes.
+    pub(crate) fn predicted(&self, lv: &Level<'_>) -> Vec<(f64, f64)> {
+        let pairs = self.pairs_at(&self.amplitudes(lv));
+        self.cand
+            .iter()
+            .map(|&pm| {
+                let n = natural(pairs[pm], [[0.0; 2]; 2]);
+                (n.0, n.1)
+            })
+            .collect()
+    }
+
+    /// The moving modes as reported, with every level's points (and, where given, what the
+    /// model fitted without that level predicted for it: `loo[level][candidate]`).
+    pub(crate) fn report(
+        &self,
+        levels: &[&Level<'_>],
+        fits: &[&LevelFit],
+        loo: &[Option<Vec<(f64, f64)>>],
+    ) -> Vec<MovingMode> {
+        let mut out = Vec::new();
+        for (m, &pm) in self.cand.iter().enumerate() {
+            let (ft, zt, fm, zm) = &self.trends[m];
+            if !(*fm || *zm) {
+                continue;
+            }
+            let lin = natural(self.basis.pairs()[pm], [[0.0; 2]; 2]);
+            let points = levels
+                .iter()
+                .zip(fits)
+                .enumerate()
+                .map(|(l, (lv, f))| ModePoint {
+                    held_out_prediction: loo.get(l).and_then(|p| p.as_ref()).map(|p| p[m]),
+                    experiment: lv.name.clone(),
+                    amplitude: f.amplitude[m],
+                    relative_amplitude: f.amplitude[m] / self.reference[m].max(f64::MIN_POSITIVE),
+                    freq_hz: f.modal[m].0,
+                    freq_hz_std: f.modal[m].2,
+                    damping: f.modal[m].1,
+                    damping_std: f.modal[m].3,
+                })
+                .collect();
+            out.push(MovingMode {
+                linear_freq_hz: lin.0,
+                linear_damping: lin.1,
+                frequency_moves: *fm,
+                damping_moves: *zm,
+                frequency: ft.clone(),
+                damping: zt.clone(),
+                points,
+            });
+        }
+        out
+    }
+}
+
+/// `kind` and `damping_trend` of the moving modes: the dominant mode (the largest frequency
+/// shift over the measured amplitudes relative to its error) decides, at `z` standard errors.
+pub(crate) fn kinds(modes: &[MovingMode], z: f64) -> (FreqTrend, DampingTrend) {
+    let dominant =
+        |key: &dyn Fn(&MovingMode) -> f64| modes.iter().max_by(|a, b| key(a).total_cmp(&key(b)));
+    let f = dominant(&|m: &MovingMode| {
+        if m.frequency_moves {
+            m.frequency.slope.abs() / m.frequency.slope_std.max(f64::MIN_POSITIVE)
+        } else {
+            0.0
+        }
+    })
+    .filter(|m| m.frequency_moves)
+    .map_or(FreqTrend::None, |m| match m.frequency.direction(z) {
+        1 => FreqTrend::Hardening,
+        -1 => FreqTrend::Softening,
+        _ => FreqTrend::None,
+    });
+    let d = dominant(&|m: &MovingMode| {
+        if m.damping_moves {
+            m.damping.slope.abs() / m.damping.slope_std.max(f64::MIN_POSITIVE)
+        } else {
+            0.0
+        }
+    })
+    .filter(|m| m.damping_moves)
+    .map_or(DampingTrend::None, |m| match m.damping.direction(z) {
+        1 => DampingTrend::Increasing,
+        -1 => DampingTrend::Decreasing,
+        _ => DampingTrend::None,
+    });
+    (f, d)
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn band_rms_of_a_sine() {
+        let fs = 1000.0;
+        let x: Vec<f64> = (0..1000)
+            .map(|k| {
+                2.0 * (TAU * 50.0 * k as f64 / fs).sin() + 0.5 * (TAU * 200.0 * k as f64 / fs).sin()
+            })
+            .collect();
+        assert!((band_rms(&x, fs, 45.0, 55.0) - 2.0 / 2f64.sqrt()).abs() < 1e-9);
+        assert!((band_rms(&x, fs, 190.0, 210.0) - 0.5 / 2f64.sqrt()).abs() < 1e-9);
+    }
+
+    #[test]
+    fn trend_recovers_a_quadratic_backbone() {
+        let pts: Vec<(f64, f64, f64)> = [1.0, 2.0, 4.0, 8.0]
+            .iter()
+            .map(|&r: &f64| (r, 100.0 + 0.05 * (r * r - 1.0), 0.01))
+            .collect();
+        let t = best_trend(&pts, 0.01).unwrap();
+        assert_eq!(t.exponent, 2);
+        assert!((t.slope - 0.05).abs() < 1e-9 && (t.at_reference - 100.0).abs() < 1e-9);
+        assert_eq!(t.direction(3.0), 1);
+        let (v, _) = t.at(3.0);
+        assert!((v - 100.4).abs() < 1e-9);
+    }
+
+    #[test]
+    fn natural_frequency_and_damping_of_a_pair() {
+        let s = pair_of(100.0, 0.02);
+        let (f, z, _, _) = natural(s, [[0.0; 2]; 2]);
+        assert!((f - 100.0).abs() < 1e-9 && (z - 0.02).abs() < 1e-12);
+    }
+}
