@@ -472,6 +472,65 @@ fn cause_text(c: &Cause) -> Option<String> {
     })
 }
 
+/// The modes that move with amplitude: per mode its trend and every level's fit, with the
+/// frequency and damping the model fitted without that level predicted for it.
+fn moving_modes_section(md: &mut String, d: &Diagnosis) {
+    for c in &d.causes {
+        let Cause::Nonlinearity { modes, .. } = c else {
+            continue;
+        };
+        if modes.is_empty() {
+            continue;
+        }
+        let _ = writeln!(md, "## Modes that move with amplitude\n");
+        let _ = writeln!(
+            md,
+            "Amplitude: rms of the measured output in the mode's band (f ± max(3ζ, 2 %) f), \
+             relative to the model experiment's (ρ). Trend: value = at ρ = 1 + slope·(ρ^k − \
+             1).\n"
+        );
+        for m in modes {
+            let _ = writeln!(
+                md,
+                "**Mode at {:.2} Hz (ζ = {:.4} linear).** Frequency {}: {:.2} ± {:.2} Hz + \
+                 ({:.3} ± {:.3}) Hz·(ρ^{} − 1); damping {}: {:.4} + ({:.2e} ± {:.1e})·(ρ^{} − 1).\n",
+                m.linear_freq_hz,
+                m.linear_damping,
+                if m.frequency_moves { "moves" } else { "does not move beyond its errors" },
+                m.frequency.at_reference,
+                m.frequency.at_reference_std,
+                m.frequency.slope,
+                m.frequency.slope_std,
+                m.frequency.exponent,
+                if m.damping_moves { "moves" } else { "does not move beyond its errors" },
+                m.damping.at_reference,
+                m.damping.slope,
+                m.damping.slope_std,
+                m.damping.exponent
+            );
+            let _ = writeln!(
+                md,
+                "| experiment | ρ | frequency [Hz] | damping | predicted without it [Hz, ζ] |\n|---|---|---|---|---|"
+            );
+            for p in &m.points {
+                let _ = writeln!(
+                    md,
+                    "| {} | {:.2} | {:.2} ± {:.2} | {:.4} ± {:.4} | {} |",
+                    p.experiment,
+                    p.relative_amplitude,
+                    p.freq_hz,
+                    p.freq_hz_std,
+                    p.damping,
+                    p.damping_std,
+                    p.held_out_prediction
+                        .map_or("–".to_string(), |(f, z)| format!("{f:.2}, {z:.4}"))
+                );
+            }
+            let _ = writeln!(md);
+        }
+    }
+}
+
 /// The text of `report.md`.
 pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> String {
     let mut md = String::new();
@@ -515,6 +574,7 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> String {
             s.value, s.threshold
         );
     }
+    moving_modes_section(&mut md, d);
     let _ = writeln!(md, "## What the model's simulation gets wrong\n");
     let _ = writeln!(
         md,
