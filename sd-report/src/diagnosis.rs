@@ -531,6 +531,30 @@ fn moving_modes_section(md: &mut String, d: &Diagnosis) {
     }
 }
 
+/// How far the model is from its own experiment, and what the excess is.
+fn own_fit_sentence(md: &mut String, d: &Diagnosis) {
+    if let (Some(s), Some(f)) = (&d.model_info.own_data, d.model_info.own_fit) {
+        let what = match f {
+            sd_diagnose::OwnFit::Noise => "at the noise level".to_string(),
+            sd_diagnose::OwnFit::Distortion => {
+                "above the noise, and the non-excited lines show nonlinear distortion: the \
+                 excess is the system's, not the fit's"
+                    .to_string()
+            }
+            sd_diagnose::OwnFit::FitError => format!(
+                "above the noise without distortion: a fit error (raise `--max-order`, now \
+                 order {}, or give a model)",
+                d.model.n()
+            ),
+        };
+        let _ = writeln!(
+            md,
+            "On its own experiment the model's statistic is {:.3} (threshold {:.3}): {what}.\n",
+            s.value, s.threshold
+        );
+    }
+}
+
 /// The text of `report.md`.
 pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> String {
     let mut md = String::new();
@@ -554,26 +578,7 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> String {
         d.model.n(),
         d.model.ts().unwrap_or(0.0)
     );
-    if let (Some(s), Some(f)) = (&d.model_info.own_data, d.model_info.own_fit) {
-        let what = match f {
-            sd_diagnose::OwnFit::Noise => "at the noise level".to_string(),
-            sd_diagnose::OwnFit::Distortion => {
-                "above the noise, and the non-excited lines show nonlinear distortion: the \
-                 excess is the system's, not the fit's"
-                    .to_string()
-            }
-            sd_diagnose::OwnFit::FitError => format!(
-                "above the noise without distortion: a fit error (raise `--max-order`, now \
-                 order {}, or give a model)",
-                d.model.n()
-            ),
-        };
-        let _ = writeln!(
-            md,
-            "On its own experiment the model's statistic is {:.3} (threshold {:.3}): {what}.\n",
-            s.value, s.threshold
-        );
-    }
+    own_fit_sentence(&mut md, d);
     moving_modes_section(&mut md, d);
     let _ = writeln!(md, "## What the model's simulation gets wrong\n");
     let _ = writeln!(
