@@ -146,6 +146,25 @@ fn local_distortion(
         .collect()
 }
 
+/// [`FrfEstimate::nl_variance`] from the excited `lines`, their mean inputs `u` and
+/// `level(j) = (|Ȳ_j|², σ²_Ȳj)` at a bin: `None` with fewer than [`NL_NEIGHBOURS`] odd
+/// non-excited lines in the band.
+fn nl_variances(
+    lines: &[usize],
+    u: &[C],
+    level: &dyn Fn(usize) -> (f64, f64),
+) -> Option<Vec<(f64, f64)>> {
+    let excited: std::collections::HashSet<usize> = lines.iter().cloned().collect();
+    let (kmin, kmax) = (*lines.first()?, *lines.last()?);
+    let quiet: Vec<usize> = (kmin..=kmax)
+        .filter(|k| k % 2 == 1 && !excited.contains(k))
+        .collect();
+    (quiet.len() >= NL_NEIGHBOURS).then(|| {
+        let lv: Vec<(f64, f64)> = quiet.iter().map(|&j| level(j)).collect();
+        local_distortion(lines, u, &quiet, &lv)
+    })
+}
+
 /// The input SNR below which a line of a ratio estimate is not trusted (bias of `Ȳ/Ū` with
 /// noise on `Ū` relative to its standard deviation ≈ `1/√SNR`: 0.1 at 100).
 pub const MIN_INPUT_SNR: f64 = 100.0;
@@ -331,22 +350,9 @@ pub fn frf_periodic(
     } else {
         None
     };
-    let nl_variance = if m >= 2 {
-        let excited: std::collections::HashSet<usize> = lines.iter().cloned().collect();
-        let (kmin, kmax) = (lines[0], lines[lines.len() - 1]);
-        let quiet: Vec<usize> = (kmin..=kmax)
-            .filter(|k| k % 2 == 1 && !excited.contains(k))
-            .collect();
-        (quiet.len() >= NL_NEIGHBOURS).then(|| {
-            let level: Vec<(f64, f64)> = quiet
-                .iter()
-                .map(|&j| (mean_at(&yl, j).norm_sqr(), noise(j).1))
-                .collect();
-            local_distortion(&lines, &um, &quiet, &level)
-        })
-    } else {
-        None
-    };
+    let nl_variance = (m >= 2)
+        .then(|| nl_variances(&lines, &um, &|j| (mean_at(&yl, j).norm_sqr(), noise(j).1)))
+        .flatten();
     Ok(FrfEstimate {
         frd,
         lines,

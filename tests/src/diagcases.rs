@@ -528,3 +528,21 @@ pub fn level_case(
         experiments,
     })
 }
+
+/// `f` of every seed, the seeds split over every core, results in seed order.
+pub fn per_seed<T: Send>(seeds: std::ops::Range<u64>, f: impl Fn(u64) -> T + Sync) -> Vec<T> {
+    let all: Vec<u64> = seeds.collect();
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let chunk = all.len().div_ceil(threads).max(1);
+    let f = &f;
+    std::thread::scope(|sc| {
+        let handles: Vec<_> = all
+            .chunks(chunk)
+            .map(|c| sc.spawn(move || c.iter().map(|&s| f(s)).collect::<Vec<_>>()))
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().unwrap())
+            .collect()
+    })
+}

@@ -11,7 +11,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use sd_diagnose::{diagnose, DiagnoseOptions, Verdict};
-use sd_tests::diagcases::consistent;
+use sd_tests::diagcases::{consistent, per_seed};
 
 struct Row {
     steady: usize,
@@ -25,54 +25,37 @@ struct Row {
 
 /// The cases of `seeds`, on every core.
 fn run(seeds: std::ops::Range<u64>) -> Vec<Row> {
-    let all: Vec<u64> = seeds.collect();
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let chunk = all.len().div_ceil(threads).max(1);
-    std::thread::scope(|sc| {
-        let handles: Vec<_> = all
-            .chunks(chunk)
-            .map(|c| sc.spawn(move || run_seeds(c)))
-            .collect();
-        handles
-            .into_iter()
-            .flat_map(|h| h.join().unwrap())
-            .collect()
-    })
+    per_seed(seeds, run_seed)
 }
 
-fn run_seeds(seeds: &[u64]) -> Vec<Row> {
-    seeds
-        .iter()
-        .map(|&s| {
-            let c = consistent(s);
-            let d = diagnose(&c.experiments, &DiagnoseOptions::default()).unwrap();
-            let slow = &d.experiments[1];
-            let row = Row {
-                steady: c.recording.steady,
-                periodic: c.recording.periodic,
-                reference: c.recording.reference,
-                drift: c.recording.drift,
-                false_alarm: d.verdict == Verdict::Discrepancy,
-                free: slow.model_free.map(|m| m.value).unwrap_or(f64::NAN),
-                model: slow.model_stat.value,
-            };
-            if std::env::var("DIAG_VERBOSE").is_ok() || row.false_alarm {
-                println!(
-                    "seed {s}: {:?} {:?} -> {} {} (model-free {:.3}, model {:.3}, threshold {:.3}; \
-                     model {})",
-                    c.effect,
-                    c.recording,
-                    d.verdict,
-                    d.cause,
-                    row.free,
-                    row.model,
-                    slow.model_stat.threshold,
-                    d.model_source()
-                );
-            }
-            row
-        })
-        .collect()
+fn run_seed(s: u64) -> Row {
+    let c = consistent(s);
+    let d = diagnose(&c.experiments, &DiagnoseOptions::default()).unwrap();
+    let slow = &d.experiments[1];
+    let row = Row {
+        steady: c.recording.steady,
+        periodic: c.recording.periodic,
+        reference: c.recording.reference,
+        drift: c.recording.drift,
+        false_alarm: d.verdict == Verdict::Discrepancy,
+        free: slow.model_free.map(|m| m.value).unwrap_or(f64::NAN),
+        model: slow.model_stat.value,
+    };
+    if std::env::var("DIAG_VERBOSE").is_ok() || row.false_alarm {
+        println!(
+            "seed {s}: {:?} {:?} -> {} {} (model-free {:.3}, model {:.3}, threshold {:.3}; \
+             model {})",
+            c.effect,
+            c.recording,
+            d.verdict,
+            d.cause,
+            row.free,
+            row.model,
+            slow.model_stat.threshold,
+            d.model_source()
+        );
+    }
+    row
 }
 
 fn mean(x: impl Iterator<Item = f64>) -> f64 {

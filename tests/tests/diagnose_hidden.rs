@@ -13,7 +13,7 @@
 use sd_diagnose::{diagnose, Cause, DiagnoseOptions, Diagnosis, Verdict};
 use sd_ident::{Experiment, Lines, MultisineSpec, Phases, Role};
 use sd_testbed::{run_identification, Identification, Injection, Noise, NonIdealities, Truth};
-use sd_tests::diagcases::{hidden_effect, Case, Effect};
+use sd_tests::diagcases::{hidden_effect, per_seed, Case, Effect};
 
 /// Seeds the confusion matrix is reported on (disjoint from the development seeds).
 const REPORT_SEEDS: std::ops::Range<u64> = 5000..5100;
@@ -402,19 +402,7 @@ fn summarize(out: &[Outcome]) -> (usize, usize, usize) {
 
 /// The cases of `seeds`, on every core (in seed order).
 fn run_cases(seeds: std::ops::Range<u64>) -> Vec<Outcome> {
-    let all: Vec<u64> = seeds.collect();
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let chunk = all.len().div_ceil(threads).max(1);
-    std::thread::scope(|sc| {
-        let handles: Vec<_> = all
-            .chunks(chunk)
-            .map(|c| sc.spawn(move || c.iter().map(|&s| run_case(s)).collect::<Vec<_>>()))
-            .collect();
-        handles
-            .into_iter()
-            .flat_map(|h| h.join().unwrap())
-            .collect()
-    })
+    per_seed(seeds, run_case)
 }
 
 fn median(x: &[f64]) -> f64 {
