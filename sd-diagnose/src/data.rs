@@ -33,6 +33,30 @@ pub(crate) struct Estimate {
     pub(crate) distortion: Option<DistortionReport>,
 }
 
+/// Most lines a fit sees ([`Estimate::thinned`]).
+pub(crate) const MAX_FIT_LINES: usize = 8192;
+
+impl Estimate {
+    /// Every `s`-th line, `s = ⌈lines / MAX_FIT_LINES⌉`: what the order scan and the level
+    /// fits are fitted to (statistics use every line). A long non-periodic record gives an LPM
+    /// line every `fs/N` Hz (0.07 Hz for 14 s), far finer than any mode's bandwidth, and
+    /// neighbouring LPM lines share their local windows (their information overlaps): keeping
+    /// at least 8192 lines loses little precision and makes a fit's cost independent of the
+    /// record length. The thinned lines are about `s` bins apart, so their correlation
+    /// inflation is divided by `s` (at least 1).
+    pub(crate) fn thinned(&self) -> Result<Estimate> {
+        let s = self.frd.len().div_ceil(MAX_FIT_LINES).max(1);
+        if s == 1 {
+            return Ok(self.clone());
+        }
+        Ok(Estimate {
+            frd: self.frd.select(|i| i % s == 0)?,
+            inflation: (self.inflation / s as f64).max(1.0),
+            ..self.clone()
+        })
+    }
+}
+
 /// How a held-out part is labelled.
 pub(crate) fn held_out_label(e: &Experiment) -> String {
     if e.spec.period_samples.is_some() {

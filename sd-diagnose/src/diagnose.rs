@@ -1234,6 +1234,22 @@ pub fn diagnose_with_progress(
             opt.alpha
         )));
     }
+    let cut = crate::pieces::cut_records(experiments);
+    let (experiments, pieces) = match &cut {
+        Some((exps, pieces)) => {
+            progress(&format!(
+                "{} record(s) of changing amplitude cut into {} pieces",
+                pieces
+                    .iter()
+                    .map(|p| &p.record)
+                    .collect::<std::collections::BTreeSet<_>>()
+                    .len(),
+                pieces.len()
+            ));
+            (exps.as_slice(), pieces.clone())
+        }
+        None => (experiments, Vec::new()),
+    };
     let mut data = Data::read(experiments, progress)?;
     let (model, source, basis) = judged_model(&data, opt, progress)?;
     for v in &mut data.vals {
@@ -1266,6 +1282,7 @@ pub fn diagnose_with_progress(
         model: judged.model,
         model_info: judged.info,
         experiments,
+        pieces,
     })
 }
 

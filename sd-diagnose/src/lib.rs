@@ -60,6 +60,7 @@ mod lemma6;
 mod lstsq;
 pub mod modal;
 mod model;
+pub mod pieces;
 pub mod stats;
 pub mod timedomain;
 
@@ -68,6 +69,7 @@ mod diagnose;
 pub use diagnose::{diagnose, diagnose_with_progress};
 pub use hypotheses::RateTied;
 pub use lemma6::predict;
+pub use pieces::Piece;
 pub use stats::Statistic;
 pub use timedomain::AveragedPeriod;
 
@@ -616,6 +618,9 @@ pub struct Diagnosis {
     pub model_info: ModelInfo,
     /// Per experiment (the model experiment first).
     pub experiments: Vec<ExperimentReport>,
+    /// Non-periodic records of changing amplitude cut into pieces, each diagnosed as an
+    /// experiment of its own level ([`pieces`]); empty when none was cut.
+    pub pieces: Vec<Piece>,
 }
 
 impl Diagnosis {

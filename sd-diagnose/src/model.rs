@@ -110,8 +110,10 @@ const ORDER_PATIENCE: usize = 6;
 /// prediction of the other part, averaged over the two folds (infinite when a fit fails).
 fn two_fold(a: &Estimate, b: &Estimate, fo: &FitOptions, alpha: f64) -> f64 {
     let fold = |train: &Estimate, held: &Estimate| -> f64 {
-        sd_ident::fit(&train.frd, fo)
+        train
+            .thinned()
             .ok()
+            .and_then(|t| sd_ident::fit(&t.frd, fo).ok())
             .and_then(|r| own_statistic(&r.model, held, alpha).ok())
             .map_or(f64::INFINITY, |s| s.value)
     };

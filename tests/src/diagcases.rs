@@ -159,6 +159,9 @@ struct Exp<'a> {
     ni: NonIdealities,
     seed: u64,
     role: Role,
+    /// A non-periodic excitation of its own (filtered noise) in place of the multisine: one
+    /// record, estimated by the LPM.
+    signal: Option<Vec<f64>>,
 }
 
 /// One closed-loop experiment; `None` when the loop is unstable.
@@ -184,17 +187,33 @@ fn identify(st: &Stage, rec: &Recording, x: &Exp<'_>) -> Option<Experiment> {
     } else {
         x.rms
     };
-    let excitation = sd_ident::design(&MultisineSpec {
-        fs: x.rate,
-        period: len,
-        f_min: x.rate / len as f64,
-        f_max: 0.5 * x.rate - x.rate / len as f64,
-        lines: x.lines,
-        phases: Phases::Random { seed: x.seed },
-        rms,
-        fold_rate_hz: Some(st.fast_rate / st.factor as f64),
-    })
-    .ok()?;
+    let excitation = match &x.signal {
+        Some(sig) => Some(sd_ident::Multisine {
+            signal: sig.clone(),
+            excited: Vec::new(),
+            detection_odd: Vec::new(),
+            detection_even: Vec::new(),
+            f0: x.rate / sig.len() as f64,
+            fs: x.rate,
+            crest_factor: sd_ident::crest_factor(sig),
+        }),
+        None => None,
+    };
+    let excitation = match excitation {
+        Some(e) => e,
+        None => sd_ident::design(&MultisineSpec {
+            fs: x.rate,
+            period: len,
+            f_min: x.rate / len as f64,
+            f_max: 0.5 * x.rate - x.rate / len as f64,
+            lines: x.lines,
+            phases: Phases::Random { seed: x.seed },
+            rms,
+            fold_rate_hz: Some(st.fast_rate / st.factor as f64),
+        })
+        .ok()?,
+    };
+    let periods = if x.signal.is_some() { 1 } else { periods };
     let scale = (x.rate / 5000.0).sqrt();
     let sensor = 0.1e-9 * st.noise * scale;
     let mut d = run_identification(
@@ -204,7 +223,11 @@ fn identify(st: &Stage, rec: &Recording, x: &Exp<'_>) -> Option<Experiment> {
             controller: k,
             excitation,
             periods,
-            transient_periods: if rec.periodic { 1 } else { 0 },
+            transient_periods: if rec.periodic && x.signal.is_none() {
+                1
+            } else {
+                0
+            },
             injection: if rec.reference {
                 Injection::Reference
             } else {
@@ -223,7 +246,7 @@ fn identify(st: &Stage, rec: &Recording, x: &Exp<'_>) -> Option<Experiment> {
         },
     )
     .ok()?;
-    if !rec.periodic {
+    if !rec.periodic || x.signal.is_some() {
         d.period = None;
     }
     Some(d.to_experiment())
@@ -272,6 +295,7 @@ pub fn build(seed: u64, effect: Effect, rec: Recording) -> Option<Case> {
                 ni: fast_ni,
                 seed: seed * 3 + 1,
                 role: Role::Model,
+                signal: None,
             },
         )?,
         identify(
@@ -285,6 +309,7 @@ pub fn build(seed: u64, effect: Effect, rec: Recording) -> Option<Case> {
                 ni,
                 seed: seed * 3 + 2,
                 role: Role::Validation,
+                signal: None,
             },
         )?,
     ];
@@ -300,6 +325,7 @@ pub fn build(seed: u64, effect: Effect, rec: Recording) -> Option<Case> {
                 ni: fast_ni,
                 seed: seed * 3 + 3,
                 role: Role::Validation,
+                signal: None,
             },
         )?);
     }
@@ -414,14 +440,22 @@ pub struct LevelCase {
     pub experiments: Vec<Experiment>,
 }
 
-/// Rms of the steady output of `e` in the band `[lo, hi]` Hz (the diagnosis computes its own).
+/// Rms of the steady output of `e` in the band `[lo, hi]` Hz, Hann-windowed (the diagnosis
+/// computes its own).
 fn band_rms_of(e: &Experiment, lo: f64, hi: f64) -> f64 {
     let start = e.spec.skip_periods * e.spec.period_samples.unwrap_or(0);
     let y = &e.y[start..];
     let n = y.len();
+    // Hann window (unit mean square) on the mean-free record: a non-periodic record's slow
+    // motion does not leak into the band
+    let mean = y.iter().sum::<f64>() / n as f64;
     let mut buf: Vec<num_complex::Complex64> = y
         .iter()
-        .map(|v| num_complex::Complex64::new(*v, 0.0))
+        .enumerate()
+        .map(|(i, v)| {
+            let w = (1.0 - (std::f64::consts::TAU * i as f64 / n as f64).cos()) / 2.0;
+            num_complex::Complex64::new((8.0f64 / 3.0).sqrt() * w * (v - mean), 0.0)
+        })
         .collect();
     rustfft::FftPlanner::new()
         .plan_fft_forward(n)
@@ -434,30 +468,77 @@ fn band_rms_of(e: &Experiment, lo: f64, hi: f64) -> f64 {
     (2.0 * p).sqrt() / n as f64
 }
 
-/// The level case of `seed`: the drawn stage (one or two modes at least 15 % apart), random-
-/// phase odd multisines with one detection line per group of three odd lines (the same lines
-/// at every level, a new phase realisation per experiment), the first mode made
-/// amplitude-dependent by cubic stiffness sized so that its equivalent-linearisation shift
-/// `Δω/ω ≈ 1.5κσ²` (σ the mode's rms) reaches [`SHIFT`] at the highest level (σ measured on a
-/// linear run at the first level, scaled by the level); `None` when a loop is unstable.
-/// Excitation 0.5 N rms × level; the nonlinear truth
-/// runs through the testbed's Lawson–RK4 integrator.
+/// Gaussian white noise of `n` samples through a second-order Butterworth low-pass at
+/// `0.4·fs` (bilinear transform), scaled to unit rms: a non-periodic excitation (no line grid,
+/// leakage everywhere), estimated by the LPM.
+pub fn filtered_noise(seed: u64, n: usize) -> Vec<f64> {
+    let mut r = Rng::new(seed * 6_700_417 + 11);
+    // bilinear Butterworth, cut-off ratio 0.4: K = tan(π·0.4)
+    let k = (std::f64::consts::PI * 0.4).tan();
+    let q = std::f64::consts::FRAC_1_SQRT_2;
+    let norm = 1.0 / (1.0 + k / q + k * k);
+    let b = [k * k * norm, 2.0 * k * k * norm, k * k * norm];
+    let a = [2.0 * (k * k - 1.0) * norm, (1.0 - k / q + k * k) * norm];
+    let (mut x1, mut x2, mut y1, mut y2) = (0.0, 0.0, 0.0, 0.0);
+    let mut out: Vec<f64> = (0..n)
+        .map(|_| {
+            let x = r.normal();
+            let y = b[0] * x + b[1] * x1 + b[2] * x2 - a[0] * y1 - a[1] * y2;
+            (x2, x1, y2, y1) = (x1, x, y1, y);
+            y
+        })
+        .collect();
+    let s = sd_model::rms(&out).max(f64::MIN_POSITIVE);
+    out.iter_mut().for_each(|v| *v /= s);
+    out
+}
+
+/// The stage of a level case and its first mode as drawn (a second mode within 15 % of the
+/// first dropped: two modes that close trade their frequencies and dampings in a fit; the
+/// diagnosis keeps such pairs linear).
+fn level_stage(seed: u64) -> (Stage, sd_testbed::ModeSpec) {
+    let mut r = Rng::new(seed * 104_729 + 5);
+    let mut st = stage(&mut r);
+    let m0 = st.truth.modes[0].clone();
+    if st.truth.modes.len() > 1
+        && (st.truth.modes[1].freq_hz / st.truth.modes[0].freq_hz - 1.0).abs() < 0.15
+    {
+        st.truth.modes.truncate(1);
+    }
+    (st, m0)
+}
+
+/// Sizes the first mode's cubic stiffness so that its equivalent-linearisation shift
+/// `Δω/ω ≈ 1.5κσ²` (σ the mode's rms in its band, measured on `base`, a linear run at the
+/// first level, scaled to the highest level `top`) reaches [`SHIFT`].
+fn size_cubic(st: &mut Stage, effect: LevelEffect, base: &Experiment, top: f64) {
+    let m0 = &st.truth.modes[0];
+    let w = (3.0 * m0.zeta).max(0.02);
+    let sigma = band_rms_of(base, m0.freq_hz * (1.0 - w), m0.freq_hz * (1.0 + w)) * top;
+    let shift = match effect {
+        LevelEffect::Hardening => SHIFT.0,
+        LevelEffect::Softening => -SHIFT.1,
+        _ => return,
+    };
+    st.truth.modes[0].cubic = shift / (1.5 * sigma * sigma);
+}
+
+/// The level case of `seed`: the drawn stage (one or two modes at least 15 % apart), the first
+/// mode made amplitude-dependent by cubic stiffness ([`size_cubic`]), one experiment per level
+/// at 0.5 N rms × level (the model experiment first). Periodic recordings: random-phase odd
+/// multisines with one detection line per group of three odd lines (the same lines at every
+/// level, a new phase realisation per experiment). Non-periodic: one record of
+/// [`filtered_noise`] per level, as long as the periodic recording's periods together. The
+/// nonlinear truth runs through the testbed's Lawson–RK4 integrator; `None` when a loop is
+/// unstable.
 pub fn level_case(
     seed: u64,
     effect: LevelEffect,
     levels: &[f64],
     rec: Recording,
 ) -> Option<LevelCase> {
-    let mut r = Rng::new(seed * 104_729 + 5);
-    let mut st = stage(&mut r);
-    let m0 = st.truth.modes[0].clone();
-    // a second mode within 15 % of the first is dropped (two modes that close trade their
-    // frequencies and dampings in a fit; the diagnosis keeps such pairs linear)
-    if st.truth.modes.len() > 1
-        && (st.truth.modes[1].freq_hz / st.truth.modes[0].freq_hz - 1.0).abs() < 0.15
-    {
-        st.truth.modes.truncate(1);
-    }
+    let (mut st, m0) = level_stage(seed);
+    let len = st.fast_rate as usize * (1 + rec.steady);
     let exp = |st: &Stage, l: f64, k: usize| Exp {
         lines: Lines::RandomOdd {
             group: 3,
@@ -473,24 +554,17 @@ pub fn level_case(
         } else {
             Role::Validation
         },
+        signal: (!rec.periodic).then(|| {
+            filtered_noise(seed * 11 + k as u64, len)
+                .into_iter()
+                .map(|v| v * 0.5 * l)
+                .collect()
+        }),
     };
-    let lo_hi = (
-        m0.freq_hz * (1.0 - (3.0 * m0.zeta).max(0.02)),
-        m0.freq_hz * (1.0 + (3.0 * m0.zeta).max(0.02)),
-    );
     let top = levels.iter().cloned().fold(1.0, f64::max);
-    match effect {
-        LevelEffect::Hardening | LevelEffect::Softening => {
-            let base = identify(&st, &rec, &exp(&st, 1.0, 0))?;
-            let sigma = band_rms_of(&base, lo_hi.0, lo_hi.1) * top;
-            let shift = if effect == LevelEffect::Hardening {
-                SHIFT.0
-            } else {
-                -SHIFT.1
-            };
-            st.truth.modes[0].cubic = shift / (1.5 * sigma * sigma);
-        }
-        _ => {}
+    if matches!(effect, LevelEffect::Hardening | LevelEffect::Softening) {
+        let base = identify(&st, &rec, &exp(&st, 1.0, 0))?;
+        size_cubic(&mut st, effect, &base, top);
     }
     let mut list: Vec<f64> = levels.to_vec();
     if effect == LevelEffect::Drift {
@@ -526,6 +600,56 @@ pub fn level_case(
         levels: list,
         mode_hz: m0.freq_hz,
         experiments,
+    })
+}
+
+/// One non-periodic record of [`filtered_noise`] whose amplitude steps through `levels`
+/// (0.5 N rms × level, each for `1 + rec.steady` seconds), the model experiment: the diagnosis
+/// must cut it into pieces of constant amplitude itself. Hardening/softening as in
+/// [`level_case`] (sized on a linear record at the first level).
+pub fn rising_case(
+    seed: u64,
+    effect: LevelEffect,
+    levels: &[f64],
+    rec: Recording,
+) -> Option<LevelCase> {
+    let (mut st, m0) = level_stage(seed);
+    let piece = st.fast_rate as usize * (1 + rec.steady);
+    let noise = filtered_noise(seed * 13 + 1, piece * levels.len());
+    let signal = |ls: &[f64]| -> Vec<f64> {
+        noise
+            .iter()
+            .enumerate()
+            .take(piece * ls.len())
+            .map(|(i, v)| v * 0.5 * ls[i / piece])
+            .collect()
+    };
+    let rate = st.fast_rate;
+    let exp = |ls: &[f64], name: &'static str| Exp {
+        lines: Lines::Full,
+        name,
+        rate,
+        rms: 0.5,
+        ni: NonIdealities::default(),
+        seed: seed * 13 + 2,
+        role: Role::Model,
+        signal: Some(signal(ls)),
+    };
+    let top = levels.iter().cloned().fold(1.0, f64::max);
+    if matches!(effect, LevelEffect::Hardening | LevelEffect::Softening) {
+        let base = identify(&st, &rec, &exp(&levels[..1], "base"))?;
+        size_cubic(&mut st, effect, &base, top);
+    }
+    let e = identify(&st, &rec, &exp(levels, "rising"))?;
+    if e.y.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
+    Some(LevelCase {
+        effect,
+        recording: rec,
+        levels: levels.to_vec(),
+        mode_hz: m0.freq_hz,
+        experiments: vec![e],
     })
 }
 
