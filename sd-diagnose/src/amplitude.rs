@@ -389,7 +389,7 @@ fn moves(vals: &[(f64, f64)], alpha: f64) -> bool {
 
 impl Trend {
     /// The value at relative amplitude `rho` and its standard error.
-    pub(crate) fn at(&self, rho: f64) -> (f64, f64) {
+    pub fn at(&self, rho: f64) -> (f64, f64) {
         let g = rho.powi(self.exponent) - 1.0;
         let v = self.at_reference_std.powi(2)
             + 2.0 * g * self.covariance

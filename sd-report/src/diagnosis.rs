@@ -279,6 +279,84 @@ fn figures(dir: &Path, x: &ExperimentReport, ext_label: &str) -> Result<Vec<Stri
     Ok(out)
 }
 
+/// Per moving mode of a nonlinearity, `amplitude_<f>hz.svg`: its natural frequency and damping
+/// against the relative amplitude ρ (log axis), each experiment's fit with ±2σ bars, the
+/// fitted trend with its ±2σ band, and the values predicted for each left-out level.
+fn amplitude_figures(dir: &Path, d: &Diagnosis) -> Result<Vec<String>> {
+    let mut out = Vec::new();
+    for c in &d.causes {
+        let Cause::Nonlinearity { modes, .. } = c else {
+            continue;
+        };
+        for m in modes {
+            let rho: Vec<f64> = m.points.iter().map(|p| p.relative_amplitude).collect();
+            let (lo, hi) = rho
+                .iter()
+                .filter(|r| **r > 0.0 && r.is_finite())
+                .fold((f64::INFINITY, 0.0f64), |a, r| (a.0.min(*r), a.1.max(*r)));
+            if !(lo.is_finite() && hi > 0.0) {
+                continue;
+            }
+            let grid: Vec<f64> = (0..=60)
+                .map(|k| lo * (hi / lo).powf(k as f64 / 60.0))
+                .collect();
+            let curve = |t: &sd_diagnose::Trend| -> Vec<(f64, f64, f64)> {
+                grid.iter()
+                    .map(|r| {
+                        let (v, s) = t.at(*r);
+                        (*r, v, s)
+                    })
+                    .collect()
+            };
+            let fp: Vec<(f64, f64, f64)> = m
+                .points
+                .iter()
+                .map(|p| (p.relative_amplitude, p.freq_hz, p.freq_hz_std))
+                .collect();
+            let zp: Vec<(f64, f64, f64)> = m
+                .points
+                .iter()
+                .map(|p| (p.relative_amplitude, p.damping, p.damping_std))
+                .collect();
+            let pred = |k: usize| -> Vec<(f64, f64)> {
+                m.points
+                    .iter()
+                    .filter_map(|p| {
+                        let q = p.held_out_prediction?;
+                        Some((p.relative_amplitude, if k == 0 { q.0 } else { q.1 }))
+                    })
+                    .collect()
+            };
+            let (fc, zc, fpred, zpred) = (curve(&m.frequency), curve(&m.damping), pred(0), pred(1));
+            let name = format!("amplitude_{:.0}hz.svg", m.linear_freq_hz);
+            crate::plot::error_bar_plot(
+                &dir.join(&name).display().to_string(),
+                &format!(
+                    "Mode at {:.1} Hz: frequency and damping against amplitude",
+                    m.linear_freq_hz
+                ),
+                "relative amplitude ρ (band rms of the output / the model experiment's)",
+                &[
+                    crate::plot::ErrorBarPanel {
+                        y_desc: "natural frequency [Hz]",
+                        points: &fp,
+                        curve: &fc,
+                        predicted: &fpred,
+                    },
+                    crate::plot::ErrorBarPanel {
+                        y_desc: "damping ratio ζ [-]",
+                        points: &zp,
+                        curve: &zc,
+                        predicted: &zpred,
+                    },
+                ],
+            )?;
+            out.push(name);
+        }
+    }
+    Ok(out)
+}
+
 /// Writes `report.md` and the figures of a diagnosis into `dir` (which must exist); returns
 /// the figure file names.
 ///
@@ -294,6 +372,7 @@ pub fn write(dir: &Path, d: &Diagnosis, title: &str) -> Result<Vec<String>> {
     for x in &d.experiments {
         figs.extend(figures(dir, x, ext_label)?);
     }
+    figs.extend(amplitude_figures(dir, d)?);
     let md = markdown(d, title, &figs);
     let path = dir.join("report.md");
     std::fs::write(&path, md).map_err(|source| ReportError::Io {
@@ -531,6 +610,35 @@ fn moving_modes_section(md: &mut String, d: &Diagnosis) {
     }
 }
 
+/// The records that were cut into pieces of constant amplitude, and how.
+fn pieces_section(md: &mut String, d: &Diagnosis) {
+    if d.pieces.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        md,
+        "## Records cut into pieces of constant amplitude
+
+A non-periodic record whose \
+         excitation rms changes within it is cut where the rms changes by more than a factor \
+         {} (binary segmentation of its log-rms in windows of {} samples, cuts moved to whole \
+         seconds, pieces of at least {} samples or an eighth of the record); each piece is an \
+         experiment of its own level, estimated by the LPM. The lowest piece of the model \
+         record is the model experiment.\n\n| piece | from [s] | to [s] | excitation rms |\n|---|---|---|---|",
+        sd_diagnose::pieces::STEP,
+        sd_diagnose::pieces::WINDOW,
+        sd_diagnose::pieces::MIN_PIECE
+    );
+    for p in &d.pieces {
+        let _ = writeln!(
+            md,
+            "| {} | {:.2} | {:.2} | {:.4} |",
+            p.name, p.start_s, p.end_s, p.rms
+        );
+    }
+    let _ = writeln!(md);
+}
+
 /// How far the model is from its own experiment, and what the excess is.
 fn own_fit_sentence(md: &mut String, d: &Diagnosis) {
     if let (Some(s), Some(f)) = (&d.model_info.own_data, d.model_info.own_fit) {
@@ -579,6 +687,7 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> String {
         d.model.ts().unwrap_or(0.0)
     );
     own_fit_sentence(&mut md, d);
+    pieces_section(&mut md, d);
     moving_modes_section(&mut md, d);
     let _ = writeln!(md, "## What the model's simulation gets wrong\n");
     let _ = writeln!(

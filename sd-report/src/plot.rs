@@ -233,3 +233,143 @@ pub fn line_plot(
     root.present().map_err(crate::plot_err)?;
     Ok(())
 }
+
+/// Measured points with ±2σ error bars, a fitted curve and its ±2σ band, in one panel.
+pub struct ErrorBarPanel<'a> {
+    /// Ordinate description (with unit).
+    pub y_desc: &'a str,
+    /// Measured points: abscissa, value, standard error (a non-finite error draws no bar).
+    pub points: &'a [(f64, f64, f64)],
+    /// Fitted curve: abscissa, value, standard error.
+    pub curve: &'a [(f64, f64, f64)],
+    /// Predictions of left-out points: abscissa, value (drawn as hollow squares).
+    pub predicted: &'a [(f64, f64)],
+}
+
+/// Panels stacked vertically over one logarithmic abscissa `x_desc` (each with its own
+/// ordinate): measured points with error bars, the fitted curve with its band, left-out
+/// predictions.
+pub fn error_bar_plot(
+    path: &str,
+    title: &str,
+    x_desc: &str,
+    panels: &[ErrorBarPanel<'_>],
+) -> crate::Result<()> {
+    let root = SVGBackend::new(path, (900, 360 * panels.len().max(1) as u32)).into_drawing_area();
+    root.fill(&WHITE).map_err(crate::plot_err)?;
+    let root = root
+        .titled(title, ("sans-serif", 22))
+        .map_err(crate::plot_err)?;
+    let areas = root.split_evenly((panels.len().max(1), 1));
+    for (area, p) in areas.iter().zip(panels) {
+        error_bar_panel(area, x_desc, p)?;
+    }
+    root.present().map_err(crate::plot_err)?;
+    Ok(())
+}
+
+/// The range of `v` padded by 8 % (and a tiny absolute amount for a constant).
+fn padded(v: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
+    let (lo, hi) = v
+        .filter(|x| x.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |a, x| {
+            (a.0.min(x), a.1.max(x))
+        });
+    if !lo.is_finite() {
+        return None;
+    }
+    let pad = 0.08 * (hi - lo).max(1e-9 * hi.abs().max(1e-300));
+    Some((lo - pad, hi + pad))
+}
+
+fn error_bar_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    x_desc: &str,
+    p: &ErrorBarPanel<'_>,
+) -> crate::Result<()> {
+    let xs = p
+        .points
+        .iter()
+        .map(|q| q.0)
+        .chain(p.curve.iter().map(|q| q.0))
+        .filter(|x| *x > 0.0);
+    let Some((x0, x1)) = padded(xs.map(f64::ln)) else {
+        return Err(crate::ReportError::Plot(format!(
+            "{}: nothing to plot",
+            p.y_desc
+        )));
+    };
+    let bar = |q: &(f64, f64, f64)| {
+        let s = if q.2.is_finite() { 2.0 * q.2 } else { 0.0 };
+        [q.1 - s, q.1 + s]
+    };
+    let ys = p
+        .points
+        .iter()
+        .flat_map(bar)
+        .chain(p.curve.iter().flat_map(bar))
+        .chain(p.predicted.iter().map(|q| q.1));
+    let (y0, y1) = padded(ys).unwrap_or((0.0, 1.0));
+    let mut chart = ChartBuilder::on(area)
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(90)
+        .build_cartesian_2d((x0.exp()..x1.exp()).log_scale(), y0..y1)
+        .map_err(crate::plot_err)?;
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc(p.y_desc)
+        .y_label_formatter(&|v| {
+            if v.abs() >= 0.1 && v.abs() < 1e5 {
+                format!("{v:.2}")
+            } else {
+                format!("{v:.2e}")
+            }
+        })
+        .draw()
+        .map_err(crate::plot_err)?;
+    let blue = RGBColor(31, 119, 180);
+    let lo: Vec<(f64, f64)> = p.curve.iter().map(|q| (q.0, bar(q)[0])).collect();
+    let hi: Vec<(f64, f64)> = p.curve.iter().rev().map(|q| (q.0, bar(q)[1])).collect();
+    chart
+        .draw_series(std::iter::once(Polygon::new(
+            lo.into_iter().chain(hi).collect::<Vec<_>>(),
+            blue.mix(0.15).filled(),
+        )))
+        .map_err(crate::plot_err)?;
+    chart
+        .draw_series(LineSeries::new(
+            p.curve.iter().map(|q| (q.0, q.1)),
+            blue.stroke_width(2),
+        ))
+        .map_err(crate::plot_err)?
+        .label("fitted trend ± 2σ")
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], blue.stroke_width(2)));
+    chart
+        .draw_series(p.points.iter().map(|q| {
+            let [a, b] = bar(q);
+            ErrorBar::new_vertical(q.0, a, q.1, b, BLACK.filled(), 8)
+        }))
+        .map_err(crate::plot_err)?
+        .label("measured (each experiment) ± 2σ")
+        .legend(|(x, y)| Circle::new((x + 10, y), 3, BLACK.filled()));
+    let red = RGBColor(214, 39, 40);
+    chart
+        .draw_series(p.predicted.iter().map(|q| {
+            EmptyElement::at((q.0, q.1)) + Rectangle::new([(-5, -5), (5, 5)], red.stroke_width(2))
+        }))
+        .map_err(crate::plot_err)?
+        .label("predicted with that experiment left out")
+        .legend(move |(x, y)| {
+            Rectangle::new([(x + 6, y - 4), (x + 14, y + 4)], red.stroke_width(2))
+        });
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::UpperLeft)
+        .draw()
+        .map_err(crate::plot_err)?;
+    Ok(())
+}

@@ -342,3 +342,33 @@ fn development_levels() {
     let out = cases(a..b, form);
     summarize(&out);
 }
+
+/// The report of a rising record: the pieces table, the moving-modes table and one amplitude
+/// figure per moving mode (two panels, measured points with error bars, the fitted trend).
+#[test]
+fn report_of_a_rising_record() {
+    let case = (50..60)
+        .find_map(|s| rising_case(s, LevelEffect::Hardening, &[1.0, 2.0, 4.0], NOISE))
+        .unwrap();
+    let d = sd_diagnose::diagnose(&case.experiments, &Default::default()).unwrap();
+    assert_eq!(d.pieces.len(), 3, "{:?}", d.pieces);
+    let dir = std::env::temp_dir().join(format!("sd_levels_report_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let figs = sd_report::diagnosis::write(&dir, &d, "a rising record").unwrap();
+    let md = std::fs::read_to_string(dir.join("report.md")).unwrap();
+    assert!(md.contains("Records cut into pieces"), "{md}");
+    assert!(md.contains("rising[0.0–5.0 s]"), "{md}");
+    assert!(md.contains("Modes that move with amplitude"), "{md}");
+    let amp: Vec<&String> = figs
+        .iter()
+        .filter(|f| f.starts_with("amplitude_"))
+        .collect();
+    assert!(!amp.is_empty(), "{figs:?}");
+    let svg = std::fs::read_to_string(dir.join(amp[0])).unwrap();
+    assert!(svg.contains("natural frequency [Hz]") && svg.contains("damping ratio"));
+    if std::env::var_os("SD_KEEP").is_none() {
+        std::fs::remove_dir_all(&dir).unwrap();
+    } else {
+        println!("kept {}", dir.display());
+    }
+}
