@@ -308,8 +308,9 @@ fn finish(
 /// known to better than half the linear half-power half-width `ζf` (a weak or band-edge mode
 /// wanders off in a level fit; such points are left out of the trends).
 fn determined(fit: (f64, f64, f64, f64), lin: (f64, f64, f64, f64)) -> bool {
-    let (f, _, sf, sz) = fit;
+    let (f, z, sf, sz) = fit;
     f.is_finite()
+        && z.is_finite()
         && sf.is_finite()
         && sz.is_finite()
         && (f / lin.0 - 1.0).abs() < 0.3
@@ -460,9 +461,10 @@ impl AmplitudeModel {
             let rho = |f: &LevelFit| f.amplitude[m] / reference[m].max(f64::MIN_POSITIVE);
             let lin = natural(basis.pairs()[cand[m]], [[0.0; 2]; 2]);
             // levels where the fit determines the mode (module documentation)
+            // (and whose amplitude was measured: a positive finite ratio)
             let good: Vec<&&LevelFit> = fits
                 .iter()
-                .filter(|f| determined(f.modal[m], lin))
+                .filter(|f| determined(f.modal[m], lin) && rho(f).is_finite() && rho(f) > 0.0)
                 .collect();
             let fp: Vec<(f64, f64, f64)> = good
                 .iter()

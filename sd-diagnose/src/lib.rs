@@ -5,9 +5,9 @@
 //! (periodic: averaged periods, with the noise and distortion levels at non-excited lines where
 //! the excitation leaves some; non-periodic: local polynomial method).
 //!
-//! **The model** is fitted to the model experiment's FRF ([`sd_ident::fit`], orders chosen by
-//! Akaike's FPE, rigid-body poles from the low-frequency slope) or given. Its simulation of a
-//! slower experiment is Lemma 6 ([`sd_multirate::downsample`]); in the frequency domain it is
+//! **The model** is fitted to the model experiment's FRF ([`sd_ident::fit()`], the order chosen by
+//! two-fold cross-validation between its earlier and later periods (FPE without them), rigid-body poles from the low-frequency slope) or given. Its simulation of a
+//! slower experiment is Lemma 6 ([`sd_multirate::downsample()`]); in the frequency domain it is
 //! compared line by line, in the time domain the measured input period goes through it
 //! ([`timedomain`]).
 //!
@@ -30,8 +30,10 @@
 //! - the model-free prediction consistent, the model's not: the model is wrong at the folding
 //!   frequencies, cause `fast_model_error`; the extension is the fast FRF itself through Lemma 6;
 //! - a same-rate experiment at another excitation level (> 20 % apart) whose FRF differs
-//!   significantly: cause `nonlinearity`; the extension is one best linear approximation per
-//!   level, judged on held-out periods of that level;
+//!   significantly: cause `nonlinearity`; the extension is the amplitude-dependent modal model
+//!   (module `amplitude`: frequency and damping trends of the modes that move, in each mode's band
+//!   amplitude), judged on whole levels left out in turn. Non-periodic records of changing
+//!   amplitude are first cut into pieces of constant amplitude ([`pieces`]);
 //! - the model-free prediction inconsistent: the rate-tied hypotheses ([`hypotheses`]),
 //!   parametric extensions of a continuous modal model built from the model's poles
 //!   ([`modal`]): `hold_delay` α (the hold switches α of each experiment's own period late,

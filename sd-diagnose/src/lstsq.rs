@@ -38,8 +38,11 @@ fn unscaled(mut x: DVector<f64>, mut cov: DMatrix<f64>, scale: &[f64]) -> LstSq 
 
 /// `min ‖J x − g‖` by the SVD of J with its columns scaled to unit norm (so the rank cut
 /// `1e-10·σ_max` sees the conditioning of the basis, not the units of its columns); `None` when J
-/// has no finite nonzero singular value.
+/// or g hold a non-finite entry or J has no finite nonzero singular value.
 pub(crate) fn scaled_lstsq(j: &DMatrix<f64>, g: &DVector<f64>) -> Option<LstSq> {
+    if j.iter().chain(g.iter()).any(|v| !v.is_finite()) {
+        return None;
+    }
     let n = j.ncols();
     let scale = column_scales(j);
     let mut js = j.clone();
@@ -105,6 +108,17 @@ pub(crate) fn normal_lstsq(j: &DMatrix<f64>, g: &DVector<f64>) -> Option<LstSq> 
 #[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
+
+    /// NaN or infinity anywhere: no solution (instead of a panic inside the SVD's sort).
+    #[test]
+    fn non_finite_input_has_no_solution() {
+        let j = DMatrix::from_row_slice(2, 1, &[1.0, f64::NAN]);
+        let g = DVector::from_row_slice(&[1.0, 2.0]);
+        assert!(scaled_lstsq(&j, &g).is_none());
+        let j = DMatrix::from_row_slice(2, 1, &[1.0, 2.0]);
+        let g = DVector::from_row_slice(&[1.0, f64::INFINITY]);
+        assert!(scaled_lstsq(&j, &g).is_none());
+    }
 
     /// The normal-equation route agrees with the SVD route on a well-posed tall problem with
     /// columns of very different scales.
