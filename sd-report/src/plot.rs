@@ -2,6 +2,20 @@
 
 use plotters::prelude::*;
 
+/// The legend of every figure: a framed, slightly transparent box at `pos`.
+fn legend<'a, DB: DrawingBackend + 'a, CT: plotters::coord::CoordTranslate>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    pos: SeriesLabelPosition,
+) -> crate::Result<()> {
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .position(pos)
+        .draw()
+        .map_err(crate::plot_err)
+}
+
 /// One curve: label, frequencies (Hz), magnitudes (dB).
 pub struct Curve<'a> {
     /// Legend entry.
@@ -118,13 +132,7 @@ pub fn magnitude_plot(
             )))
             .map_err(crate::plot_err)?;
     }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .position(SeriesLabelPosition::LowerLeft)
-        .draw()
-        .map_err(crate::plot_err)?;
+    legend(&mut chart, SeriesLabelPosition::LowerLeft)?;
     root.present().map_err(crate::plot_err)?;
     Ok(())
 }
@@ -212,13 +220,7 @@ pub fn line_plot(
                         PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
                     });
             }
-            chart
-                .configure_series_labels()
-                .background_style(WHITE.mix(0.85))
-                .border_style(BLACK)
-                .position(SeriesLabelPosition::UpperLeft)
-                .draw()
-                .map_err(crate::plot_err)?;
+            legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
         }};
     }
     if xlog {
@@ -364,12 +366,6 @@ fn error_bar_panel<DB: DrawingBackend>(
         .legend(move |(x, y)| {
             Rectangle::new([(x + 6, y - 4), (x + 14, y + 4)], red.stroke_width(2))
         });
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperLeft)
-        .draw()
-        .map_err(crate::plot_err)?;
+    legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
     Ok(())
 }

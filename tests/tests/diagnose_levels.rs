@@ -99,7 +99,7 @@ fn run(seed: u64, effect: LevelEffect, levels: &[f64], form: Form) -> Option<Out
         Form::Separate(rec) => level_case(seed, effect, levels, rec)?,
         Form::Rising => rising_case(seed, effect, levels, NOISE)?,
     };
-    let seconds_label = format!("{form:?}");
+    let form_label = format!("{form:?}");
     let t = std::time::Instant::now();
     let show = std::env::var_os("LEVEL_PROGRESS").is_some();
     let d = sd_diagnose::diagnose_with_progress(&case.experiments, &Default::default(), &mut |m| {
@@ -136,7 +136,7 @@ fn run(seed: u64, effect: LevelEffect, levels: &[f64], form: Form) -> Option<Out
         case,
     };
     println!(
-        "seed {seed} {effect:?} {levels:?} {seconds_label:.9}: {} kind {:?} damping {:?} gain {:?} levels {:?} \
+        "seed {seed} {effect:?} {levels:?} {form_label:.9}: {} kind {:?} damping {:?} gain {:?} levels {:?} \
          shift errors {:?} ({:.1} s){}",
         out.cause,
         out.kind,
