@@ -12,8 +12,8 @@ use crate::modal::{ModalBasis, Residues};
 use crate::stats::{normal_quantile, statistic, Line, Statistic};
 use crate::{
     joined, merged_parameters, Cause, Curves, DampingTrend, DiagnoseError, DiagnoseOptions,
-    Diagnosis, Evidence, ExperimentReport, Extension, FreqTrend, Gain, HeldOut, ModelInfo, OwnFit,
-    Ranked, RateTied, Result, Verdict,
+    Diagnosis, DriftCheck, DriftSign, Evidence, ExperimentReport, Extension, FreqTrend, Gain,
+    HeldOut, ModelInfo, OwnFit, Ranked, RateTied, Result, Verdict,
 };
 use num_complex::Complex64 as C;
 use sd_ident::{DistortionReport, Experiment, Role};
@@ -33,17 +33,26 @@ struct Val<'a> {
     parts: Option<(Estimate, Estimate)>,
     /// Level relative to the model experiment's.
     level: f64,
+    /// Compared as if at the model experiment's level: within [`LEVEL_TOL`] of it, or (a
+    /// slower experiment) inside the span of fast-rate levels that agree with each other
+    /// ([`Data::widen_levels`]).
+    comparable: std::cell::Cell<bool>,
     /// The model's simulation at this rate (Lemma 6).
     model: StateSpace,
 }
 
 impl Val<'_> {
+    /// At the model experiment's level (within [`LEVEL_TOL`]).
     fn same_level(&self) -> bool {
         (self.level - 1.0).abs() <= LEVEL_TOL
     }
-    /// Rate-tied effects show on it: same level, slower rate.
+    /// Compared with the model experiment as at its level.
+    fn comparable(&self) -> bool {
+        self.comparable.get()
+    }
+    /// Rate-tied effects show on it: a comparable level, slower rate.
     fn rate_tied(&self) -> bool {
-        self.same_level() && self.factor > 1
+        self.comparable() && self.factor > 1
     }
 }
 
@@ -119,6 +128,7 @@ impl<'a> Data<'a> {
                 whole,
                 parts,
                 level: level(e) / lm.max(f64::MIN_POSITIVE),
+                comparable: std::cell::Cell::new(false),
                 model: StateSpace::new(
                     nalgebra::DMatrix::zeros(0, 0),
                     nalgebra::DMatrix::zeros(0, 1),
@@ -128,7 +138,28 @@ impl<'a> Data<'a> {
                 )?,
             });
         }
+        for v in &out {
+            v.comparable.set(v.same_level());
+        }
         Ok(Data { vals: out, ..data })
+    }
+
+    /// When every fast-rate experiment at another level agrees with the model experiment
+    /// (its level test passes), the plant is linear over their span: a slower experiment at a
+    /// level inside it (widened by [`LEVEL_TOL`]) is compared as if at the model experiment's
+    /// level, so that a rate-tied effect on it is tested rather than taken for amplitude.
+    fn widen_levels(&self, tests: &[(usize, Statistic)]) {
+        if tests.is_empty() || tests.iter().any(|(_, s)| !s.passes()) {
+            return;
+        }
+        let (lo, hi) = tests
+            .iter()
+            .map(|(i, _)| self.vals[*i].level)
+            .fold((1.0f64, 1.0f64), |(lo, hi), l| (lo.min(l), hi.max(l)));
+        for v in self.vals.iter().filter(|v| v.factor > 1) {
+            let inside = v.level >= lo * (1.0 - LEVEL_TOL) && v.level <= hi * (1.0 + LEVEL_TOL);
+            v.comparable.set(v.comparable.get() || inside);
+        }
     }
 
     fn pair(&self, factor: usize) -> Pair<'_> {
@@ -273,22 +304,24 @@ fn checks(data: &Data<'_>, j: &Judged<'_>, alpha: f64) -> Result<Checks> {
     })
 }
 
-/// Evidence of nonlinear distortion: the mean power at the non-excited odd and even lines of
-/// the band over the noise level there (an F(2L, ·)-like ratio; its threshold as for L lines).
+/// Evidence of nonlinear distortion at the non-excited odd and even lines of the band: each
+/// line's power over its own noise estimate, combined by Fisher's method (the mean `−ln p`,
+/// [`sd_ident::DistortionReport::odd_score`]), which is `Gamma(L, 1)/L` without distortion
+/// whatever the noise spectrum: its threshold is that law's `1 − α` quantile.
 fn distortion_evidence(name: &str, d: &DistortionReport, alpha: f64) -> Vec<Evidence> {
     [
-        ("odd", d.odd_ratio, d.odd_lines),
-        ("even", d.even_ratio, d.even_lines),
+        ("odd", d.odd_score, d.odd_lines),
+        ("even", d.even_score, d.even_lines),
     ]
     .into_iter()
     .filter(|x| x.2 > 0)
-    .map(|(kind, ratio, lines)| {
+    .map(|(kind, score, lines)| {
         Evidence::check(
             format!(
-                "power at the {lines} non-excited {kind} lines of `{name}` over the noise \
-                 (nonlinear distortion)"
+                "power at the {lines} non-excited {kind} lines of `{name}` over each line's \
+                 noise (nonlinear distortion; Fisher's score, 1 without)"
             ),
-            ratio,
+            score,
             crate::stats::threshold(lines as f64, alpha),
         )
     })
@@ -342,27 +375,35 @@ fn decide(
             a,
         )
     };
-    let s_free = pooled(&ch.free, &|v| v.same_level());
+    let s_free = pooled(&ch.free, &|v| v.comparable());
     let s_model = pooled(&ch.model, &|_| true);
     ch.evidence.push(Evidence::of(
         "the model's simulation of every validation experiment",
         &s_model,
     ));
     // other excitation levels at the same rate that the model-free check rejects
-    let nonlinear: Vec<(usize, Statistic)> = data
-        .vals
-        .iter()
-        .enumerate()
-        .filter(|(_, v)| v.factor == 1 && !v.same_level())
-        .map(|(i, v)| {
-            (
-                i,
-                statistic([(ch.free[i].as_slice(), v.whole.inflation)], a),
-            )
-        })
+    let nonlinear: Vec<(usize, Statistic)> = level_tests(data, ch)
+        .into_iter()
         .filter(|(_, s)| !s.passes())
         .collect();
     if !nonlinear.is_empty() {
+        // levels disagree: nonlinearity, unless every experiment involved has non-excited
+        // lines and none shows distortion (the FRF changed without distortion: drift)
+        let mut involved = vec![(data.model_exp, &data.fast)];
+        involved.extend(
+            nonlinear
+                .iter()
+                .map(|(i, _)| (data.vals[*i].exp, &data.vals[*i].whole)),
+        );
+        if involved.iter().all(|(_, e)| distorted(e, a) == Some(false)) {
+            let names = nonlinear
+                .iter()
+                .map(|(i, _)| data.vals[*i].exp.spec.name.clone());
+            return Ok(drift_outcome(
+                names.collect(),
+                DriftSign::LevelsWithoutDistortion,
+            ));
+        }
         return nonlinearity(data, j, ch, &nonlinear, progress);
     }
     if s_free.lines == 0 {
@@ -402,15 +443,111 @@ fn decide(
             "same rate and excitation level, yet different FRFs: not repeatable",
             &s_free,
         ));
-        return Ok(Outcome::plain(
+        return Ok(not_repeatable(data, ch));
+    }
+    let o = rate_tied(data, j, progress)?;
+    let seen = std::iter::once(&data.fast)
+        .chain(data.vals.iter().map(|v| &v.whole))
+        .any(|e| distorted(e, a) == Some(true));
+    if seen && matches!(o.causes.first(), Some(Cause::Unexplained)) {
+        let one = one_level(data.vals.iter().filter(|v| v.rate_tied()));
+        return Ok(Outcome {
+            causes: one.causes,
+            gain: one.gain,
+            ..o
+        });
+    }
+    Ok(o)
+}
+
+/// Whether an estimate's non-excited lines show nonlinear distortion at `alpha` (odd or
+/// even); `None` where it has none to look at (non-periodic records, full multisines).
+fn distorted(est: &Estimate, alpha: f64) -> Option<bool> {
+    let ev = distortion_evidence("", est.distortion.as_ref()?, alpha);
+    (!ev.is_empty()).then(|| ev.iter().any(|e| !e.passed))
+}
+
+/// The plant changed between experiments.
+fn drift_outcome(experiments: Vec<String>, sign: DriftSign) -> Outcome {
+    Outcome::plain(
+        Verdict::Discrepancy,
+        Cause::Drift { experiments, sign },
+        Gain::none(
+            "drift: the plant changed with time, which no time-invariant extension predicts",
+        ),
+    )
+}
+
+/// Nonlinearity seen (distortion at the non-excited lines) at one excitation level only:
+/// named, not modelled.
+fn one_level<'v, 'a: 'v>(disagreeing: impl Iterator<Item = &'v Val<'a>>) -> Outcome {
+    Outcome {
+        extension: Extension::None,
+        ..Outcome::plain(
+            Verdict::Discrepancy,
+            Cause::Nonlinearity {
+                relative_levels: disagreeing
+                    .map(|v| (v.exp.spec.name.clone(), v.level))
+                    .collect(),
+                kind: FreqTrend::None,
+                damping_trend: DampingTrend::None,
+                modes: Vec::new(),
+                drift_check: DriftCheck::DistortionSeen,
+            },
+            Gain::none(
+                "the disagreement comes with nonlinear distortion at one excitation level: its \
+                 amplitude dependence cannot be fitted; repeat the experiment at two to four \
+                 levels (e.g. 1×, 2×, 4×)",
+            ),
+        )
+    }
+}
+
+/// Same-level experiments at the model experiment's rate disagree with it and nothing is
+/// rate-tied: nonlinearity when the model experiment or a disagreeing one shows distortion,
+/// drift when all of them have non-excited lines free of it, else unexplained.
+fn not_repeatable(data: &Data<'_>, ch: &Checks) -> Outcome {
+    let a = ch.alpha_test;
+    let failing: Vec<&Val<'_>> = data
+        .vals
+        .iter()
+        .zip(&ch.free)
+        .filter(|(v, _)| v.factor == 1 && v.comparable())
+        .filter(|(v, fl)| !statistic([(fl.as_slice(), v.whole.inflation)], a).passes())
+        .map(|(v, _)| v)
+        .collect();
+    let seen: Vec<Option<bool>> = std::iter::once(&data.fast)
+        .chain(failing.iter().map(|v| &v.whole))
+        .map(|e| distorted(e, a))
+        .collect();
+    if seen.contains(&Some(true)) {
+        one_level(failing.into_iter())
+    } else if !failing.is_empty() && seen.iter().all(|s| *s == Some(false)) {
+        let names = failing.iter().map(|v| v.exp.spec.name.clone()).collect();
+        drift_outcome(names, DriftSign::RepeatWithoutDistortion)
+    } else {
+        Outcome::plain(
             Verdict::Discrepancy,
             Cause::Unexplained,
             Gain::none(
                 "no slower experiment at the model experiment's level: nothing rate-tied to test",
             ),
-        ));
+        )
     }
-    rate_tied(data, j, progress)
+}
+
+/// The level test of every experiment at the model experiment's rate and another level:
+/// the model-free prediction of it from the model experiment.
+fn level_tests(data: &Data<'_>, ch: &Checks) -> Vec<(usize, Statistic)> {
+    data.vals
+        .iter()
+        .enumerate()
+        .filter(|(_, v)| v.factor == 1 && !v.same_level())
+        .map(|(i, v)| {
+            let s = statistic([(ch.free[i].as_slice(), v.whole.inflation)], ch.alpha_test);
+            (i, s)
+        })
+        .collect()
 }
 
 /// Experiments at other levels disagree: the amplitude-dependent modal model
@@ -440,7 +577,12 @@ fn nonlinearity(
                 statistic([(ch.free[i].as_slice(), v.whole.inflation)], alpha),
             )
         })
-        .find(|(_, s)| !s.passes());
+        .find(|(v, s)| {
+            // a repeat whose pair shows distortion differs by the nonlinearity's stochastic
+            // contributions (another phase realisation), not by drift
+            let pair = [&data.fast, &v.whole];
+            !s.passes() && !pair.iter().any(|e| distorted(e, alpha) == Some(true))
+        });
     if let Some((v, s)) = drift {
         ch.evidence.push(Evidence::of(
             format!(
@@ -450,12 +592,22 @@ fn nonlinearity(
             ),
             &s,
         ));
-        return Ok(Outcome::plain(
-            Verdict::Discrepancy,
-            Cause::Unexplained,
-            Gain::none("a same-level repeat disagrees: drift, which no amplitude model explains"),
+        return Ok(drift_outcome(
+            vec![v.exp.spec.name.clone()],
+            DriftSign::RepeatWithoutDistortion,
         ));
     }
+    let seen = std::iter::once(&data.fast)
+        .chain(data.vals.iter().filter(|v| v.factor == 1).map(|v| &v.whole))
+        .any(|e| distorted(e, alpha) == Some(true));
+    let repeat = data.vals.iter().any(|v| v.factor == 1 && v.same_level());
+    let check = if seen {
+        DriftCheck::DistortionSeen
+    } else if repeat {
+        DriftCheck::RepeatAgrees
+    } else {
+        DriftCheck::Unchecked
+    };
     let mut levels = vec![Level {
         name: data.model_exp.spec.name.clone(),
         exp: data.model_exp,
@@ -478,7 +630,12 @@ fn nonlinearity(
         .map(|lv| fit_level(basis, &cand, data.h, lv))
         .collect::<Result<Vec<_>>>();
     let Ok(first) = fits else {
-        return Ok(per_level(data, found, relative_levels, alpha));
+        return Ok(per_level(
+            data,
+            found,
+            (relative_levels.clone(), check),
+            alpha,
+        ));
     };
     // modes the model experiment itself does not determine are no candidates; the others
     // are fitted again without them
@@ -489,14 +646,24 @@ fn nonlinearity(
         .map(|(_, c)| *c)
         .collect();
     if cand.is_empty() {
-        return Ok(per_level(data, found, relative_levels, alpha));
+        return Ok(per_level(
+            data,
+            found,
+            (relative_levels.clone(), check),
+            alpha,
+        ));
     }
     let Ok(fits) = levels
         .iter()
         .map(|lv| fit_level(basis, &cand, data.h, lv))
         .collect::<Result<Vec<_>>>()
     else {
-        return Ok(per_level(data, found, relative_levels, alpha));
+        return Ok(per_level(
+            data,
+            found,
+            (relative_levels.clone(), check),
+            alpha,
+        ));
     };
     let all: Vec<&Level<'_>> = levels.iter().collect();
     let fit_refs: Vec<&LevelFit> = fits.iter().collect();
@@ -524,6 +691,7 @@ fn nonlinearity(
             kind,
             damping_trend,
             modes: modes.clone(),
+            drift_check: check,
         }],
         extension: Extension::Amplitude(modes),
         ranking: Vec::new(),
@@ -693,7 +861,7 @@ fn later_periods(
 fn per_level(
     data: &Data<'_>,
     found: &[(usize, Statistic)],
-    relative_levels: BTreeMap<String, f64>,
+    (relative_levels, check): (BTreeMap<String, f64>, DriftCheck),
     alpha: f64,
 ) -> Outcome {
     let (mut b, mut af, mut held) = (0.0, 0.0, Vec::new());
@@ -728,6 +896,7 @@ fn per_level(
             kind: FreqTrend::None,
             damping_trend: DampingTrend::None,
             modes: Vec::new(),
+            drift_check: check,
         }],
         extension: Extension::PerLevel,
         ranking: Vec::new(),
@@ -746,7 +915,7 @@ fn fast_model_error(data: &Data<'_>, j: &Judged<'_>, ch: &Checks) -> Result<Outc
         ch.alpha_test,
     );
     let (mut b, mut a, mut held) = (0.0, 0.0, Vec::new());
-    for v in data.vals.iter().filter(|v| v.same_level()) {
+    for v in data.vals.iter().filter(|v| v.comparable()) {
         if let Some((_, v2)) = &v.parts {
             let c = v2.inflation;
             b += statistic([(j.lines(&v.model, v.factor, v2)?.as_slice(), c)], 1.0).value;
@@ -1261,6 +1430,7 @@ pub fn diagnose_with_progress(
     }
     let mut judged = judge_model(&data, opt, model, source, basis)?;
     let mut ch = checks(&data, &judged, opt.alpha)?;
+    data.widen_levels(&level_tests(&data, &ch));
     own_fit(&data, &ch, &mut judged.info);
     let outcome = decide(&data, &judged, &mut ch, progress)?;
     progress("reports");

@@ -185,6 +185,15 @@ pub enum Cause {
         damping_trend: DampingTrend,
         /// The modes that move with amplitude, with every level's points and the trends.
         modes: Vec<MovingMode>,
+        /// What rules out drift over time as the reason the levels differ.
+        drift_check: DriftCheck,
+    },
+    /// The plant changed between experiments (with time, not with amplitude or rate).
+    Drift {
+        /// The experiments that disagree with the model experiment.
+        experiments: Vec<String>,
+        /// What tells drift from nonlinearity here.
+        sign: DriftSign,
     },
     /// The model is wrong where the data agree with each other.
     FastModelError {
@@ -206,6 +215,7 @@ impl Cause {
             Cause::AveragingSampler { .. } => "averaging_sampler",
             Cause::ClockError { .. } => "clock_error",
             Cause::Nonlinearity { .. } => "nonlinearity",
+            Cause::Drift { .. } => "drift",
             Cause::FastModelError { .. } => "fast_model_error",
             Cause::Unexplained => "unexplained",
         }
@@ -322,6 +332,34 @@ impl Gain {
             why: Some(why.into()),
         }
     }
+}
+
+/// The evidence that names drift rather than nonlinearity.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DriftSign {
+    /// A repeat at the model experiment's level and rate disagrees, and neither of the two
+    /// shows nonlinear distortion at its non-excited lines (where they have none, the repeat
+    /// alone decides).
+    RepeatWithoutDistortion,
+    /// Experiments at other levels disagree, yet every experiment involved has non-excited
+    /// lines and none shows nonlinear distortion there: an FRF that changes with amplitude
+    /// brings distortion with it; one that changes without it changed with time.
+    LevelsWithoutDistortion,
+}
+
+/// What tells a nonlinearity from a plant that drifted between experiments.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DriftCheck {
+    /// Nonlinear distortion shows at the non-excited lines of a periodic experiment.
+    DistortionSeen,
+    /// A repeat at the model experiment's level agrees with it.
+    RepeatAgrees,
+    /// Neither: no non-excited lines free of excitation (non-periodic records, full
+    /// multisines) and no repeat. A drift over the campaign would look the same; repeat the
+    /// model experiment's level at the end, or use odd multisines with detection lines.
+    Unchecked,
 }
 
 /// How a mode's frequency changes with amplitude.
@@ -556,7 +594,8 @@ fn distortion_json<S: serde::Serializer>(
     d.as_ref()
         .map(|d| {
             json!({"odd_lines": d.odd_lines, "even_lines": d.even_lines,
-                "odd_ratio": d.odd_ratio, "even_ratio": d.even_ratio, "noise_level": d.noise_level})
+                "odd_ratio": d.odd_ratio, "even_ratio": d.even_ratio, "noise_level": d.noise_level,
+                "noise_dof": d.noise_dof, "odd_score": d.odd_score, "even_score": d.even_score})
         })
         .serialize(s)
 }

@@ -10,7 +10,9 @@ use crate::plot::{line_plot, magnitude_plot, Curve, Line};
 use crate::{ReportError, Result};
 use num_complex::Complex64 as C;
 use plotters::style::RGBColor;
-use sd_diagnose::{Cause, DampingTrend, Diagnosis, ExperimentReport, Extension, FreqTrend};
+use sd_diagnose::{
+    Cause, DampingTrend, Diagnosis, DriftCheck, DriftSign, ExperimentReport, Extension, FreqTrend,
+};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -508,6 +510,7 @@ fn cause_text(c: &Cause) -> Option<String> {
             kind,
             damping_trend,
             modes,
+            drift_check,
         } => {
             let per: Vec<String> = relative_levels
                 .iter()
@@ -529,11 +532,44 @@ fn cause_text(c: &Cause) -> Option<String> {
                 DampingTrend::Decreasing => "its damping falls with amplitude",
                 DampingTrend::None => "no damping trend beyond the uncertainty",
             };
+            let drift = match drift_check {
+                DriftCheck::DistortionSeen => {
+                    "not drift: the non-excited lines show nonlinear distortion"
+                }
+                DriftCheck::RepeatAgrees => {
+                    "not drift: a repeat at the model experiment's level agrees with it"
+                }
+                DriftCheck::Unchecked => {
+                    "drift over time is not ruled out (no repeat of the model experiment's \
+                     level, no non-excited lines): repeat that level at the end of the \
+                     campaign, or excite with odd multisines that leave detection lines"
+                }
+            };
             format!(
                 "Experiments at other excitation levels disagree with the model \
-                 experiment's ({}); {kind}, {damp}; {} moving mode(s)",
+                 experiment's ({}); {kind}, {damp}; {} moving mode(s); {drift}",
                 per.join(", "),
                 modes.len()
+            )
+        }
+        Cause::Drift { experiments, sign } => {
+            let names: Vec<String> = experiments.iter().map(|n| format!("`{n}`")).collect();
+            let why = match sign {
+                DriftSign::RepeatWithoutDistortion => {
+                    "a repeat at the model experiment's level and rate disagrees with it, \
+                     without nonlinear distortion at the non-excited lines"
+                }
+                DriftSign::LevelsWithoutDistortion => {
+                    "experiments at other levels disagree, yet none shows nonlinear \
+                     distortion at its non-excited lines (an FRF that changes with amplitude \
+                     brings distortion with it)"
+                }
+            };
+            format!(
+                "The plant changed between experiments ({}): {why}. No time-invariant model \
+                 predicts this; identify the model on data recorded close in time to its use, \
+                 and check what changes over the campaign (temperature, settling, mounting)",
+                names.join(", ")
             )
         }
         Cause::FastModelError {

@@ -423,6 +423,9 @@ pub enum LevelEffect {
     /// A linear stage whose first mode's frequency rises 1 % per experiment (time, not
     /// amplitude); the last experiment repeats the first level.
     Drift,
+    /// As [`LevelEffect::Drift`] without the repeat: only the absence of distortion at the
+    /// non-excited lines tells the drift from an amplitude effect.
+    DriftLevels,
 }
 
 /// A case at several excitation levels, all at the fast rate.
@@ -576,7 +579,7 @@ pub fn level_case(
             truth: st.truth.clone(),
             ..st
         };
-        if effect == LevelEffect::Drift {
+        if matches!(effect, LevelEffect::Drift | LevelEffect::DriftLevels) {
             stk.truth.modes[0].freq_hz = m0.freq_hz * (1.0 + 0.01 * k as f64);
         }
         let name = if k == levels.len() {
@@ -598,6 +601,62 @@ pub fn level_case(
         effect,
         recording: rec,
         levels: list,
+        mode_hz: m0.freq_hz,
+        experiments,
+    })
+}
+
+/// Level and rate changed together: the model experiment at 1×, a fast experiment at `high`×
+/// and a slower one (the drawn factor) at `high`×, all periodic random-phase odd multisines
+/// with detection lines; every experiment's hold switches `delay` of its own sample period
+/// late. `Hardening` sizes the first mode's cubic stiffness as [`level_case`] does.
+pub fn level_rate_case(
+    seed: u64,
+    effect: LevelEffect,
+    high: f64,
+    delay: f64,
+    rec: Recording,
+) -> Option<LevelCase> {
+    let (mut st, m0) = level_stage(seed);
+    let ni = NonIdealities {
+        hold_delay: delay,
+        ..NonIdealities::default()
+    };
+    let exp = |name: &'static str, rate: f64, l: f64, k: u64| Exp {
+        lines: Lines::RandomOdd {
+            group: 3,
+            seed: seed + 77,
+        },
+        name,
+        rate,
+        rms: 0.5 * l,
+        ni,
+        seed: seed * 17 + k,
+        role: if k == 0 {
+            Role::Model
+        } else {
+            Role::Validation
+        },
+        signal: None,
+    };
+    let fast = st.fast_rate;
+    if effect == LevelEffect::Hardening {
+        let base = identify(&st, &rec, &exp("base", fast, 1.0, 0))?;
+        size_cubic(&mut st, effect, &base, high);
+    }
+    let slow = fast / st.factor as f64;
+    let experiments = [
+        exp("fast_1", fast, 1.0, 0),
+        exp("fast_high", fast, high, 1),
+        exp("slow_high", slow, high, 2),
+    ]
+    .iter()
+    .map(|x| identify(&st, &rec, x).filter(|e| e.y.iter().all(|v| v.is_finite())))
+    .collect::<Option<Vec<_>>>()?;
+    Some(LevelCase {
+        effect,
+        recording: rec,
+        levels: vec![1.0, high, high],
         mode_hz: m0.freq_hz,
         experiments,
     })

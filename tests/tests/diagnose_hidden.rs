@@ -309,7 +309,7 @@ const KINDS: [&str; 8] = [
     "delay + clock",
     "cubic stiffness",
 ];
-const NAMES: [&str; 8] = [
+const NAMES: [&str; 9] = [
     "none",
     "hold_delay",
     "averaging_sampler",
@@ -317,6 +317,7 @@ const NAMES: [&str; 8] = [
     "averaging_sampler+hold_delay",
     "clock_error+hold_delay",
     "nonlinearity",
+    "drift",
     "unexplained",
 ];
 

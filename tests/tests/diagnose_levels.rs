@@ -11,8 +11,10 @@
 //! `cargo test --release -p sd-tests --test diagnose_levels -- --ignored --nocapture`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-use sd_diagnose::{Cause, DampingTrend, FreqTrend};
-use sd_tests::diagcases::{level_case, per_seed, rising_case, LevelCase, LevelEffect, Recording};
+use sd_diagnose::{Cause, DampingTrend, DriftCheck, FreqTrend};
+use sd_tests::diagcases::{
+    level_case, level_rate_case, per_seed, rising_case, LevelCase, LevelEffect, Recording,
+};
 
 /// The linear model's held-out statistic from which a level's nonlinearity counts as visible.
 const VISIBLE: f64 = 5.0;
@@ -41,6 +43,7 @@ struct Outcome {
     cause: String,
     kind: Option<FreqTrend>,
     damping: Option<DampingTrend>,
+    drift_check: Option<DriftCheck>,
     /// Pooled held-out gain.
     gain: Option<f64>,
     /// Per held-out level: (before, after).
@@ -56,8 +59,16 @@ impl Outcome {
             LevelEffect::Hardening => self.kind == Some(FreqTrend::Hardening),
             LevelEffect::Softening => self.kind == Some(FreqTrend::Softening),
             LevelEffect::Linear => self.cause == "none",
-            // drift: never a nonlinearity with a kind
-            LevelEffect::Drift => self.kind.is_none_or(|k| k == FreqTrend::None),
+            // a same-level repeat that disagrees names drift
+            LevelEffect::Drift => self.cause == "drift",
+            // without a repeat, the non-excited lines of a periodic recording name drift;
+            // without them nothing can tell a drift that follows the order of the levels from
+            // an amplitude effect: the diagnosis must say that drift is not ruled out
+            LevelEffect::DriftLevels if self.case.recording.periodic => self.cause == "drift",
+            LevelEffect::DriftLevels => {
+                self.kind.is_none_or(|k| k == FreqTrend::None)
+                    || self.drift_check == Some(DriftCheck::Unchecked)
+            }
         }
     }
 }
@@ -109,22 +120,30 @@ fn run(seed: u64, effect: LevelEffect, levels: &[f64], form: Form) -> Option<Out
     })
     .unwrap();
     let seconds = t.elapsed().as_secs_f64();
-    let (mut kind, mut damping) = (None, None);
+    if std::env::var_os("LEVEL_EVIDENCE").is_some() {
+        for e in &d.evidence {
+            println!("    {:.3} / {:.3} {}", e.statistic, e.threshold, e.test);
+        }
+    }
+    let (mut kind, mut damping, mut drift_check) = (None, None, None);
     for c in &d.causes {
         if let Cause::Nonlinearity {
             kind: k,
             damping_trend,
+            drift_check: dc,
             ..
         } = c
         {
             kind = Some(*k);
             damping = Some(*damping_trend);
+            drift_check = Some(*dc);
         }
     }
     let out = Outcome {
         cause: d.cause.clone(),
         kind,
         damping,
+        drift_check,
         gain: d.gain.ratio,
         levels: d
             .experiments
@@ -157,7 +176,7 @@ fn run(seed: u64, effect: LevelEffect, levels: &[f64], form: Form) -> Option<Out
 }
 
 /// Every case of `seeds`: hardening and softening at four levels (1, 2, 4, 8) and at three
-/// (1, 2, 4), a linear stage and a drifting one at four.
+/// (1, 2, 4), a linear stage and two drifting ones (with and without a repeat) at four.
 fn cases(seeds: std::ops::Range<u64>, form: Form) -> Vec<Outcome> {
     let four = [1.0, 2.0, 4.0, 8.0];
     let three = [1.0, 2.0, 4.0];
@@ -169,10 +188,16 @@ fn cases(seeds: std::ops::Range<u64>, form: Form) -> Vec<Outcome> {
             (LevelEffect::Softening, &three[..]),
             (LevelEffect::Linear, &four[..]),
             (LevelEffect::Drift, &four[..]),
+            (LevelEffect::DriftLevels, &four[..]),
         ]
         .into_iter()
         // a rising record has no repeat of its first level: drift is tested on separate records
-        .filter(|(effect, _)| !matches!((form, effect), (Form::Rising, LevelEffect::Drift)))
+        .filter(|(effect, _)| {
+            !matches!(
+                (form, effect),
+                (Form::Rising, LevelEffect::Drift | LevelEffect::DriftLevels)
+            )
+        })
         .filter_map(|(effect, levels)| run(s, effect, levels, form))
         .collect::<Vec<_>>()
     })
@@ -371,4 +396,51 @@ fn report_of_a_rising_record() {
     } else {
         println!("kept {}", dir.display());
     }
+}
+
+/// Level and rate changed together (a fast and a slower experiment at 4×, the model
+/// experiment at 1×): on a linear stage with a hold delay of 0.4 periods the fast experiments
+/// agree, so the slower one is compared as at the model's level and the delay is named; on a
+/// hardening stage without a delay the fast levels disagree and the cause is the
+/// nonlinearity, not a rate-tied effect. Seeds `50..53`; development `0..10`
+/// (`LEVEL_RATE_SEEDS=0..10`).
+#[test]
+fn level_and_rate_together() {
+    let seeds = std::env::var("LEVEL_RATE_SEEDS")
+        .ok()
+        .and_then(|s| {
+            let (a, b) = s.split_once("..")?;
+            Some(a.parse().ok()?..b.parse().ok()?)
+        })
+        .unwrap_or(50..53);
+    let out = per_seed(seeds, |s| {
+        let mut rows = Vec::new();
+        for (effect, delay, want) in [
+            (LevelEffect::Linear, 0.4, "hold_delay"),
+            (LevelEffect::Hardening, 0.0, "nonlinearity"),
+        ] {
+            let Some(c) = level_rate_case(s, effect, 4.0, delay, PERIODIC) else {
+                continue;
+            };
+            let d = sd_diagnose::diagnose(&c.experiments, &Default::default()).unwrap();
+            let delay_err = d
+                .causes
+                .iter()
+                .find_map(|c| match c {
+                    Cause::HoldDelay { delay_frac, .. } => Some((delay_frac - delay).abs()),
+                    _ => None,
+                })
+                .unwrap_or(0.0);
+            println!(
+                "seed {s} {effect:?} delay {delay}: {} (gain {:?}, delay error {delay_err:.3})",
+                d.cause, d.gain.ratio
+            );
+            rows.push((d.cause == want && delay_err < 0.05, s, effect));
+        }
+        rows
+    });
+    let rows: Vec<_> = out.into_iter().flatten().collect();
+    assert!(rows.len() >= 4, "only {} cases ran", rows.len());
+    let wrong: Vec<_> = rows.iter().filter(|r| !r.0).collect();
+    assert!(wrong.is_empty(), "{wrong:?}");
 }
