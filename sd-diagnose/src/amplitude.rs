@@ -31,7 +31,10 @@ use crate::lemma6::{compare, Pred};
 use crate::lstsq::scaled_lstsq;
 use crate::modal::{ModalBasis, Residues};
 use crate::stats::{normal_quantile, threshold, Line};
-use crate::{DampingTrend, DiagnoseError, FreqTrend, ModePoint, MovingMode, Result, Trend};
+use crate::{
+    CornerTrend, DampingTrend, DiagnoseError, FreqTrend, ModePoint, MovingMode, PoleKind, Result,
+    Trend,
+};
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64 as C;
 use sd_ident::Experiment;
@@ -173,8 +176,17 @@ pub(crate) fn band_rms(x: &[f64], fs: f64, lo: f64, hi: f64) -> f64 {
     (2.0 * power).sqrt() / nf
 }
 
-/// The band of a mode: `f(1 ± max(3ζ, 2 %))`.
+/// The band of a pole ([`band`]).
+fn band_of(s: C) -> (f64, f64) {
+    let n = natural(s, [[0.0; 2]; 2]);
+    band(n.0, n.1)
+}
+
+/// The band of a mode: `f(1 ± max(3ζ, 2 %))`; of a real pole (a corner `f`), `[f/3, 3f]`.
 fn band(f: f64, z: f64) -> (f64, f64) {
+    if is_real_pole(z) {
+        return (f / 3.0, 3.0 * f);
+    }
     let w = (3.0 * z).max(0.02);
     (f * (1.0 - w), f * (1.0 + w))
 }
@@ -199,12 +211,22 @@ pub(crate) fn fit_level(
     let rw = rows(est);
     let mut b = basis.clone();
     let (mut cost, mut res) = project(&b, h, est)?;
-    let mut jac_cov: Option<DMatrix<f64>> = None;
+    // each candidate's first parameter in the pole block: one for a real pole, two for a pair
+    let width = |pm: usize| if basis.is_real(pm) { 1 } else { 2 };
+    let offs: Vec<usize> = cand
+        .iter()
+        .scan(0, |o, &pm| {
+            let at = *o;
+            *o += width(pm);
+            Some(at)
+        })
+        .collect();
+    let np: usize = cand.iter().map(|&pm| width(pm)).sum();
+    let mut jac_cov: Option<(DMatrix<f64>, Vec<usize>)> = None;
     for it in 0..=GN_ITERATIONS {
         let phi = b.responses(h, NonIdeal::ideal(), f)?;
         let dphi = b.pole_sensitivities(&res.r, h, NonIdeal::ideal(), f)?;
         let nb = res.r.len();
-        let np = 2 * cand.len();
         let mut j = DMatrix::zeros(2 * rw.len(), nb + np);
         let mut e = DVector::zeros(2 * rw.len());
         for (k, &(i, w)) in rw.iter().enumerate() {
@@ -217,31 +239,36 @@ pub(crate) fn fit_level(
                 j[(2 * k + 1, c)] = w * phi[i][c].im;
             }
             for (m, &pm) in cand.iter().enumerate() {
-                let col = b.pair_sensitivity_column(pm);
-                for t in 0..2 {
-                    j[(2 * k, nb + 2 * m + t)] = w * dphi[i][col + t].re;
-                    j[(2 * k + 1, nb + 2 * m + t)] = w * dphi[i][col + t].im;
+                let col = b.sensitivity_column(pm);
+                for t in 0..width(pm) {
+                    j[(2 * k, nb + offs[m] + t)] = w * dphi[i][col + t].re;
+                    j[(2 * k + 1, nb + offs[m] + t)] = w * dphi[i][col + t].im;
                 }
             }
         }
         let Some(ls) = scaled_lstsq(&j, &e) else {
             break;
         };
-        jac_cov = Some(ls.cov.view((nb, nb), (np, np)).into_owned());
+        jac_cov = Some((ls.cov.view((nb, nb), (np, np)).into_owned(), offs.clone()));
         if it == GN_ITERATIONS {
             break;
         }
         // halving line search on the poles, residues re-solved (variable projection)
         let mut improved = false;
         for step in (0..8).map(|k| 0.5f64.powi(k)) {
-            let mut pairs = b.pairs().to_vec();
+            let mut poles = b.poles();
             for (m, &pm) in cand.iter().enumerate() {
-                let old = pairs[pm];
-                let new = old + C::new(ls.x[nb + 2 * m], ls.x[nb + 2 * m + 1]) * step;
-                // a step may not leave the stable upper half plane: at most halfway to it
-                pairs[pm] = C::new(new.re.min(0.5 * old.re), new.im.max(0.5 * old.im));
+                let old = poles[pm];
+                let d_im = if basis.is_real(pm) {
+                    0.0
+                } else {
+                    ls.x[nb + offs[m] + 1]
+                };
+                let new = old + C::new(ls.x[nb + offs[m]], d_im) * step;
+                // a step may not leave the stable (upper half) plane: at most halfway to it
+                poles[pm] = C::new(new.re.min(0.5 * old.re), new.im.max(0.5 * old.im));
             }
-            let trial = b.with_pairs(&pairs)?;
+            let trial = b.with_poles(&poles)?;
             let Ok((c2, r2)) = project(&trial, h, est) else {
                 continue;
             };
@@ -261,16 +288,17 @@ pub(crate) fn fit_level(
     finish((b, basis), cand, (cost, rw.len()), est, lv, jac_cov)
 }
 
-/// The level fit's frequencies and dampings with errors, and its amplitudes.
+/// The level fit's frequencies and dampings with errors, and its amplitudes; `cov` is the
+/// pole block's covariance with each candidate's first column.
 fn finish(
     (b, linear_basis): (ModalBasis, &ModalBasis),
     cand: &[usize],
     (cost, lines): (f64, usize),
     est: &Estimate,
     lv: &Level<'_>,
-    cov: Option<DMatrix<f64>>,
+    cov: Option<(DMatrix<f64>, Vec<usize>)>,
 ) -> Result<LevelFit> {
-    let cov = cov.ok_or_else(|| {
+    let (cov, offs) = cov.ok_or_else(|| {
         DiagnoseError::Numerical(format!("the modal fit of `{}` is singular", lv.name))
     })?;
     let nu = est.dof;
@@ -281,21 +309,34 @@ fn finish(
     };
     let misfit = (cost / lines.max(1) as f64).max(1.0);
     let k = weights * est.inflation.max(1.0) * misfit;
-    let pairs = b.pairs().to_vec();
+    let poles = b.poles();
     let y = steady_output(lv.exp);
     let fs = lv.exp.spec.sample_rate_hz;
     let mut modal = Vec::new();
     let mut amplitude = Vec::new();
     for (m, &pm) in cand.iter().enumerate() {
-        let c = |r: usize, s: usize| k * cov[(2 * m + r, 2 * m + s)];
-        let nat = natural(pairs[pm], [[c(0, 0), c(0, 1)], [c(1, 0), c(1, 1)]]);
-        let (lo, hi) = band(nat.0, nat.1);
+        let real = b.is_real(pm);
+        let c = |r: usize, s: usize| {
+            if real && (r > 0 || s > 0) {
+                0.0
+            } else {
+                k * cov[(offs[m] + r, offs[m] + s)]
+            }
+        };
+        let nat = natural(poles[pm], [[c(0, 0), c(0, 1)], [c(1, 0), c(1, 1)]]);
+        // a corner's band stays the linear one (a corner moves by a decade)
+        let at = if real {
+            linear_basis.poles()[pm]
+        } else {
+            poles[pm]
+        };
+        let (lo, hi) = band_of(at);
         amplitude.push(band_rms(y, fs, lo, hi));
         modal.push(nat);
     }
     let linear = cand
         .iter()
-        .map(|&pm| natural(linear_basis.pairs()[pm], [[0.0; 2]; 2]))
+        .map(|&pm| natural(linear_basis.poles()[pm], [[0.0; 2]; 2]))
         .collect();
     Ok(LevelFit {
         modal,
@@ -309,12 +350,18 @@ fn finish(
 /// wanders off in a level fit; such points are left out of the trends).
 fn determined(fit: (f64, f64, f64, f64), lin: (f64, f64, f64, f64)) -> bool {
     let (f, z, sf, sz) = fit;
-    f.is_finite()
-        && z.is_finite()
-        && sf.is_finite()
-        && sz.is_finite()
-        && (f / lin.0 - 1.0).abs() < 0.3
-        && sf < 0.5 * lin.1 * lin.0
+    let finite = f.is_finite() && z.is_finite() && sf.is_finite() && sz.is_finite();
+    if is_real_pole(lin.1) {
+        // a real pole (a corner, ζ = 1) may move by a decade, known to half its value
+        finite && f > 0.1 * lin.0 && f < 10.0 * lin.0 && sf < 0.5 * f
+    } else {
+        finite && (f / lin.0 - 1.0).abs() < 0.3 && sf < 0.5 * lin.1 * lin.0
+    }
+}
+
+/// Whether a damping ratio is a real pole's (`natural` gives ζ = 1 for `s = −a + 0j`).
+fn is_real_pole(z: f64) -> bool {
+    z >= 1.0 - 1e-12
 }
 
 /// Weighted least squares of `p(ρ) = p_ref + c(ρ^k − 1)` over points `(ρ, p, σ)`: the trend
@@ -410,32 +457,52 @@ impl Trend {
     }
 }
 
-/// Candidate pairs: those inside the estimate's band with at least a few lines around them,
-/// apart from every other pair by more than twice their half-power half-widths together (two modes
-/// closer than that trade frequency and damping in a fit; they keep their linear poles).
+/// Candidates, as indices of [`ModalBasis::poles`]. Pairs: inside the estimate's band with at
+/// least a few lines around them, apart from every other pair by more than twice their
+/// half-power half-widths together (two modes closer than that trade frequency and damping
+/// in a fit; they keep their linear poles). Of the real poles only a damped rigid body's
+/// corner `a/2π` ([`ModalBasis::with_damped_rigid_body`], whose residues do not change when
+/// friction moves it): below the band's top with at least three lines under ten times the
+/// corner (where it turns the phase by more than 6°), and a factor 3 from any other real
+/// pole. Other real poles keep their linear values (their residues would have to move with
+/// them).
 pub(crate) fn candidates(basis: &ModalBasis, est: &Estimate) -> Vec<usize> {
     let f = est.frd.freq_hz();
     let (lo, hi) = (
         f.first().copied().unwrap_or(0.0),
         f.last().copied().unwrap_or(0.0),
     );
-    let nat: Vec<(f64, f64)> = basis
-        .pairs()
+    let poles = basis.poles();
+    let nat: Vec<(f64, f64)> = poles
         .iter()
         .map(|p| {
             let n = natural(*p, [[0.0; 2]; 2]);
             (n.0, n.1)
         })
         .collect();
+    let pair_ok = |i: usize| {
+        let (fi, zi) = nat[i];
+        let lines = f.iter().filter(|x| (**x - fi).abs() < 0.05 * fi).count();
+        let apart = (0..nat.len())
+            .filter(|&j| j != i && !basis.is_real(j))
+            .all(|j| (fi - nat[j].0).abs() > 2.0 * (zi * fi + nat[j].1 * nat[j].0));
+        fi > lo && fi < hi && lines >= 3 && apart
+    };
+    let real_ok = |i: usize| {
+        let fi = nat[i].0;
+        let lines = f.iter().filter(|x| **x < 10.0 * fi).count();
+        let apart = (0..nat.len())
+            .filter(|&j| j != i && basis.is_real(j))
+            .all(|j| (nat[j].0 / fi).ln().abs() > 3f64.ln());
+        fi > 0.0 && fi < hi && lines >= 3 && apart
+    };
     (0..nat.len())
         .filter(|&i| {
-            let (fi, zi) = nat[i];
-            let lines = f.iter().filter(|x| (**x - fi).abs() < 0.05 * fi).count();
-            let apart = nat
-                .iter()
-                .enumerate()
-                .all(|(j, (fj, zj))| j == i || (fi - fj).abs() > 2.0 * (zi * fi + zj * fj));
-            fi > lo && fi < hi && lines >= 3 && apart
+            if basis.is_rigid_damping(i) {
+                real_ok(i)
+            } else {
+                !basis.is_real(i) && pair_ok(i)
+            }
         })
         .collect()
 }
@@ -459,7 +526,7 @@ impl AmplitudeModel {
         let mut trends = Vec::new();
         for m in 0..cand.len() {
             let rho = |f: &LevelFit| f.amplitude[m] / reference[m].max(f64::MIN_POSITIVE);
-            let lin = natural(basis.pairs()[cand[m]], [[0.0; 2]; 2]);
+            let lin = natural(basis.poles()[cand[m]], [[0.0; 2]; 2]);
             // levels where the fit determines the mode (module documentation)
             // (and whose amplitude was measured: a positive finite ratio)
             let good: Vec<&&LevelFit> = fits
@@ -490,14 +557,24 @@ impl AmplitudeModel {
                 trends.push((fallback, zfall, false, false));
                 continue;
             }
-            let (ft, zt) = (
-                best_trend(&fp, alpha)
-                    .ok_or_else(|| DiagnoseError::Numerical("frequency trend".into()))?,
+            let ft = best_trend(&fp, alpha)
+                .ok_or_else(|| DiagnoseError::Numerical("frequency trend".into()))?;
+            let zt = if basis.is_real(cand[m]) {
+                // a real pole's damping is 1 at every amplitude
+                Trend {
+                    at_reference: 1.0,
+                    at_reference_std: 0.0,
+                    slope_std: 0.0,
+                    ..fallback.clone()
+                }
+            } else {
                 best_trend(&zp, alpha)
-                    .ok_or_else(|| DiagnoseError::Numerical("damping trend".into()))?,
-            );
+                    .ok_or_else(|| DiagnoseError::Numerical("damping trend".into()))?
+            };
             let fm = moves(&fp.iter().map(|p| (p.1, p.2)).collect::<Vec<_>>(), a_mode);
-            let zm = moves(&zp.iter().map(|p| (p.1, p.2)).collect::<Vec<_>>(), a_mode);
+            // a real pole has no damping of its own (ζ = 1)
+            let zm = !basis.is_real(cand[m])
+                && moves(&zp.iter().map(|p| (p.1, p.2)).collect::<Vec<_>>(), a_mode);
             trends.push((ft, zt, fm, zm));
         }
         let mut me = AmplitudeModel {
@@ -518,10 +595,10 @@ impl AmplitudeModel {
             .ok_or_else(|| DiagnoseError::Numerical("amplitude model without residues".into()))
     }
 
-    /// The pairs at amplitudes `amp` (one per candidate): moving modes from their trends,
-    /// the others linear.
+    /// The poles ([`ModalBasis::poles`]) at amplitudes `amp` (one per candidate): moving ones
+    /// from their trends, the others linear.
     fn pairs_at(&self, amp: &[f64]) -> Vec<C> {
-        let mut pairs = self.basis.pairs().to_vec();
+        let mut pairs = self.basis.poles().to_vec();
         for (m, &pm) in self.cand.iter().enumerate() {
             let (ft, zt, fm, zm) = &self.trends[m];
             if !(*fm || *zm) {
@@ -530,8 +607,13 @@ impl AmplitudeModel {
             let rho = amp[m] / self.reference[m].max(f64::MIN_POSITIVE);
             let lin = natural(pairs[pm], [[0.0; 2]; 2]);
             let f = if *fm { ft.at(rho).0 } else { lin.0 };
-            let z = if *zm || *fm { zt.at(rho).0 } else { lin.1 };
-            pairs[pm] = pair_of(f, z.clamp(1e-6, 0.999));
+            pairs[pm] = if self.basis.is_real(pm) {
+                // a corner stays a stable real pole
+                C::new(-TAU * f.max(1e-3 * lin.0), 0.0)
+            } else {
+                let z = if *zm || *fm { zt.at(rho).0 } else { lin.1 };
+                pair_of(f, z.clamp(1e-6, 0.999))
+            };
         }
         pairs
     }
@@ -544,7 +626,7 @@ impl AmplitudeModel {
             .first()
             .ok_or_else(|| DiagnoseError::Setup("no level to fit".into()))?;
         let amp = self.amplitudes(lv);
-        let b = self.basis.with_pairs(&self.pairs_at(&amp))?;
+        let b = self.basis.with_poles(&self.pairs_at(&amp))?;
         let phi = b.responses(self.h, NonIdeal::ideal(), lv.est.frd.freq_hz())?;
         Residues::fit(&lv.est.frd, &phi)
     }
@@ -555,15 +637,19 @@ impl AmplitudeModel {
     pub(crate) fn amplitudes(&self, lv: &Level<'_>) -> Vec<f64> {
         let y = steady_output(lv.exp);
         let fs = lv.exp.spec.sample_rate_hz;
-        let mut pairs = self.basis.pairs().to_vec();
+        let mut pairs = self.basis.poles().to_vec();
         let mut amp = Vec::new();
         for _ in 0..3 {
             amp = self
                 .cand
                 .iter()
                 .map(|&pm| {
-                    let nat = natural(pairs[pm], [[0.0; 2]; 2]);
-                    let (lo, hi) = band(nat.0, nat.1);
+                    let at = if self.basis.is_real(pm) {
+                        self.basis.poles()[pm]
+                    } else {
+                        pairs[pm]
+                    };
+                    let (lo, hi) = band_of(at);
                     band_rms(y, fs, lo, hi)
                 })
                 .collect();
@@ -576,7 +662,7 @@ impl AmplitudeModel {
     /// enter through their propagated errors).
     pub(crate) fn lines(&self, lv: &Level<'_>) -> Result<Vec<Line>> {
         let amp = self.amplitudes(lv);
-        let b = self.basis.with_pairs(&self.pairs_at(&amp))?;
+        let b = self.basis.with_poles(&self.pairs_at(&amp))?;
         let f = lv.est.frd.freq_hz();
         let phi = b.responses(self.h, NonIdeal::ideal(), f)?;
         let res = self.res()?;
@@ -614,8 +700,12 @@ impl AmplitudeModel {
             .enumerate()
             .filter(|(m, _)| self.trends[*m].2 || self.trends[*m].3)
             .map(|(m, &pm)| {
-                let lin = natural(self.basis.pairs()[pm], [[0.0; 2]; 2]);
+                let lin = natural(self.basis.poles()[pm], [[0.0; 2]; 2]);
                 let (f, z) = pred[m];
+                if self.basis.is_real(pm) {
+                    // a corner acts on every line below ten times itself
+                    return (0.0, 10.0 * lin.0.max(f));
+                }
                 let w = (5.0 * lin.1.max(z)).max(0.02);
                 (lin.0.min(f) * (1.0 - w), lin.0.max(f) * (1.0 + w))
             })
@@ -625,7 +715,7 @@ impl AmplitudeModel {
     /// The discrete model at a level.
     pub(crate) fn model_at(&self, lv: &Level<'_>) -> Result<StateSpace> {
         let amp = self.amplitudes(lv);
-        self.basis.with_pairs(&self.pairs_at(&amp))?.model(
+        self.basis.with_poles(&self.pairs_at(&amp))?.model(
             &self.res()?.r,
             self.h,
             NonIdeal::ideal(),
@@ -659,7 +749,7 @@ impl AmplitudeModel {
             if !(*fm || *zm) {
                 continue;
             }
-            let lin = natural(self.basis.pairs()[pm], [[0.0; 2]; 2]);
+            let lin = natural(self.basis.poles()[pm], [[0.0; 2]; 2]);
             let points = levels
                 .iter()
                 .zip(fits)
@@ -676,6 +766,11 @@ impl AmplitudeModel {
                 })
                 .collect();
             out.push(MovingMode {
+                pole: if self.basis.is_real(pm) {
+                    PoleKind::Real
+                } else {
+                    PoleKind::Pair
+                },
                 linear_freq_hz: lin.0,
                 linear_damping: lin.1,
                 frequency_moves: *fm,
@@ -689,38 +784,42 @@ impl AmplitudeModel {
     }
 }
 
-/// `kind` and `damping_trend` of the moving modes: the dominant mode (the largest frequency
-/// shift over the measured amplitudes relative to its error) decides, at `z` standard errors.
-pub(crate) fn kinds(modes: &[MovingMode], z: f64) -> (FreqTrend, DampingTrend) {
-    let dominant =
-        |key: &dyn Fn(&MovingMode) -> f64| modes.iter().max_by(|a, b| key(a).total_cmp(&key(b)));
-    let f = dominant(&|m: &MovingMode| {
-        if m.frequency_moves {
-            m.frequency.slope.abs() / m.frequency.slope_std.max(f64::MIN_POSITIVE)
-        } else {
-            0.0
-        }
-    })
-    .filter(|m| m.frequency_moves)
-    .map_or(FreqTrend::None, |m| match m.frequency.direction(z) {
+/// `kind` and `damping_trend` of the moving pairs: the dominant one (the largest frequency
+/// or damping slope relative to its error) decides, at `z` standard errors; `corner_trend`
+/// likewise of the moving real poles' corners.
+pub(crate) fn kinds(modes: &[MovingMode], z: f64) -> (FreqTrend, DampingTrend, CornerTrend) {
+    let dominant = |pole: PoleKind,
+                    moves: &dyn Fn(&MovingMode) -> bool,
+                    t: &dyn Fn(&MovingMode) -> Trend| {
+        modes
+            .iter()
+            .filter(|m| m.pole == pole && moves(m))
+            .max_by(|a, b| {
+                let k = |m: &MovingMode| t(m).slope.abs() / t(m).slope_std.max(f64::MIN_POSITIVE);
+                k(a).total_cmp(&k(b))
+            })
+            .map_or(0, |m| t(m).direction(z))
+    };
+    let f = match dominant(PoleKind::Pair, &|m| m.frequency_moves, &|m| {
+        m.frequency.clone()
+    }) {
         1 => FreqTrend::Hardening,
         -1 => FreqTrend::Softening,
         _ => FreqTrend::None,
-    });
-    let d = dominant(&|m: &MovingMode| {
-        if m.damping_moves {
-            m.damping.slope.abs() / m.damping.slope_std.max(f64::MIN_POSITIVE)
-        } else {
-            0.0
-        }
-    })
-    .filter(|m| m.damping_moves)
-    .map_or(DampingTrend::None, |m| match m.damping.direction(z) {
+    };
+    let d = match dominant(PoleKind::Pair, &|m| m.damping_moves, &|m| m.damping.clone()) {
         1 => DampingTrend::Increasing,
         -1 => DampingTrend::Decreasing,
         _ => DampingTrend::None,
-    });
-    (f, d)
+    };
+    let c = match dominant(PoleKind::Real, &|m| m.frequency_moves, &|m| {
+        m.frequency.clone()
+    }) {
+        1 => CornerTrend::Rising,
+        -1 => CornerTrend::Falling,
+        _ => CornerTrend::None,
+    };
+    (f, d, c)
 }
 
 #[cfg(test)]

@@ -11,9 +11,9 @@ use crate::lemma6::{compare, Pair, Pred};
 use crate::modal::{ModalBasis, Residues};
 use crate::stats::{normal_quantile, statistic, Line, Statistic};
 use crate::{
-    joined, merged_parameters, Cause, Curves, DampingTrend, DiagnoseError, DiagnoseOptions,
-    Diagnosis, DriftCheck, DriftSign, Evidence, ExperimentReport, Extension, FreqTrend, Gain,
-    HeldOut, ModelInfo, OwnFit, Ranked, RateTied, Result, Verdict,
+    joined, merged_parameters, Cause, CornerTrend, Curves, DampingTrend, DiagnoseError,
+    DiagnoseOptions, Diagnosis, DriftCheck, DriftSign, Evidence, ExperimentReport, Extension,
+    FreqTrend, Gain, HeldOut, ModelInfo, OwnFit, Ranked, RateTied, Result, Verdict,
 };
 use num_complex::Complex64 as C;
 use sd_ident::{DistortionReport, Experiment, Role};
@@ -491,6 +491,7 @@ fn one_level<'v, 'a: 'v>(disagreeing: impl Iterator<Item = &'v Val<'a>>) -> Outc
                     .collect(),
                 kind: FreqTrend::None,
                 damping_trend: DampingTrend::None,
+                corner_trend: CornerTrend::None,
                 modes: Vec::new(),
                 drift_check: DriftCheck::DistortionSeen,
             },
@@ -622,7 +623,21 @@ fn nonlinearity(
         });
         at.push(Some(i));
     }
-    let basis = &j.modal.basis;
+    // a rigid body damped at the model experiment's level (friction) becomes one block whose
+    // damping moves (below half the first line: an integrator for the data)
+    let f0 = data.fast.frd.freq_hz().first().copied().unwrap_or(0.0);
+    let damped = j
+        .modal
+        .basis
+        .with_damped_rigid_body(std::f64::consts::PI * f0)?;
+    let basis = &damped;
+    if std::env::var_os("SD_DEBUG_BASIS").is_some() {
+        eprintln!(
+            "DBG basis poles {:?} (from {:?})",
+            basis.poles(),
+            j.modal.basis.poles()
+        );
+    }
     let cand = candidates(basis, &data.fast);
     progress("modal fit of every level");
     let fits = levels
@@ -670,16 +685,16 @@ fn nonlinearity(
     let model = AmplitudeModel::fit(basis, data.h, &cand, &all, &fit_refs, alpha)?;
     progress("amplitude model: levels left out in turn");
     let (gain, loo, held) = if levels.len() >= 3 {
-        levels_left_out(data, j, ch, &levels, &fits, &at, (&cand, alpha))?
+        levels_left_out(data, ch, &levels, &fits, &at, (basis, &cand, alpha))?
     } else {
         (
-            later_periods(data, j, &levels, &fits, &cand, alpha)?,
+            later_periods(data, j, &levels, &fits, (basis, &cand), alpha)?,
             Vec::new(),
             BTreeMap::new(),
         )
     };
     let modes = model.report(&all, &fit_refs, &loo);
-    let (kind, damping_trend) = kinds(&modes, normal_quantile(1.0 - alpha / 2.0));
+    let (kind, damping_trend, corner_trend) = kinds(&modes, normal_quantile(1.0 - alpha / 2.0));
     let mut models = BTreeMap::new();
     for lv in &levels {
         models.insert(lv.name.clone(), model.model_at(lv)?);
@@ -690,6 +705,7 @@ fn nonlinearity(
             relative_levels,
             kind,
             damping_trend,
+            corner_trend,
             modes: modes.clone(),
             drift_check: check,
         }],
@@ -710,12 +726,11 @@ type LeftOut = Vec<Option<Vec<(f64, f64)>>>;
 /// linear model's simulation of it.
 fn levels_left_out(
     data: &Data<'_>,
-    j: &Judged<'_>,
     ch: &Checks,
     levels: &[Level<'_>],
     fits: &[LevelFit],
     at: &[Option<usize>],
-    (cand, alpha): (&[usize], f64),
+    (basis, cand, alpha): (&ModalBasis, &[usize], f64),
 ) -> Result<(Gain, LeftOut, BTreeMap<String, HeldOut>)> {
     let (mut before, mut after, mut held) = (Vec::new(), Vec::new(), Vec::new());
     let mut per = BTreeMap::new();
@@ -734,7 +749,7 @@ fn levels_left_out(
             .filter(|(m, _)| *m != k)
             .map(|(_, f)| f)
             .collect();
-        let m = AmplitudeModel::fit(&j.modal.basis, data.h, cand, &train, &tf, alpha)?;
+        let m = AmplitudeModel::fit(basis, data.h, cand, &train, &tf, alpha)?;
         loo[k] = Some(m.predicted(lv));
         let c = lv.est.inflation;
         let bands = m.moving_bands(lv);
@@ -796,7 +811,7 @@ fn later_periods(
     j: &Judged<'_>,
     levels: &[Level<'_>],
     fits: &[LevelFit],
-    cand: &[usize],
+    (basis, cand): (&ModalBasis, &[usize]),
     alpha: f64,
 ) -> Result<Gain> {
     let Some(other) = levels.get(1) else {
@@ -821,9 +836,9 @@ fn later_periods(
         exp: other.exp,
         est: late,
     };
-    let tf = fit_level(&j.modal.basis, cand, data.h, &train_lv)?;
+    let tf = fit_level(basis, cand, data.h, &train_lv)?;
     let m = AmplitudeModel::fit(
-        &j.modal.basis,
+        basis,
         data.h,
         cand,
         &[&levels[0], &train_lv],
@@ -895,6 +910,7 @@ fn per_level(
             relative_levels,
             kind: FreqTrend::None,
             damping_trend: DampingTrend::None,
+            corner_trend: CornerTrend::None,
             modes: Vec::new(),
             drift_check: check,
         }],

@@ -32,8 +32,14 @@
 //! - a same-rate experiment at another excitation level (> 20 % apart) whose FRF differs
 //!   significantly: cause `nonlinearity`; the extension is the amplitude-dependent modal model
 //!   (module `amplitude`: frequency and damping trends of the modes that move, in each mode's band
-//!   amplitude), judged on whole levels left out in turn. Non-periodic records of changing
-//!   amplitude are first cut into pieces of constant amplitude ([`pieces`]);
+//!   amplitude, and a friction-damped rigid body's corner), judged on whole levels left out in
+//!   turn. Non-periodic records of changing amplitude are first cut into pieces of constant
+//!   amplitude ([`pieces`]);
+//! - levels that disagree while no experiment involved shows nonlinear distortion at its
+//!   non-excited lines (a calibrated per-line score, [`sd_ident::DistortionReport`]), or a
+//!   same-level repeat that disagrees without distortion: cause `drift` (the plant changed
+//!   with time); a same-level disagreement *with* distortion and nothing rate-tied to test:
+//!   `nonlinearity` at one level (named, not modelled);
 //! - the model-free prediction inconsistent: the rate-tied hypotheses ([`hypotheses`]),
 //!   parametric extensions of a continuous modal model built from the model's poles
 //!   ([`modal`]): `hold_delay` α (the hold switches α of each experiment's own period late,
@@ -183,6 +189,9 @@ pub enum Cause {
         kind: FreqTrend,
         /// Whether its damping rises or falls with amplitude.
         damping_trend: DampingTrend,
+        /// Whether the real poles' corners (a friction-damped rigid body) rise or fall with
+        /// amplitude.
+        corner_trend: CornerTrend,
         /// The modes that move with amplitude, with every level's points and the trends.
         modes: Vec<MovingMode>,
         /// What rules out drift over time as the reason the levels differ.
@@ -348,6 +357,30 @@ pub enum DriftSign {
     LevelsWithoutDistortion,
 }
 
+/// The kind of a pole that moves with amplitude.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PoleKind {
+    /// A complex pair: a mode with a natural frequency and a damping.
+    Pair,
+    /// A real pole `−a`: a corner at `a/2π` Hz (a rigid body damped by friction, `a = c/m`).
+    Real,
+}
+
+/// How the real poles' corners move with amplitude.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CornerTrend {
+    /// The corner rises with amplitude.
+    Rising,
+    /// It falls: the equivalent damping of Coulomb friction, `c_eq ≈ 4F_c/(πωA)` (sine) or
+    /// `F_c·√(2/π)/σ_v` (random), shrinks as the motion grows, so the rigid body's corner
+    /// `c_eq/m` falls as `1/amplitude`.
+    Falling,
+    /// No change beyond its uncertainty.
+    None,
+}
+
 /// What tells a nonlinearity from a plant that drifted between experiments.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -429,6 +462,9 @@ pub struct ModePoint {
 /// A mode whose frequency or damping moves with amplitude.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct MovingMode {
+    /// A lightly damped pair (a mode) or a real pole (a corner: `linear_freq_hz` is `a/2π`
+    /// of the pole `−a`, the damping 1).
+    pub pole: PoleKind,
     /// The linear model's natural frequency (Hz).
     pub linear_freq_hz: f64,
     /// The linear model's damping ratio.

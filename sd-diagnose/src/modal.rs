@@ -40,6 +40,9 @@ const MIN_ABS_Z: f64 = 0.05;
 pub(crate) struct ModalBasis {
     blocks: Vec<StateSpace>,
     rigid: usize,
+    /// Damping `a ≥ 0` of the two-state rigid body `ẋ = v, v̇ = −a v + u` (outputs `x` and
+    /// `v`: `1/(s(s + a))` and `1/(s + a)`); 0 but in [`ModalBasis::with_damped_rigid_body`].
+    rigid_damping: f64,
     real: Vec<f64>,
     pairs: Vec<C>,
 }
@@ -70,19 +73,52 @@ impl ModalBasis {
                 pairs.push(s);
             }
         }
-        Self::build(rigid, &real, &pairs)
+        Self::build((rigid, 0.0), &real, &pairs)
     }
 
-    fn build(rigid: usize, real: &[f64], pairs: &[C]) -> Result<Self> {
+    /// The basis with a friction-damped rigid body where the model has none: a model fitted
+    /// to data of a stage whose rigid body is damped (Coulomb friction at a small amplitude
+    /// acts as a viscous `c_eq`) shows it as an integrator (a rigid-body pole, or a real pole
+    /// below `near_zero` rad/s) and a real corner `−c/m` below the modes. They become one block `1/(s(s + a))`,
+    /// `1/(s + a)` (the same span as `1/s`, `1/(s + a)`), whose residue on `1/(s(s + a))` is
+    /// `1/m` whatever `a`: friction then moves one pole and leaves the residues alone, as
+    /// the amplitude model assumes. Unchanged when the model has rigid-body poles or no such
+    /// pair of real poles.
+    pub(crate) fn with_damped_rigid_body(&self, near_zero: f64) -> Result<Self> {
+        let mut real = self.real.clone();
+        real.sort_by(|a, b| b.total_cmp(a));
+        let lowest_pair = self
+            .pairs
+            .iter()
+            .map(|p| p.norm())
+            .fold(f64::INFINITY, f64::min);
+        let corner = |a: f64| a.abs() < lowest_pair;
+        match (self.rigid, real.as_slice()) {
+            // one integrator and a corner below the modes
+            (1, [a, ..]) if corner(*a) => Self::build((2, a.abs()), &real[1..], &self.pairs),
+            // a pole near the origin (an integrator for the data) and a corner
+            (0, [z, a, ..]) if z.abs() < near_zero && corner(*a) => {
+                Self::build((2, a.abs()), &real[2..], &self.pairs)
+            }
+            _ => Ok(self.clone()),
+        }
+    }
+
+    fn build((rigid, damping): (usize, f64), real: &[f64], pairs: &[C]) -> Result<Self> {
         Ok(ModalBasis {
-            blocks: Self::blocks(rigid, real, pairs)?,
+            blocks: Self::blocks((rigid, damping), real, pairs)?,
             rigid,
+            rigid_damping: damping,
             real: real.to_vec(),
             pairs: pairs.to_vec(),
         })
     }
 
-    fn blocks(rigid: usize, real: &[f64], pairs: &[C]) -> Result<Vec<StateSpace>> {
+    fn blocks(
+        (rigid, damping): (usize, f64),
+        real: &[f64],
+        pairs: &[C],
+    ) -> Result<Vec<StateSpace>> {
         let ct = SampleTime::Continuous;
         let block = |a: DMatrix<f64>, b: DMatrix<f64>| -> Result<StateSpace> {
             let n = a.nrows();
@@ -101,7 +137,7 @@ impl ModalBasis {
                 DMatrix::from_element(1, 1, 1.0),
             )?),
             2 => blocks.push(block(
-                DMatrix::from_row_slice(2, 2, &[0.0, 1.0, 0.0, 0.0]),
+                DMatrix::from_row_slice(2, 2, &[0.0, 1.0, 0.0, -damping]),
                 DMatrix::from_column_slice(2, 1, &[0.0, 1.0]),
             )?),
             _ => {}
@@ -129,26 +165,66 @@ impl ModalBasis {
         Ok(blocks)
     }
 
-    /// The complex pole pairs (upper half plane, rad/s).
-    pub(crate) fn pairs(&self) -> &[C] {
-        &self.pairs
-    }
-
-    /// The same basis with the pole pairs replaced (same count and order).
-    pub(crate) fn with_pairs(&self, pairs: &[C]) -> Result<Self> {
-        if pairs.len() != self.pairs.len() {
-            return Err(DiagnoseError::Numerical(format!(
-                "{} pole pairs given for a basis of {}",
-                pairs.len(),
-                self.pairs.len()
-            )));
-        }
-        Self::build(self.rigid, &self.real, pairs)
+    /// Whether the rigid body's damping is a movable pole (a damped rigid body).
+    fn damped(&self) -> usize {
+        usize::from(self.rigid == 2 && self.rigid_damping > 0.0)
     }
 
     /// The column of pair `m`'s σ in [`ModalBasis::pole_sensitivities`] (ω is the next).
     pub(crate) fn pair_sensitivity_column(&self, m: usize) -> usize {
-        self.real.len() + 2 * m
+        self.damped() + self.real.len() + 2 * m
+    }
+
+    /// Every movable pole, the real ones first (as `p + 0j`: a damped rigid body's `−a`,
+    /// then the others), then the pairs (upper half plane): the index space of
+    /// [`ModalBasis::with_poles`] and [`ModalBasis::sensitivity_column`].
+    pub(crate) fn poles(&self) -> Vec<C> {
+        let rigid = (self.damped() == 1).then_some(-self.rigid_damping);
+        rigid
+            .into_iter()
+            .chain(self.real.iter().copied())
+            .map(|p| C::new(p, 0.0))
+            .chain(self.pairs.iter().copied())
+            .collect()
+    }
+
+    /// Whether pole `u` of [`ModalBasis::poles`] is the damped rigid body's `−a`.
+    pub(crate) fn is_rigid_damping(&self, u: usize) -> bool {
+        u < self.damped()
+    }
+
+    /// Whether pole `u` of [`ModalBasis::poles`] is real.
+    pub(crate) fn is_real(&self, u: usize) -> bool {
+        u < self.damped() + self.real.len()
+    }
+
+    /// The first column of pole `u`'s parameters in [`ModalBasis::pole_sensitivities`] (one
+    /// for a real pole, σ and ω for a pair).
+    pub(crate) fn sensitivity_column(&self, u: usize) -> usize {
+        if self.is_real(u) {
+            u
+        } else {
+            self.pair_sensitivity_column(u - self.damped() - self.real.len())
+        }
+    }
+
+    /// The same basis with every movable pole replaced (the order of [`ModalBasis::poles`]).
+    pub(crate) fn with_poles(&self, poles: &[C]) -> Result<Self> {
+        let (d, nr) = (self.damped(), self.real.len());
+        if poles.len() != d + nr + self.pairs.len() {
+            return Err(DiagnoseError::Numerical(format!(
+                "{} poles given for a basis of {}",
+                poles.len(),
+                d + nr + self.pairs.len()
+            )));
+        }
+        let damping = if d == 1 {
+            -poles[0].re
+        } else {
+            self.rigid_damping
+        };
+        let real: Vec<f64> = poles[d..d + nr].iter().map(|p| p.re).collect();
+        Self::build((self.rigid, damping), &real, &poles[d + nr..])
     }
 
     /// Columns of the residue vector that belong to the rigid-body block.
@@ -195,15 +271,24 @@ impl ModalBasis {
                     })
                     .collect())
             };
+        if self.damped() == 1 {
+            let a = self.rigid_damping;
+            let step = 1e-6 * a.max(1.0);
+            let rb = |x: f64| Self::blocks((2, x), &[], &[]).map(|mut b| b.remove(0));
+            // the pole is −a: d/dp = −d/da
+            let mut col = diff(&rb(a + step)?, &rb(a - step)?, step, &r[0..2])?;
+            col.iter_mut().for_each(|c| *c = -*c);
+            cols.push(col);
+        }
         for &p in &self.real {
             let step = 1e-6 * p.abs().max(1.0);
-            let one = |x: f64| Self::blocks(0, &[x], &[]).map(|mut b| b.remove(0));
+            let one = |x: f64| Self::blocks((0, 0.0), &[x], &[]).map(|mut b| b.remove(0));
             cols.push(diff(&one(p + step)?, &one(p - step)?, step, &r[j..j + 1])?);
             j += 1;
         }
         for &p in &self.pairs {
             let step = 1e-6 * p.norm().max(1.0);
-            let two = |x: C| Self::blocks(0, &[], &[x]).map(|mut b| b.remove(0));
+            let two = |x: C| Self::blocks((0, 0.0), &[], &[x]).map(|mut b| b.remove(0));
             let w = &r[j..j + 2];
             cols.push(diff(&two(p + step)?, &two(p - step)?, step, w)?);
             let di = C::new(0.0, step);

@@ -11,7 +11,8 @@ use crate::{ReportError, Result};
 use num_complex::Complex64 as C;
 use plotters::style::RGBColor;
 use sd_diagnose::{
-    Cause, DampingTrend, Diagnosis, DriftCheck, DriftSign, ExperimentReport, Extension, FreqTrend,
+    Cause, CornerTrend, DampingTrend, Diagnosis, DriftCheck, DriftSign, ExperimentReport,
+    Extension, FreqTrend,
 };
 use std::fmt::Write as _;
 use std::path::Path;
@@ -509,6 +510,7 @@ fn cause_text(c: &Cause) -> Option<String> {
             relative_levels,
             kind,
             damping_trend,
+            corner_trend,
             modes,
             drift_check,
         } => {
@@ -545,9 +547,17 @@ fn cause_text(c: &Cause) -> Option<String> {
                      campaign, or excite with odd multisines that leave detection lines"
                 }
             };
+            let corner = match corner_trend {
+                CornerTrend::Falling => {
+                    "; a real pole's corner falls with amplitude (friction-like: Coulomb \
+                     friction's equivalent damping shrinks as the motion grows)"
+                }
+                CornerTrend::Rising => "; a real pole's corner rises with amplitude",
+                CornerTrend::None => "",
+            };
             format!(
                 "Experiments at other excitation levels disagree with the model \
-                 experiment's ({}); {kind}, {damp}; {} moving mode(s); {drift}",
+                 experiment's ({}); {kind}, {damp}{corner}; {} moving pole(s); {drift}",
                 per.join(", "),
                 modes.len()
             )

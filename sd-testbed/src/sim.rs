@@ -162,8 +162,10 @@ pub struct PlantSim {
     quantization: f64,
 }
 
-/// Substeps per period needed for the nonlinear terms (2π f dt ≤ 0.05 at the fastest
-/// nonlinear mode, at least 8).
+/// Substeps per period needed for the nonlinear terms: `2π f dt ≤ 0.05` at the fastest
+/// nonlinear mode, and `λ dt ≤ 0.5` for the smoothed Coulomb term, whose slope at rest
+/// `λ = F_c/(m v_s)` is a stiff rate the integrator takes explicitly (RK4 is stable to
+/// `λ dt ≈ 2.8`); at least 8.
 pub fn default_substeps(truth: &Truth, h: f64) -> usize {
     let f = truth
         .modes
@@ -171,7 +173,9 @@ pub fn default_substeps(truth: &Truth, h: f64) -> usize {
         .filter(|m| m.cubic != 0.0)
         .map(|m| m.freq_hz)
         .fold(0.0, f64::max);
-    ((2.0 * PI * f * h / 0.05).ceil() as usize).max(8)
+    let friction = truth.coulomb / (truth.mass * truth.coulomb_velocity);
+    let steps = (2.0 * PI * f * h / 0.05).max(friction * h / 0.5).ceil();
+    (steps.min(1e6) as usize).max(8)
 }
 
 impl PlantSim {

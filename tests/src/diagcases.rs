@@ -426,7 +426,13 @@ pub enum LevelEffect {
     /// As [`LevelEffect::Drift`] without the repeat: only the absence of distortion at the
     /// non-excited lines tells the drift from an amplitude effect.
     DriftLevels,
+    /// Coulomb friction on the rigid body ([`COULOMB`] of the first level's force rms).
+    Coulomb,
 }
+
+/// Coulomb friction force of a [`LevelEffect::Coulomb`] case relative to the first level's
+/// force rms (0.5 N).
+pub const COULOMB: f64 = 0.2;
 
 /// A case at several excitation levels, all at the fast rate.
 #[derive(Debug, Clone)]
@@ -568,6 +574,9 @@ pub fn level_case(
     if matches!(effect, LevelEffect::Hardening | LevelEffect::Softening) {
         let base = identify(&st, &rec, &exp(&st, 1.0, 0))?;
         size_cubic(&mut st, effect, &base, top);
+    }
+    if effect == LevelEffect::Coulomb {
+        st.truth.coulomb = COULOMB * 0.5;
     }
     let mut list: Vec<f64> = levels.to_vec();
     if effect == LevelEffect::Drift {

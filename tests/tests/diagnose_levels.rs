@@ -5,23 +5,23 @@
 //!
 //! A held-out level counts as *visible* when the linear model's statistic on it (in the moving
 //! mode's band, the gain's metric) is at least [`VISIBLE`]: there the extension must gain at
-//! least 3. Seeds: development `0..20`; the default run `50..53` (non-periodic `50..52`);
-//! reported (not looked at before the figures were taken) `100..125` (periodic) and
-//! `150..170` (non-periodic):
+//! least 3. Seeds: development `0..20` (and `100..125`, `150..170`, reported by an earlier
+//! version); the default run `50..53` (non-periodic `50..52`); reported (not looked at before
+//! the figures were taken) `300..325` (periodic) and `350..366` (non-periodic):
 //! `cargo test --release -p sd-tests --test diagnose_levels -- --ignored --nocapture`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-use sd_diagnose::{Cause, DampingTrend, DriftCheck, FreqTrend};
+use sd_diagnose::{Cause, CornerTrend, DampingTrend, DriftCheck, FreqTrend};
 use sd_tests::diagcases::{
     level_case, level_rate_case, per_seed, rising_case, LevelCase, LevelEffect, Recording,
 };
 
 /// The linear model's held-out statistic from which a level's nonlinearity counts as visible.
 const VISIBLE: f64 = 5.0;
-const REPORT_SEEDS: std::ops::Range<u64> = 100..125;
+const REPORT_SEEDS: std::ops::Range<u64> = 300..325;
 const CI_SEEDS: std::ops::Range<u64> = 50..53;
 /// Reported seeds of the non-periodic forms (separate noise records, one rising record).
-const REPORT_SEEDS_NOISE: std::ops::Range<u64> = 150..170;
+const REPORT_SEEDS_NOISE: std::ops::Range<u64> = 350..366;
 /// The default run's non-periodic subset.
 const CI_SEEDS_NOISE: std::ops::Range<u64> = 50..52;
 
@@ -44,6 +44,7 @@ struct Outcome {
     kind: Option<FreqTrend>,
     damping: Option<DampingTrend>,
     drift_check: Option<DriftCheck>,
+    corner: Option<CornerTrend>,
     /// Pooled held-out gain.
     gain: Option<f64>,
     /// Per held-out level: (before, after).
@@ -59,6 +60,11 @@ impl Outcome {
             LevelEffect::Hardening => self.kind == Some(FreqTrend::Hardening),
             LevelEffect::Softening => self.kind == Some(FreqTrend::Softening),
             LevelEffect::Linear => self.cause == "none",
+            // periodic: named; whether the friction-damped rigid body's corner is found
+            // falling and predicted is reported by `summarize` (not yet reliable enough to
+            // require), and so is everything about friction in non-periodic records (the LPM
+            // leaves the low lines where friction acts too noisy to see it at 20 % of the force)
+            LevelEffect::Coulomb => !self.case.recording.periodic || self.cause == "nonlinearity",
             // a same-level repeat that disagrees names drift
             LevelEffect::Drift => self.cause == "drift",
             // without a repeat, the non-excited lines of a periodic recording name drift;
@@ -121,19 +127,31 @@ fn run(seed: u64, effect: LevelEffect, levels: &[f64], form: Form) -> Option<Out
     .unwrap();
     let seconds = t.elapsed().as_secs_f64();
     if std::env::var_os("LEVEL_EVIDENCE").is_some() {
+        let h = d.model.ts().unwrap_or(1.0);
+        for z in d.model.poles().unwrap() {
+            let s = z.ln() / h;
+            println!(
+                "    pole s = {:.3} {:+.3}j (|s|/2π {:.2} Hz)",
+                s.re,
+                s.im,
+                s.norm() / std::f64::consts::TAU
+            );
+        }
         for e in &d.evidence {
             println!("    {:.3} / {:.3} {}", e.statistic, e.threshold, e.test);
         }
     }
-    let (mut kind, mut damping, mut drift_check) = (None, None, None);
+    let (mut kind, mut damping, mut drift_check, mut corner) = (None, None, None, None);
     for c in &d.causes {
         if let Cause::Nonlinearity {
             kind: k,
             damping_trend,
             drift_check: dc,
+            corner_trend,
             ..
         } = c
         {
+            corner = Some(*corner_trend);
             kind = Some(*k);
             damping = Some(*damping_trend);
             drift_check = Some(*dc);
@@ -144,6 +162,7 @@ fn run(seed: u64, effect: LevelEffect, levels: &[f64], form: Form) -> Option<Out
         kind,
         damping,
         drift_check,
+        corner,
         gain: d.gain.ratio,
         levels: d
             .experiments
@@ -155,11 +174,12 @@ fn run(seed: u64, effect: LevelEffect, levels: &[f64], form: Form) -> Option<Out
         case,
     };
     println!(
-        "seed {seed} {effect:?} {levels:?} {form_label:.9}: {} kind {:?} damping {:?} gain {:?} levels {:?} \
+        "seed {seed} {effect:?} {levels:?} {form_label:.9}: {} kind {:?} damping {:?} corner {:?} gain {:?} levels {:?} \
          shift errors {:?} ({:.1} s){}",
         out.cause,
         out.kind,
         out.damping,
+        out.corner,
         out.gain.map(|g| (g * 10.0).round() / 10.0),
         out.levels
             .iter()
@@ -189,8 +209,14 @@ fn cases(seeds: std::ops::Range<u64>, form: Form) -> Vec<Outcome> {
             (LevelEffect::Linear, &four[..]),
             (LevelEffect::Drift, &four[..]),
             (LevelEffect::DriftLevels, &four[..]),
+            (LevelEffect::Coulomb, &four[..]),
+            (LevelEffect::Coulomb, &three[..]),
         ]
         .into_iter()
+        // development: LEVEL_ONLY=Coulomb runs one effect
+        .filter(|(effect, _)| {
+            std::env::var("LEVEL_ONLY").map_or(true, |o| format!("{effect:?}") == o)
+        })
         // a rising record has no repeat of its first level: drift is tested on separate records
         .filter(|(effect, _)| {
             !matches!(
@@ -255,6 +281,36 @@ fn summarize(out: &[Outcome]) -> (usize, usize) {
         median(&t),
         t.iter().cloned().fold(0.0, f64::max)
     );
+    let coulomb: Vec<&Outcome> = out
+        .iter()
+        .filter(|o| o.case.effect == LevelEffect::Coulomb)
+        .collect();
+    if !coulomb.is_empty() {
+        let falling = coulomb
+            .iter()
+            .filter(|o| o.corner == Some(CornerTrend::Falling))
+            .count();
+        let claimed = coulomb
+            .iter()
+            .filter(|o| o.kind.is_some_and(|k| k != FreqTrend::None))
+            .count();
+        let vis: Vec<f64> = coulomb
+            .iter()
+            .flat_map(|o| o.levels.iter())
+            .filter(|l| l.1 >= VISIBLE)
+            .map(|l| l.1 / l.2)
+            .collect();
+        println!(
+            "Coulomb friction: {} cases, rigid-body corner falling in {falling}, a mode's \
+             frequency trend claimed in {claimed}; visible levels {}: gain median {:.2}, worst \
+             {:.2}, ≥ 3 in {}",
+            coulomb.len(),
+            vis.len(),
+            median(&vis),
+            vis.iter().cloned().fold(f64::INFINITY, f64::min),
+            vis.iter().filter(|g| **g >= 3.0).count()
+        );
+    }
     (wrong, visible.iter().filter(|g| **g < 3.0).count())
 }
 
@@ -281,7 +337,7 @@ fn levels_default_subset_nonperiodic() {
     }
 }
 
-/// The reported seeds of the non-periodic forms (`150..170`, 120 + 100 cases).
+/// The reported seeds of the non-periodic forms (`350..366`).
 #[test]
 #[ignore]
 fn levels_reported_nonperiodic() {
@@ -337,7 +393,7 @@ fn four_levels_speed() {
     }
 }
 
-/// The reported seeds (150 cases).
+/// The reported periodic seeds (`300..325`).
 #[test]
 #[ignore]
 fn levels_reported() {
@@ -355,10 +411,12 @@ fn development_levels() {
     let spec = std::env::var("LEVEL_SEEDS").unwrap_or_else(|_| "0..4".into());
     let (a, b) = spec.split_once("..").unwrap();
     let (a, b): (u64, u64) = (a.parse().unwrap(), b.parse().unwrap());
-    assert!(
-        b <= REPORT_SEEDS.start || a >= REPORT_SEEDS.end,
-        "development seeds must not touch the reported range"
-    );
+    for r in [REPORT_SEEDS, REPORT_SEEDS_NOISE] {
+        assert!(
+            b <= r.start || a >= r.end,
+            "development seeds must not touch the reported range {r:?}"
+        );
+    }
     let form = match std::env::var("LEVEL_REC").as_deref() {
         Ok("noise") => Form::Separate(NOISE),
         Ok("rising") => Form::Rising,
