@@ -398,15 +398,17 @@ fn trend_fit(pts: &[(f64, f64, f64)], k: i32) -> Option<(Trend, f64)> {
     ))
 }
 
-/// The trend: exponent 2 (the cubic-stiffness backbone) unless another exponent lowers the
-/// weighted residual by more than the `1 − alpha` quantile of χ²₁ (the data must insist on a
-/// different law; with two points every exponent fits exactly and 2 stays).
-fn best_trend(pts: &[(f64, f64, f64)], alpha: f64) -> Option<Trend> {
-    let (default, c0) = trend_fit(pts, EXPONENTS[0])?;
+/// The trend: exponent `default` (2 for a mode, the cubic-stiffness backbone; −1 for a
+/// friction-damped rigid body's corner, `c_eq ∝ 1/amplitude`) unless another exponent of
+/// [`EXPONENTS`] lowers the weighted residual by more than the `1 − alpha` quantile of χ²₁
+/// (the data must insist on a different law; with two points every exponent fits exactly and
+/// the default stays).
+fn best_trend(pts: &[(f64, f64, f64)], alpha: f64, default: i32) -> Option<Trend> {
+    let (first, c0) = trend_fit(pts, default)?;
     let margin = normal_quantile(1.0 - alpha / 2.0).powi(2);
-    let mut best = (default, c0);
+    let mut best = (first, c0);
     if pts.len() > 2 {
-        for k in &EXPONENTS[1..] {
+        for k in EXPONENTS.iter().filter(|k| **k != default) {
             if let Some((t, c)) = trend_fit(pts, *k) {
                 if c < best.1 && c0 - c > margin {
                     best = (t, c);
@@ -557,7 +559,12 @@ impl AmplitudeModel {
                 trends.push((fallback, zfall, false, false));
                 continue;
             }
-            let ft = best_trend(&fp, alpha)
+            let default = if basis.is_rigid_damping(cand[m]) {
+                -1
+            } else {
+                EXPONENTS[0]
+            };
+            let ft = best_trend(&fp, alpha, default)
                 .ok_or_else(|| DiagnoseError::Numerical("frequency trend".into()))?;
             let zt = if basis.is_real(cand[m]) {
                 // a real pole's damping is 1 at every amplitude
@@ -568,7 +575,7 @@ impl AmplitudeModel {
                     ..fallback.clone()
                 }
             } else {
-                best_trend(&zp, alpha)
+                best_trend(&zp, alpha, EXPONENTS[0])
                     .ok_or_else(|| DiagnoseError::Numerical("damping trend".into()))?
             };
             let fm = moves(&fp.iter().map(|p| (p.1, p.2)).collect::<Vec<_>>(), a_mode);
@@ -861,7 +868,7 @@ mod tests {
             .iter()
             .map(|&r: &f64| (r, 100.0 + 0.05 * (r * r - 1.0), 0.01))
             .collect();
-        let t = best_trend(&pts, 0.01).unwrap();
+        let t = best_trend(&pts, 0.01, 2).unwrap();
         assert_eq!(t.exponent, 2);
         assert!((t.slope - 0.05).abs() < 1e-9 && (t.at_reference - 100.0).abs() < 1e-9);
         assert_eq!(t.direction(3.0), 1);

@@ -624,20 +624,13 @@ fn nonlinearity(
         at.push(Some(i));
     }
     // a rigid body damped at the model experiment's level (friction) becomes one block whose
-    // damping moves (below half the first line: an integrator for the data)
+    // damping moves (a pole below the first line is an integrator for the data)
     let f0 = data.fast.frd.freq_hz().first().copied().unwrap_or(0.0);
     let damped = j
         .modal
         .basis
-        .with_damped_rigid_body(std::f64::consts::PI * f0)?;
+        .with_damped_rigid_body(std::f64::consts::TAU * f0)?;
     let basis = &damped;
-    if std::env::var_os("SD_DEBUG_BASIS").is_some() {
-        eprintln!(
-            "DBG basis poles {:?} (from {:?})",
-            basis.poles(),
-            j.modal.basis.poles()
-        );
-    }
     let cand = candidates(basis, &data.fast);
     progress("modal fit of every level");
     let fits = levels

@@ -78,8 +78,10 @@ impl ModalBasis {
 
     /// The basis with a friction-damped rigid body where the model has none: a model fitted
     /// to data of a stage whose rigid body is damped (Coulomb friction at a small amplitude
-    /// acts as a viscous `c_eq`) shows it as an integrator (a rigid-body pole, or a real pole
-    /// below `near_zero` rad/s) and a real corner `−c/m` below the modes. They become one block `1/(s(s + a))`,
+    /// acts as a viscous `c_eq`) shows it as an integrator (a rigid-body pole, or real poles
+    /// or a pole pair below `near_zero` rad/s: integrators for the data, dropped, the block's
+    /// integrator stands for them) and a real corner `−c/m` below the modes (the first real
+    /// pole above `near_zero`). They become one block `1/(s(s + a))`,
     /// `1/(s + a)` (the same span as `1/s`, `1/(s + a)`), whose residue on `1/(s(s + a))` is
     /// `1/m` whatever `a`: friction then moves one pole and leaves the residues alone, as
     /// the amplitude model assumes. Unchanged when the model has rigid-body poles or no such
@@ -87,21 +89,24 @@ impl ModalBasis {
     pub(crate) fn with_damped_rigid_body(&self, near_zero: f64) -> Result<Self> {
         let mut real = self.real.clone();
         real.sort_by(|a, b| b.total_cmp(a));
-        let lowest_pair = self
-            .pairs
-            .iter()
-            .map(|p| p.norm())
-            .fold(f64::INFINITY, f64::min);
-        let corner = |a: f64| a.abs() < lowest_pair;
-        match (self.rigid, real.as_slice()) {
-            // one integrator and a corner below the modes
-            (1, [a, ..]) if corner(*a) => Self::build((2, a.abs()), &real[1..], &self.pairs),
-            // a pole near the origin (an integrator for the data) and a corner
-            (0, [z, a, ..]) if z.abs() < near_zero && corner(*a) => {
-                Self::build((2, a.abs()), &real[2..], &self.pairs)
-            }
-            _ => Ok(self.clone()),
+        // pole pairs below `near_zero` are integrators for the data too
+        let (low, pairs): (Vec<C>, Vec<C>) = self.pairs.iter().partition(|p| p.norm() < near_zero);
+        let lowest_pair = pairs.iter().map(|p| p.norm()).fold(f64::INFINITY, f64::min);
+        let near: Vec<usize> = (0..real.len())
+            .filter(|&k| real[k].abs() < near_zero)
+            .collect();
+        // an undamped rigid body already (two poles at z = 1), or no integrator at all
+        if self.rigid >= 2 || (self.rigid == 0 && near.is_empty() && low.is_empty()) {
+            return Ok(self.clone());
         }
+        // the corner: the first real pole at or above `near_zero`, below the modes
+        let Some(k) = (0..real.len()).find(|&k| real[k].abs() >= near_zero) else {
+            return Ok(self.clone());
+        };
+        if real[k].abs() >= lowest_pair {
+            return Ok(self.clone());
+        }
+        Self::build((2, real[k].abs()), &real[k + 1..], &pairs)
     }
 
     fn build((rigid, damping): (usize, f64), real: &[f64], pairs: &[C]) -> Result<Self> {
@@ -516,6 +521,58 @@ fn quad(cov: &DMatrix<f64>, g: &[C]) -> f64 {
 #[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
+
+    /// A friction-damped rigid body `1/(s(ms + c))` (m = 2, c/m = 200 rad/s) with a mode, as
+    /// a fit shows it (one integrator, a real corner): the damped block spans it exactly with
+    /// the residue `1/m` on `1/(s(s + a))` and none on `1/(s + a)`, and with those residues
+    /// unchanged it is exact again after friction halves the corner (`a` = 100) — the
+    /// property the amplitude model relies on. In the plain basis `1/s`, `1/(s + a)` the
+    /// residues would have to change (`±1/(m a)`).
+    #[test]
+    fn damped_rigid_body_keeps_its_residues_when_the_corner_moves() {
+        let pair = C::new(-20.0, 2000.0);
+        let plain = ModalBasis::build((1, 0.0), &[-200.0], &[pair]).unwrap();
+        let damped = plain.with_damped_rigid_body(10.0).unwrap();
+        assert_eq!(damped.poles().len(), 2);
+        assert!(damped.is_rigid_damping(0) && (damped.poles()[0].re + 200.0).abs() < 1e-12);
+        let ts = 2e-4;
+        let ff: Vec<f64> = (1..400).map(|k| k as f64 * 2.0).collect();
+        let truth = |a: f64| {
+            // 1/(m s (s + a)) + 3/(s² − 2σ s + |p|²), exactly discretised through the blocks
+            let b = ModalBasis::build((2, a), &[], &[pair]).unwrap();
+            let d = b
+                .model(&[0.5, 0.0, 0.0, 3.0, 0.0], ts, NonIdeal::ideal())
+                .unwrap();
+            d.freqresp(&ff).unwrap()
+        };
+        let g: Vec<C> = truth(200.0).response().iter().map(|r| r[(0, 0)]).collect();
+        let phi = damped.responses(ts, NonIdeal::ideal(), &ff).unwrap();
+        let res = Residues::fit_weighted(&phi, &g).unwrap();
+        assert!(
+            (res.r[0] - 0.5).abs() < 1e-8 && res.r[1].abs() < 1e-8,
+            "{:?}",
+            res.r
+        );
+        let moved = damped.with_poles(&[C::new(-100.0, 0.0), pair]).unwrap();
+        let phi2 = moved.responses(ts, NonIdeal::ideal(), &ff).unwrap();
+        let want = truth(100.0);
+        let worst = phi2
+            .iter()
+            .zip(want.response())
+            .map(|(ph, w)| ((res.predict(ph).0 - w[(0, 0)]) / w[(0, 0)]).norm())
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-8, "{worst}");
+        // an undamped rigid body (two poles at z = 1) is left alone
+        let undamped = ModalBasis::build((2, 0.0), &[-200.0], &[pair]).unwrap();
+        assert_eq!(
+            undamped.with_damped_rigid_body(10.0).unwrap().poles().len(),
+            2
+        );
+        assert!(!undamped
+            .with_damped_rigid_body(10.0)
+            .unwrap()
+            .is_rigid_damping(0));
+    }
 
     /// The basis spans the paper's two-mode stage exactly: its residue fit on noise-free
     /// delayed-hold data at 5 kHz predicts the 1 kHz delayed-hold FRF to rounding.
