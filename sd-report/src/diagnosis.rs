@@ -12,7 +12,7 @@ use num_complex::Complex64 as C;
 use plotters::style::RGBColor;
 use sd_diagnose::{
     Cause, CornerTrend, DampingTrend, Diagnosis, DriftCheck, DriftSign, ExperimentReport,
-    Extension, FreqTrend,
+    Extension, FreqTrend, PoleKind,
 };
 use std::fmt::Write as _;
 use std::path::Path;
@@ -332,27 +332,41 @@ fn amplitude_figures(dir: &Path, d: &Diagnosis) -> Result<Vec<String>> {
             };
             let (fc, zc, fpred, zpred) = (curve(&m.frequency), curve(&m.damping), pred(0), pred(1));
             let name = format!("amplitude_{:.0}hz.svg", m.linear_freq_hz);
-            crate::plot::error_bar_plot(
-                &dir.join(&name).display().to_string(),
-                &format!(
+            let real = m.pole == PoleKind::Real;
+            let freq = crate::plot::ErrorBarPanel {
+                y_desc: if real {
+                    "corner frequency a/2π [Hz]"
+                } else {
+                    "natural frequency [Hz]"
+                },
+                points: &fp,
+                curve: &fc,
+                predicted: &fpred,
+            };
+            let damp = crate::plot::ErrorBarPanel {
+                y_desc: "damping ratio ζ [-]",
+                points: &zp,
+                curve: &zc,
+                predicted: &zpred,
+            };
+            let title = if real {
+                format!(
+                    "Damped rigid body's corner at {:.1} Hz against amplitude (friction)",
+                    m.linear_freq_hz
+                )
+            } else {
+                format!(
                     "Mode at {:.1} Hz: frequency and damping against amplitude",
                     m.linear_freq_hz
-                ),
+                )
+            };
+            // a real pole has no damping of its own: one panel
+            let panels = if real { vec![freq] } else { vec![freq, damp] };
+            crate::plot::error_bar_plot(
+                &dir.join(&name).display().to_string(),
+                &title,
                 "relative amplitude ρ (band rms of the output / the model experiment's)",
-                &[
-                    crate::plot::ErrorBarPanel {
-                        y_desc: "natural frequency [Hz]",
-                        points: &fp,
-                        curve: &fc,
-                        predicted: &fpred,
-                    },
-                    crate::plot::ErrorBarPanel {
-                        y_desc: "damping ratio ζ [-]",
-                        points: &zp,
-                        curve: &zc,
-                        predicted: &zpred,
-                    },
-                ],
+                &panels,
             )?;
             out.push(name);
         }
@@ -607,7 +621,7 @@ fn moving_modes_section(md: &mut String, d: &Diagnosis) {
         if modes.is_empty() {
             continue;
         }
-        let _ = writeln!(md, "## Modes that move with amplitude\n");
+        let _ = writeln!(md, "## Modes (and poles) that move with amplitude\n");
         let _ = writeln!(
             md,
             "Amplitude: rms of the measured output in the mode's band (f ± max(3ζ, 2 %) f), \
@@ -615,6 +629,10 @@ fn moving_modes_section(md: &mut String, d: &Diagnosis) {
              1).\n"
         );
         for m in modes {
+            if m.pole == PoleKind::Real {
+                corner_rows(md, m);
+                continue;
+            }
             let _ = writeln!(
                 md,
                 "**Mode at {:.2} Hz (ζ = {:.4} linear).** Frequency {}: {:.2} ± {:.2} Hz + \
@@ -654,6 +672,44 @@ fn moving_modes_section(md: &mut String, d: &Diagnosis) {
             let _ = writeln!(md);
         }
     }
+}
+
+/// A friction-damped rigid body's corner: its trend and every level's point.
+fn corner_rows(md: &mut String, m: &sd_diagnose::MovingMode) {
+    let _ = writeln!(
+        md,
+        "**Damped rigid body, corner at {:.2} Hz linear** (the pole −2πf of `1/(s(s + a))`: \
+         friction's equivalent damping over the mass). Corner {}: {:.2} ± {:.2} Hz + ({:.3} ± \
+         {:.3}) Hz·(ρ^{} − 1).\n",
+        m.linear_freq_hz,
+        if m.frequency_moves {
+            "moves"
+        } else {
+            "does not move beyond its errors"
+        },
+        m.frequency.at_reference,
+        m.frequency.at_reference_std,
+        m.frequency.slope,
+        m.frequency.slope_std,
+        m.frequency.exponent
+    );
+    let _ = writeln!(
+        md,
+        "| experiment | ρ | corner [Hz] | predicted without it [Hz] |\n|---|---|---|---|"
+    );
+    for p in &m.points {
+        let _ = writeln!(
+            md,
+            "| {} | {:.2} | {:.2} ± {:.2} | {} |",
+            p.experiment,
+            p.relative_amplitude,
+            p.freq_hz,
+            p.freq_hz_std,
+            p.held_out_prediction
+                .map_or("–".to_string(), |(f, _)| format!("{f:.2}"))
+        );
+    }
+    let _ = writeln!(md);
 }
 
 /// The records that were cut into pieces of constant amplitude, and how.

@@ -441,7 +441,7 @@ fn report_of_a_rising_record() {
     let md = std::fs::read_to_string(dir.join("report.md")).unwrap();
     assert!(md.contains("Records cut into pieces"), "{md}");
     assert!(md.contains("rising[0.0–5.0 s]"), "{md}");
-    assert!(md.contains("Modes that move with amplitude"), "{md}");
+    assert!(md.contains("that move with amplitude"), "{md}");
     let amp: Vec<&String> = figs
         .iter()
         .filter(|f| f.starts_with("amplitude_"))
@@ -501,4 +501,50 @@ fn level_and_rate_together() {
     assert!(rows.len() >= 4, "only {} cases ran", rows.len());
     let wrong: Vec<_> = rows.iter().filter(|r| !r.0).collect();
     assert!(wrong.is_empty(), "{wrong:?}");
+}
+
+/// Coulomb friction on the rigid body at four levels (periodic): the first seed from 50 whose
+/// diagnosis finds the damped rigid body's corner falling gains ≥ 2 on its held-out levels
+/// (≥ 3 is not reached on every friction case yet: see `summarize`'s friction line), and its
+/// report has the corner's table and a one-panel figure of the corner against
+/// amplitude. Seeds 50..53 give at least one such case.
+#[test]
+fn friction_corner_is_reported() {
+    let found = (50..53).find_map(|s| {
+        let case = level_case(s, LevelEffect::Coulomb, &[1.0, 2.0, 4.0, 8.0], PERIODIC)?;
+        let d = sd_diagnose::diagnose(&case.experiments, &Default::default()).unwrap();
+        let falling = d.causes.iter().any(|c| {
+            matches!(
+                c,
+                Cause::Nonlinearity {
+                    corner_trend: CornerTrend::Falling,
+                    ..
+                }
+            )
+        });
+        falling.then_some((s, d))
+    });
+    let (seed, d) = found.expect("no seed of 50..53 finds the friction corner falling");
+    println!("seed {seed}: gain {:?}", d.gain.ratio);
+    assert!(d.gain.ratio.is_some_and(|g| g >= 2.0), "{:?}", d.gain);
+    let dir = std::env::temp_dir().join(format!("sd_friction_report_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let figs = sd_report::diagnosis::write(&dir, &d, "friction").unwrap();
+    let md = std::fs::read_to_string(dir.join("report.md")).unwrap();
+    assert!(md.contains("Damped rigid body, corner at"), "{md}");
+    assert!(md.contains("friction-like"), "{md}");
+    let svg: Vec<String> = figs
+        .iter()
+        .filter(|f| f.starts_with("amplitude_"))
+        .map(|f| std::fs::read_to_string(dir.join(f)).unwrap())
+        .collect();
+    assert!(
+        svg.iter().any(|s| s.contains("corner frequency")),
+        "{figs:?}"
+    );
+    if std::env::var_os("SD_KEEP").is_none() {
+        std::fs::remove_dir_all(&dir).unwrap();
+    } else {
+        println!("kept {}", dir.display());
+    }
 }
