@@ -564,8 +564,16 @@ impl AmplitudeModel {
             } else {
                 EXPONENTS[0]
             };
-            let ft = best_trend(&fp, alpha, default)
-                .ok_or_else(|| DiagnoseError::Numerical("frequency trend".into()))?;
+            // points the weighted fit cannot use (equal amplitudes, a zero error): the pole
+            // keeps its linear value
+            let Some(ft) = best_trend(&fp, alpha, default) else {
+                let zfall = Trend {
+                    at_reference: lin.1,
+                    ..fallback.clone()
+                };
+                trends.push((fallback, zfall, false, false));
+                continue;
+            };
             let zt = if basis.is_real(cand[m]) {
                 // a real pole's damping is 1 at every amplitude
                 Trend {
@@ -575,12 +583,16 @@ impl AmplitudeModel {
                     ..fallback.clone()
                 }
             } else {
-                best_trend(&zp, alpha, EXPONENTS[0])
-                    .ok_or_else(|| DiagnoseError::Numerical("damping trend".into()))?
+                best_trend(&zp, alpha, EXPONENTS[0]).unwrap_or_else(|| Trend {
+                    at_reference: lin.1,
+                    ..fallback.clone()
+                })
             };
             let fm = moves(&fp.iter().map(|p| (p.1, p.2)).collect::<Vec<_>>(), a_mode);
-            // a real pole has no damping of its own (ζ = 1)
+            // a real pole has no damping of its own (ζ = 1); a damping without a trend does
+            // not move
             let zm = !basis.is_real(cand[m])
+                && zt.slope_std.is_finite()
                 && moves(&zp.iter().map(|p| (p.1, p.2)).collect::<Vec<_>>(), a_mode);
             trends.push((ft, zt, fm, zm));
         }

@@ -548,3 +548,30 @@ fn friction_corner_is_reported() {
         println!("kept {}", dir.display());
     }
 }
+
+/// One level and its repeat (the mode 1 % higher the second time): nothing rate-tied to test
+/// and no other level, so only the non-excited lines can tell drift from a nonlinearity's
+/// stochastic distortion; they show none, and the cause is `drift` with that sign.
+#[test]
+fn a_repeat_without_distortion_is_drift() {
+    let out = per_seed(50..53, |s| {
+        let c = level_case(s, LevelEffect::Drift, &[1.0], PERIODIC)?;
+        let d = sd_diagnose::diagnose(&c.experiments, &Default::default()).unwrap();
+        println!("seed {s}: {} {:?}", d.cause, d.causes);
+        Some(d.causes)
+    });
+    let ran: Vec<_> = out.into_iter().flatten().collect();
+    assert!(ran.len() >= 2, "only {} cases ran", ran.len());
+    for causes in ran {
+        assert!(
+            matches!(
+                causes.as_slice(),
+                [Cause::Drift {
+                    sign: sd_diagnose::DriftSign::RepeatWithoutDistortion,
+                    ..
+                }]
+            ),
+            "{causes:?}"
+        );
+    }
+}
