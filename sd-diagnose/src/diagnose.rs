@@ -551,6 +551,83 @@ fn level_tests(data: &Data<'_>, ch: &Checks) -> Vec<(usize, Statistic)> {
         .collect()
 }
 
+/// Every level's modal fit on `basis`: the candidates, less those the model experiment
+/// itself does not determine, fitted again without them; `None` when a fit fails or no
+/// candidate is left.
+fn level_fits(
+    basis: &ModalBasis,
+    data: &Data<'_>,
+    levels: &[Level<'_>],
+) -> Option<(Vec<usize>, Vec<LevelFit>)> {
+    let fit = |cand: &[usize]| -> Option<Vec<LevelFit>> {
+        levels
+            .iter()
+            .map(|lv| fit_level(basis, cand, data.h, lv))
+            .collect::<Result<Vec<_>>>()
+            .ok()
+    };
+    let cand = candidates(basis, &data.fast);
+    let first = fit(&cand)?;
+    let cand: Vec<usize> = cand
+        .iter()
+        .enumerate()
+        .filter(|(m, _)| first.first().is_some_and(|f| f.determines(*m)))
+        .map(|(_, c)| *c)
+        .collect();
+    if cand.is_empty() {
+        return None;
+    }
+    let fits = fit(&cand)?;
+    Some((cand, fits))
+}
+
+/// A same-level repeat at the model experiment's rate that disagrees while neither of the
+/// pair shows distortion: drift (a pair that shows distortion differs by the nonlinearity's
+/// stochastic contributions, another phase realisation, and is no evidence of drift).
+fn repeat_drifts(data: &Data<'_>, ch: &mut Checks) -> Option<Outcome> {
+    let alpha = ch.alpha_test;
+    let (v, s) = data
+        .vals
+        .iter()
+        .enumerate()
+        .filter(|(_, v)| v.factor == 1 && v.same_level())
+        .map(|(i, v)| {
+            let s = statistic([(ch.free[i].as_slice(), v.whole.inflation)], alpha);
+            (v, s)
+        })
+        .find(|(v, s)| {
+            let pair = [&data.fast, &v.whole];
+            !s.passes() && !pair.iter().any(|e| distorted(e, alpha) == Some(true))
+        })?;
+    ch.evidence.push(Evidence::of(
+        format!(
+            "`{}` repeats the model experiment's level and rate yet disagrees: the plant \
+             changed with time, not with amplitude",
+            v.exp.spec.name
+        ),
+        &s,
+    ));
+    Some(drift_outcome(
+        vec![v.exp.spec.name.clone()],
+        DriftSign::RepeatWithoutDistortion,
+    ))
+}
+
+/// What rules drift out for a nonlinearity: distortion seen at any experiment at the model
+/// experiment's rate, else a same-level repeat that agrees, else nothing.
+fn drift_check(data: &Data<'_>, alpha: f64) -> DriftCheck {
+    let seen = std::iter::once(&data.fast)
+        .chain(data.vals.iter().filter(|v| v.factor == 1).map(|v| &v.whole))
+        .any(|e| distorted(e, alpha) == Some(true));
+    if seen {
+        DriftCheck::DistortionSeen
+    } else if data.vals.iter().any(|v| v.factor == 1 && v.same_level()) {
+        DriftCheck::RepeatAgrees
+    } else {
+        DriftCheck::Unchecked
+    }
+}
+
 /// Experiments at other levels disagree: the amplitude-dependent modal model
 /// ([`crate::amplitude`]) over every experiment at the model experiment's rate, its gain on
 /// whole levels left out in turn (three or more levels) or on the later periods of the other
@@ -567,48 +644,10 @@ fn nonlinearity(
         .iter()
         .map(|(i, _)| (data.vals[*i].exp.spec.name.clone(), data.vals[*i].level))
         .collect();
-    let drift = data
-        .vals
-        .iter()
-        .enumerate()
-        .filter(|(_, v)| v.factor == 1 && v.same_level())
-        .map(|(i, v)| {
-            (
-                v,
-                statistic([(ch.free[i].as_slice(), v.whole.inflation)], alpha),
-            )
-        })
-        .find(|(v, s)| {
-            // a repeat whose pair shows distortion differs by the nonlinearity's stochastic
-            // contributions (another phase realisation), not by drift
-            let pair = [&data.fast, &v.whole];
-            !s.passes() && !pair.iter().any(|e| distorted(e, alpha) == Some(true))
-        });
-    if let Some((v, s)) = drift {
-        ch.evidence.push(Evidence::of(
-            format!(
-                "`{}` repeats the model experiment's level and rate yet disagrees: the plant \
-                 changed with time, not with amplitude",
-                v.exp.spec.name
-            ),
-            &s,
-        ));
-        return Ok(drift_outcome(
-            vec![v.exp.spec.name.clone()],
-            DriftSign::RepeatWithoutDistortion,
-        ));
+    if let Some(o) = repeat_drifts(data, ch) {
+        return Ok(o);
     }
-    let seen = std::iter::once(&data.fast)
-        .chain(data.vals.iter().filter(|v| v.factor == 1).map(|v| &v.whole))
-        .any(|e| distorted(e, alpha) == Some(true));
-    let repeat = data.vals.iter().any(|v| v.factor == 1 && v.same_level());
-    let check = if seen {
-        DriftCheck::DistortionSeen
-    } else if repeat {
-        DriftCheck::RepeatAgrees
-    } else {
-        DriftCheck::Unchecked
-    };
+    let check = drift_check(data, alpha);
     let mut levels = vec![Level {
         name: data.model_exp.spec.name.clone(),
         exp: data.model_exp,
@@ -630,48 +669,17 @@ fn nonlinearity(
         .modal
         .basis
         .with_damped_rigid_body(std::f64::consts::TAU * f0)?;
-    let basis = &damped;
-    let cand = candidates(basis, &data.fast);
     progress("modal fit of every level");
-    let fits = levels
-        .iter()
-        .map(|lv| fit_level(basis, &cand, data.h, lv))
-        .collect::<Result<Vec<_>>>();
-    let Ok(first) = fits else {
-        return Ok(per_level(
-            data,
-            found,
-            (relative_levels.clone(), check),
-            alpha,
-        ));
+    // the damped rigid body first; if its fits fail, the model's own basis
+    let tried = level_fits(&damped, data, &levels).map(|x| (&damped, x));
+    let tried = match tried {
+        None if damped.is_damped() => {
+            level_fits(&j.modal.basis, data, &levels).map(|x| (&j.modal.basis, x))
+        }
+        t => t,
     };
-    // modes the model experiment itself does not determine are no candidates; the others
-    // are fitted again without them
-    let cand: Vec<usize> = cand
-        .iter()
-        .enumerate()
-        .filter(|(m, _)| first.first().is_some_and(|f| f.determines(*m)))
-        .map(|(_, c)| *c)
-        .collect();
-    if cand.is_empty() {
-        return Ok(per_level(
-            data,
-            found,
-            (relative_levels.clone(), check),
-            alpha,
-        ));
-    }
-    let Ok(fits) = levels
-        .iter()
-        .map(|lv| fit_level(basis, &cand, data.h, lv))
-        .collect::<Result<Vec<_>>>()
-    else {
-        return Ok(per_level(
-            data,
-            found,
-            (relative_levels.clone(), check),
-            alpha,
-        ));
+    let Some((basis, (cand, fits))) = tried else {
+        return Ok(per_level(data, found, (relative_levels, check), alpha));
     };
     let all: Vec<&Level<'_>> = levels.iter().collect();
     let fit_refs: Vec<&LevelFit> = fits.iter().collect();

@@ -170,6 +170,11 @@ impl ModalBasis {
         Ok(blocks)
     }
 
+    /// Whether the rigid body is damped ([`ModalBasis::with_damped_rigid_body`]).
+    pub(crate) fn is_damped(&self) -> bool {
+        self.damped() == 1
+    }
+
     /// Whether the rigid body's damping is a movable pole (a damped rigid body).
     fn damped(&self) -> usize {
         usize::from(self.rigid == 2 && self.rigid_damping > 0.0)

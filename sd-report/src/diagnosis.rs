@@ -520,82 +520,8 @@ fn cause_text(c: &Cause) -> Option<String> {
                 per.join(", ")
             )
         }
-        Cause::Nonlinearity {
-            relative_levels,
-            kind,
-            damping_trend,
-            corner_trend,
-            modes,
-            drift_check,
-        } => {
-            let per: Vec<String> = relative_levels
-                .iter()
-                .map(|(n, l)| format!("`{n}` at {l:.2}×"))
-                .collect();
-            let kind = match kind {
-                FreqTrend::Hardening => {
-                    "the dominant moving mode hardens (its frequency rises \
-                                         with amplitude)"
-                }
-                FreqTrend::Softening => {
-                    "the dominant moving mode softens (its frequency falls \
-                                         with amplitude)"
-                }
-                FreqTrend::None => "no mode's frequency moves beyond its uncertainty",
-            };
-            let damp = match damping_trend {
-                DampingTrend::Increasing => "its damping rises with amplitude",
-                DampingTrend::Decreasing => "its damping falls with amplitude",
-                DampingTrend::None => "no damping trend beyond the uncertainty",
-            };
-            let drift = match drift_check {
-                DriftCheck::DistortionSeen => {
-                    "not drift: the non-excited lines show nonlinear distortion"
-                }
-                DriftCheck::RepeatAgrees => {
-                    "not drift: a repeat at the model experiment's level agrees with it"
-                }
-                DriftCheck::Unchecked => {
-                    "drift over time is not ruled out (no repeat of the model experiment's \
-                     level, no non-excited lines): repeat that level at the end of the \
-                     campaign, or excite with odd multisines that leave detection lines"
-                }
-            };
-            let corner = match corner_trend {
-                CornerTrend::Falling => {
-                    "; a real pole's corner falls with amplitude (friction-like: Coulomb \
-                     friction's equivalent damping shrinks as the motion grows)"
-                }
-                CornerTrend::Rising => "; a real pole's corner rises with amplitude",
-                CornerTrend::None => "",
-            };
-            format!(
-                "Experiments at other excitation levels disagree with the model \
-                 experiment's ({}); {kind}, {damp}{corner}; {} moving pole(s); {drift}",
-                per.join(", "),
-                modes.len()
-            )
-        }
-        Cause::Drift { experiments, sign } => {
-            let names: Vec<String> = experiments.iter().map(|n| format!("`{n}`")).collect();
-            let why = match sign {
-                DriftSign::RepeatWithoutDistortion => {
-                    "a repeat at the model experiment's level and rate disagrees with it, \
-                     without nonlinear distortion at the non-excited lines"
-                }
-                DriftSign::LevelsWithoutDistortion => {
-                    "experiments at other levels disagree, yet none shows nonlinear \
-                     distortion at its non-excited lines (an FRF that changes with amplitude \
-                     brings distortion with it)"
-                }
-            };
-            format!(
-                "The plant changed between experiments ({}): {why}. No time-invariant model \
-                 predicts this; identify the model on data recorded close in time to its use, \
-                 and check what changes over the campaign (temperature, settling, mounting)",
-                names.join(", ")
-            )
-        }
+        Cause::Nonlinearity { .. } => nonlinearity_text(c)?,
+        Cause::Drift { experiments, sign } => drift_text(experiments, *sign),
         Cause::FastModelError {
             model_misfit_on_fast_data,
             worst_fast_hz,
@@ -609,6 +535,92 @@ fn cause_text(c: &Cause) -> Option<String> {
         }
         Cause::None | Cause::Unexplained => return None,
     })
+}
+
+/// The sentence of a nonlinearity (`None` for any other cause).
+fn nonlinearity_text(c: &Cause) -> Option<String> {
+    let Cause::Nonlinearity {
+        relative_levels,
+        kind,
+        damping_trend,
+        corner_trend,
+        modes,
+        drift_check,
+    } = c
+    else {
+        return None;
+    };
+    Some({
+        let per: Vec<String> = relative_levels
+            .iter()
+            .map(|(n, l)| format!("`{n}` at {l:.2}×"))
+            .collect();
+        let kind = match kind {
+            FreqTrend::Hardening => {
+                "the dominant moving mode hardens (its frequency rises \
+                                         with amplitude)"
+            }
+            FreqTrend::Softening => {
+                "the dominant moving mode softens (its frequency falls \
+                                         with amplitude)"
+            }
+            FreqTrend::None => "no mode's frequency moves beyond its uncertainty",
+        };
+        let damp = match damping_trend {
+            DampingTrend::Increasing => "its damping rises with amplitude",
+            DampingTrend::Decreasing => "its damping falls with amplitude",
+            DampingTrend::None => "no damping trend beyond the uncertainty",
+        };
+        let drift = match drift_check {
+            DriftCheck::DistortionSeen => {
+                "not drift: the non-excited lines show nonlinear distortion"
+            }
+            DriftCheck::RepeatAgrees => {
+                "not drift: a repeat at the model experiment's level agrees with it"
+            }
+            DriftCheck::Unchecked => {
+                "drift over time is not ruled out (no repeat of the model experiment's \
+                     level, no non-excited lines): repeat that level at the end of the \
+                     campaign, or excite with odd multisines that leave detection lines"
+            }
+        };
+        let corner = match corner_trend {
+            CornerTrend::Falling => {
+                "; a real pole's corner falls with amplitude (friction-like: Coulomb \
+                     friction's equivalent damping shrinks as the motion grows)"
+            }
+            CornerTrend::Rising => "; a real pole's corner rises with amplitude",
+            CornerTrend::None => "",
+        };
+        format!(
+            "Experiments at other excitation levels disagree with the model \
+                 experiment's ({}); {kind}, {damp}{corner}; {} moving pole(s); {drift}",
+            per.join(", "),
+            modes.len()
+        )
+    })
+}
+
+/// The sentence of a drift.
+fn drift_text(experiments: &[String], sign: DriftSign) -> String {
+    let names: Vec<String> = experiments.iter().map(|n| format!("`{n}`")).collect();
+    let why = match sign {
+        DriftSign::RepeatWithoutDistortion => {
+            "a repeat at the model experiment's level and rate disagrees with it, \
+                     without nonlinear distortion at the non-excited lines"
+        }
+        DriftSign::LevelsWithoutDistortion => {
+            "experiments at other levels disagree, yet none shows nonlinear \
+                     distortion at its non-excited lines (an FRF that changes with amplitude \
+                     brings distortion with it)"
+        }
+    };
+    format!(
+        "The plant changed between experiments ({}): {why}. No time-invariant model \
+                 predicts this; identify the model on data recorded close in time to its use, \
+                 and check what changes over the campaign (temperature, settling, mounting)",
+        names.join(", ")
+    )
 }
 
 /// The modes that move with amplitude: per mode its trend and every level's fit, with the
