@@ -674,7 +674,7 @@ pub fn level_rate_case(
 /// One non-periodic record of [`filtered_noise`] whose amplitude steps through `levels`
 /// (0.5 N rms × level, each for `1 + rec.steady` seconds), the model experiment: the diagnosis
 /// must cut it into pieces of constant amplitude itself. Hardening/softening as in
-/// [`level_case`] (sized on a linear record at the first level).
+/// [`level_case`] (sized on a linear record at the first level), Coulomb friction likewise.
 pub fn rising_case(
     seed: u64,
     effect: LevelEffect,
@@ -707,6 +707,9 @@ pub fn rising_case(
     if matches!(effect, LevelEffect::Hardening | LevelEffect::Softening) {
         let base = identify(&st, &rec, &exp(&levels[..1], "base"))?;
         size_cubic(&mut st, effect, &base, top);
+    }
+    if effect == LevelEffect::Coulomb {
+        st.truth.coulomb = COULOMB * 0.5;
     }
     let e = identify(&st, &rec, &exp(levels, "rising"))?;
     if e.y.iter().any(|v| !v.is_finite()) {

@@ -60,11 +60,9 @@ impl Outcome {
             LevelEffect::Hardening => self.kind == Some(FreqTrend::Hardening),
             LevelEffect::Softening => self.kind == Some(FreqTrend::Softening),
             LevelEffect::Linear => self.cause == "none",
-            // periodic: named; whether the friction-damped rigid body's corner is found
-            // falling and predicted is reported by `summarize` (not yet reliable enough to
-            // require), and so is everything about friction in non-periodic records (the LPM
-            // leaves the low lines where friction acts too noisy to see it at 20 % of the force)
-            LevelEffect::Coulomb => !self.case.recording.periodic || self.cause == "nonlinearity",
+            // named; whether the friction-damped rigid body's corner is found falling and
+            // predicted is reported by `summarize` (not yet reliable enough to require)
+            LevelEffect::Coulomb => self.cause == "nonlinearity",
             // a same-level repeat that disagrees names drift
             LevelEffect::Drift => self.cause == "drift",
             // without a repeat, the non-excited lines of a periodic recording name drift;
