@@ -678,6 +678,12 @@ fn nonlinearity(
         }
         t => t,
     };
+    // a mode the model split into two close pairs: one pair
+    let merged = damped.without_close_pairs()?;
+    let tried = match (tried, &merged) {
+        (None, Some(m)) => level_fits(m, data, &levels).map(|x| (m, x)),
+        (t, _) => t,
+    };
     let Some((basis, (cand, fits))) = tried else {
         return Ok(per_level(data, found, (relative_levels, check), alpha));
     };

@@ -109,6 +109,37 @@ impl ModalBasis {
         Self::build((2, real[k].abs()), &real[k + 1..], &pairs)
     }
 
+    /// The basis with each group of pole pairs closer than twice their half-power
+    /// half-widths together reduced to its least damped pair (a fit of a mode whose
+    /// frequency wanders with amplitude, or of a distorted resonance, may split it into two
+    /// close pairs, which then trade frequency and damping in a level fit); `None` when no
+    /// pair is that close to another.
+    pub(crate) fn without_close_pairs(&self) -> Result<Option<Self>> {
+        let nat = |p: &C| (p.norm(), -p.re / p.norm());
+        let close = |a: &C, b: &C| {
+            let ((fa, za), (fb, zb)) = (nat(a), nat(b));
+            (fa - fb).abs() <= 2.0 * (za * fa + zb * fb)
+        };
+        let keep: Vec<C> = self
+            .pairs
+            .iter()
+            .filter(|p| {
+                // dropped when a close neighbour is less damped (ties: the later one goes)
+                !self.pairs.iter().any(|q| {
+                    !std::ptr::eq(*p, q)
+                        && close(p, q)
+                        && (nat(q).1 < nat(p).1
+                            || (nat(q).1 == nat(p).1 && (q as *const C) < (*p as *const C)))
+                })
+            })
+            .copied()
+            .collect();
+        if keep.len() == self.pairs.len() {
+            return Ok(None);
+        }
+        Self::build((self.rigid, self.rigid_damping), &self.real, &keep).map(Some)
+    }
+
     fn build((rigid, damping): (usize, f64), real: &[f64], pairs: &[C]) -> Result<Self> {
         Ok(ModalBasis {
             blocks: Self::blocks((rigid, damping), real, pairs)?,
