@@ -193,31 +193,7 @@ pub fn frf_periodic(
     y: &[f64],
     opt: &PeriodicOptions,
 ) -> Result<FrfEstimate> {
-    if !(fs.is_finite() && fs > 0.0) {
-        return Err(IdentError::InvalidArgument(format!(
-            "sample rate {fs} must be > 0"
-        )));
-    }
-    let p = opt.period;
-    if p < 4 {
-        return Err(IdentError::InvalidArgument(format!(
-            "period {p} must be ≥ 4 samples"
-        )));
-    }
-    if u.len() != y.len() || r.map(|r| r.len() != u.len()).unwrap_or(false) {
-        return Err(IdentError::Data(
-            "r, u and y must have the same length".into(),
-        ));
-    }
-    let total = u.len() / p;
-    if total <= opt.skip_periods {
-        return Err(IdentError::Data(format!(
-            "{} samples hold {total} periods of {p}; none is left after skipping {}",
-            u.len(),
-            opt.skip_periods
-        )));
-    }
-    let m = total - opt.skip_periods;
+    let (p, m) = (opt.period, steady_periods(fs, r, u, y, opt)?);
     let start = opt.skip_periods * p;
     let len = m * p;
     let long = |x: &[f64]| -> Vec<C> {
@@ -298,18 +274,8 @@ pub fn frf_periodic(
         }
     }
     if m == 1 {
-        // white output noise from the non-excited bins of the single period
-        let excited: std::collections::HashSet<usize> = lines.iter().cloned().collect();
-        let quiet: Vec<f64> = (1..half)
-            .filter(|k| !excited.contains(k))
-            .map(|k| yl[k].norm_sqr())
-            .collect();
-        if quiet.len() >= 8 {
-            let s2 = quiet.iter().sum::<f64>() / quiet.len() as f64;
-            var = um
-                .iter()
-                .map(|u| nalgebra::DMatrix::from_element(1, 1, s2 / u.norm_sqr()))
-                .collect();
+        if let Some(v) = single_period_variance(&lines, &um, &yl[..half]) {
+            var = v;
         }
     }
     let has_var = !var.is_empty();
@@ -336,6 +302,61 @@ pub fn frf_periodic(
         u_mean: um,
         input_snr: snr,
     })
+}
+
+/// One period: white output noise from the non-excited bins below `yl.len()` (at least 8),
+/// its level over each excited line's `|U|²`.
+fn single_period_variance(
+    lines: &[usize],
+    um: &[C],
+    yl: &[C],
+) -> Option<Vec<nalgebra::DMatrix<f64>>> {
+    let excited: std::collections::HashSet<usize> = lines.iter().cloned().collect();
+    let quiet: Vec<f64> = (1..yl.len())
+        .filter(|k| !excited.contains(k))
+        .map(|k| yl[k].norm_sqr())
+        .collect();
+    (quiet.len() >= 8).then(|| {
+        let s2 = quiet.iter().sum::<f64>() / quiet.len() as f64;
+        um.iter()
+            .map(|u| nalgebra::DMatrix::from_element(1, 1, s2 / u.norm_sqr()))
+            .collect()
+    })
+}
+
+/// Checks the arguments of [`frf_periodic`]; the number of steady periods.
+fn steady_periods(
+    fs: f64,
+    r: Option<&[f64]>,
+    u: &[f64],
+    y: &[f64],
+    opt: &PeriodicOptions,
+) -> Result<usize> {
+    if !(fs.is_finite() && fs > 0.0) {
+        return Err(IdentError::InvalidArgument(format!(
+            "sample rate {fs} must be > 0"
+        )));
+    }
+    let p = opt.period;
+    if p < 4 {
+        return Err(IdentError::InvalidArgument(format!(
+            "period {p} must be ≥ 4 samples"
+        )));
+    }
+    if u.len() != y.len() || r.map(|r| r.len() != u.len()).unwrap_or(false) {
+        return Err(IdentError::Data(
+            "r, u and y must have the same length".into(),
+        ));
+    }
+    let total = u.len() / p;
+    if total <= opt.skip_periods {
+        return Err(IdentError::Data(format!(
+            "{} samples hold {total} periods of {p}; none is left after skipping {}",
+            u.len(),
+            opt.skip_periods
+        )));
+    }
+    Ok(total - opt.skip_periods)
 }
 
 /// The noise and distortion levels at the non-excited lines between the first and the last
