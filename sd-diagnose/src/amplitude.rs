@@ -551,12 +551,16 @@ impl AmplitudeModel {
                 slope_std: f64::INFINITY,
                 covariance: 0.0,
             };
-            if fp.len() < 2 {
+            // the pole keeps its linear value
+            let linear = || {
                 let zfall = Trend {
                     at_reference: lin.1,
                     ..fallback.clone()
                 };
-                trends.push((fallback, zfall, false, false));
+                (fallback.clone(), zfall, false, false)
+            };
+            if fp.len() < 2 {
+                trends.push(linear());
                 continue;
             }
             let default = if basis.is_rigid_damping(cand[m]) {
@@ -567,11 +571,7 @@ impl AmplitudeModel {
             // points the weighted fit cannot use (equal amplitudes, a zero error): the pole
             // keeps its linear value
             let Some(ft) = best_trend(&fp, alpha, default) else {
-                let zfall = Trend {
-                    at_reference: lin.1,
-                    ..fallback.clone()
-                };
-                trends.push((fallback, zfall, false, false));
+                trends.push(linear());
                 continue;
             };
             let zt = if basis.is_real(cand[m]) {

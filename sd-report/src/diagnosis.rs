@@ -216,70 +216,82 @@ fn figures(dir: &Path, x: &ExperimentReport, ext_label: &str) -> Result<Vec<Stri
         re.as_deref().map(|r| (ext_res_label.as_str(), r)),
     )?;
     if let Some(td) = &x.time_domain {
-        // a long record is shown by its first 4000 samples
-        let shown = td.measured.len().min(4000);
-        let td = &sd_diagnose::TimeDomain {
-            measured: td.measured[..shown].to_vec(),
-            model: td.model[..shown.min(td.model.len())].to_vec(),
-            extended: td
-                .extended
-                .as_ref()
-                .map(|e| e[..shown.min(e.len())].to_vec()),
-            ..td.clone()
-        };
-        let t: Vec<f64> = (0..td.measured.len())
-            .map(|i| i as f64 / td.rate_hz)
-            .collect();
-        let mean = td.measured.iter().sum::<f64>() / td.measured.len().max(1) as f64;
-        let y: Vec<f64> = td.measured.iter().map(|v| v - mean).collect();
-        let em: Vec<f64> = td
-            .measured
-            .iter()
-            .zip(&td.model)
-            .map(|(a, b)| a - b)
-            .collect();
-        let ee: Option<Vec<f64>> = td
-            .extended
-            .as_ref()
-            .map(|e| td.measured.iter().zip(e).map(|(a, b)| a - b).collect());
-        let mut lines = vec![
-            Line {
-                label: "measured output (mean removed)",
-                x: &t,
-                y: &y,
-                color: MEASURED,
-            },
-            Line {
-                label: "measured − model",
-                x: &t,
-                y: &em,
-                color: MODEL,
-            },
-        ];
-        let ext_err_label = format!("measured − {ext_label}");
-        if let Some(e) = &ee {
-            lines.push(Line {
-                label: &ext_err_label,
-                x: &t,
-                y: e,
-                color: EXTENDED,
-            });
-        }
-        let name = format!("time_{s}.svg");
-        line_plot(
-            &dir.join(&name).to_string_lossy(),
-            &format!(
-                "{}: one averaged period, measured input through the model",
-                x.name
-            ),
-            "time [s]",
-            "output",
-            &lines,
-            false,
-        )?;
-        out.push(name);
+        out.push(time_figure(dir, x, td, ext_label)?);
     }
     Ok(out)
+}
+
+/// The time-domain figure of an experiment (one averaged period through the model; a long
+/// record by its first 4000 samples); its file name.
+fn time_figure(
+    dir: &Path,
+    x: &ExperimentReport,
+    td: &sd_diagnose::TimeDomain,
+    ext_label: &str,
+) -> Result<String> {
+    let s = slug(&x.name);
+    // a long record is shown by its first 4000 samples
+    let shown = td.measured.len().min(4000);
+    let td = &sd_diagnose::TimeDomain {
+        measured: td.measured[..shown].to_vec(),
+        model: td.model[..shown.min(td.model.len())].to_vec(),
+        extended: td
+            .extended
+            .as_ref()
+            .map(|e| e[..shown.min(e.len())].to_vec()),
+        ..td.clone()
+    };
+    let t: Vec<f64> = (0..td.measured.len())
+        .map(|i| i as f64 / td.rate_hz)
+        .collect();
+    let mean = td.measured.iter().sum::<f64>() / td.measured.len().max(1) as f64;
+    let y: Vec<f64> = td.measured.iter().map(|v| v - mean).collect();
+    let em: Vec<f64> = td
+        .measured
+        .iter()
+        .zip(&td.model)
+        .map(|(a, b)| a - b)
+        .collect();
+    let ee: Option<Vec<f64>> = td
+        .extended
+        .as_ref()
+        .map(|e| td.measured.iter().zip(e).map(|(a, b)| a - b).collect());
+    let mut lines = vec![
+        Line {
+            label: "measured output (mean removed)",
+            x: &t,
+            y: &y,
+            color: MEASURED,
+        },
+        Line {
+            label: "measured − model",
+            x: &t,
+            y: &em,
+            color: MODEL,
+        },
+    ];
+    let ext_err_label = format!("measured − {ext_label}");
+    if let Some(e) = &ee {
+        lines.push(Line {
+            label: &ext_err_label,
+            x: &t,
+            y: e,
+            color: EXTENDED,
+        });
+    }
+    let name = format!("time_{s}.svg");
+    line_plot(
+        &dir.join(&name).to_string_lossy(),
+        &format!(
+            "{}: one averaged period, measured input through the model",
+            x.name
+        ),
+        "time [s]",
+        "output",
+        &lines,
+        false,
+    )?;
+    Ok(name)
 }
 
 /// Per moving mode of a nonlinearity, `amplitude_<f>hz.svg`: its natural frequency and damping
@@ -663,25 +675,7 @@ fn moving_modes_section(md: &mut String, d: &Diagnosis) {
                 m.damping.slope_std,
                 m.damping.exponent
             );
-            let _ = writeln!(
-                md,
-                "| experiment | ρ | frequency [Hz] | damping | predicted without it [Hz, ζ] |\n|---|---|---|---|---|"
-            );
-            for p in &m.points {
-                let _ = writeln!(
-                    md,
-                    "| {} | {:.2} | {:.2} ± {:.2} | {:.4} ± {:.4} | {} |",
-                    p.experiment,
-                    p.relative_amplitude,
-                    p.freq_hz,
-                    p.freq_hz_std,
-                    p.damping,
-                    p.damping_std,
-                    p.held_out_prediction
-                        .map_or("–".to_string(), |(f, z)| format!("{f:.2}, {z:.4}"))
-                );
-            }
-            let _ = writeln!(md);
+            points_table(md, m);
         }
     }
 }
@@ -705,20 +699,39 @@ fn corner_rows(md: &mut String, m: &sd_diagnose::MovingMode) {
         m.frequency.slope_std,
         m.frequency.exponent
     );
+    points_table(md, m);
+}
+
+/// Every level's point of a moving pole: frequency and damping of a mode, the corner of a
+/// real pole, with what the model fitted without that level predicted.
+fn points_table(md: &mut String, m: &sd_diagnose::MovingMode) {
+    let real = m.pole == PoleKind::Real;
     let _ = writeln!(
         md,
-        "| experiment | ρ | corner [Hz] | predicted without it [Hz] |\n|---|---|---|---|"
+        "{}",
+        if real {
+            "| experiment | ρ | corner [Hz] | predicted without it [Hz] |\n|---|---|---|---|"
+        } else {
+            "| experiment | ρ | frequency [Hz] | damping | predicted without it [Hz, ζ] |\n|---|---|---|---|---|"
+        }
     );
     for p in &m.points {
+        let damping = if real {
+            String::new()
+        } else {
+            format!(" {:.4} ± {:.4} |", p.damping, p.damping_std)
+        };
+        let predicted = p.held_out_prediction.map_or("–".to_string(), |(f, z)| {
+            if real {
+                format!("{f:.2}")
+            } else {
+                format!("{f:.2}, {z:.4}")
+            }
+        });
         let _ = writeln!(
             md,
-            "| {} | {:.2} | {:.2} ± {:.2} | {} |",
-            p.experiment,
-            p.relative_amplitude,
-            p.freq_hz,
-            p.freq_hz_std,
-            p.held_out_prediction
-                .map_or("–".to_string(), |(f, _)| format!("{f:.2}"))
+            "| {} | {:.2} | {:.2} ± {:.2} |{damping} {predicted} |",
+            p.experiment, p.relative_amplitude, p.freq_hz, p.freq_hz_std,
         );
     }
     let _ = writeln!(md);

@@ -448,11 +448,7 @@ fn report_of_a_rising_record() {
     assert!(!amp.is_empty(), "{figs:?}");
     let svg = std::fs::read_to_string(dir.join(amp[0])).unwrap();
     assert!(svg.contains("natural frequency [Hz]") && svg.contains("damping ratio"));
-    if std::env::var_os("SD_KEEP").is_none() {
-        std::fs::remove_dir_all(&dir).unwrap();
-    } else {
-        println!("kept {}", dir.display());
-    }
+    remove_unless_kept(&dir);
 }
 
 /// Level and rate changed together (a fast and a slower experiment at 4×, the model
@@ -541,11 +537,7 @@ fn friction_corner_is_reported() {
         svg.iter().any(|s| s.contains("corner frequency")),
         "{figs:?}"
     );
-    if std::env::var_os("SD_KEEP").is_none() {
-        std::fs::remove_dir_all(&dir).unwrap();
-    } else {
-        println!("kept {}", dir.display());
-    }
+    remove_unless_kept(&dir);
 }
 
 /// One level and its repeat (the mode 1 % higher the second time): nothing rate-tied to test
@@ -572,5 +564,14 @@ fn a_repeat_without_distortion_is_drift() {
             ),
             "{causes:?}"
         );
+    }
+}
+
+/// Removes a report directory unless `SD_KEEP` is set (then says where it is).
+fn remove_unless_kept(dir: &std::path::Path) {
+    if std::env::var_os("SD_KEEP").is_none() {
+        std::fs::remove_dir_all(dir).unwrap();
+    } else {
+        println!("kept {}", dir.display());
     }
 }
