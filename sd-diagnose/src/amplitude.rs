@@ -30,7 +30,7 @@ use crate::data::Estimate;
 use crate::lemma6::{compare, Pred};
 use crate::lstsq::scaled_lstsq;
 use crate::modal::{ModalBasis, Residues};
-use crate::stats::{normal_quantile, threshold, Line};
+use crate::stats::{normal_quantile, statistic, threshold, Line};
 use crate::{
     CornerTrend, DampingTrend, DiagnoseError, FreqTrend, ModePoint, MovingMode, PoleKind, Result,
     Trend,
@@ -115,6 +115,30 @@ fn project(basis: &ModalBasis, h: f64, est: &Estimate) -> Result<(f64, Residues)
     Ok((cost, res))
 }
 
+/// How well `basis` (its poles fixed, its residues fitted to the level) describes a level:
+/// the verdict's statistic on the level's lines at `alpha`.
+pub(crate) fn describes(
+    basis: &ModalBasis,
+    h: f64,
+    lv: &Level<'_>,
+    alpha: f64,
+) -> Result<crate::stats::Statistic> {
+    let f = lv.est.frd.freq_hz();
+    let phi = basis.responses(h, NonIdeal::ideal(), f)?;
+    let res = Residues::fit(&lv.est.frd, &phi)?;
+    let np = res.n_params();
+    let lines = compare(&lv.est.frd, lv.est.dof, |i, _| {
+        let (value, var) = res.predict(&phi[i]);
+        Some(Pred {
+            value,
+            var,
+            dof: f64::INFINITY,
+            params: np,
+        })
+    });
+    Ok(statistic([(lines.as_slice(), lv.est.inflation)], alpha))
+}
+
 /// Natural frequency (Hz), damping and their standard errors from a pair and the covariance
 /// of its `(σ, ω)`.
 fn natural(s: C, cov: [[f64; 2]; 2]) -> (f64, f64, f64, f64) {
@@ -144,6 +168,12 @@ fn pair_of(f: f64, z: f64) -> C {
 /// side-lobes suppress; whole periods of a periodic record lose nothing but the band edges'
 /// half bins.
 pub(crate) fn band_rms(x: &[f64], fs: f64, lo: f64, hi: f64) -> f64 {
+    weighted_band_rms(x, fs, (lo, hi), false)
+}
+
+/// [`band_rms`] of `x`, or with `derivative` of its time derivative (each line's power times
+/// `(2πf)²`): the velocity of a position record.
+fn weighted_band_rms(x: &[f64], fs: f64, (lo, hi): (f64, f64), derivative: bool) -> f64 {
     let n = x.len();
     if n < 4 {
         return 0.0;
@@ -172,7 +202,16 @@ pub(crate) fn band_rms(x: &[f64], fs: f64, lo: f64, hi: f64) -> f64 {
     let df = fs / nf;
     let k0 = (lo / df).ceil().max(1.0) as usize;
     let k1 = ((hi / df).floor() as usize).min(n / 2);
-    let power: f64 = (k0..=k1).map(|k| buf[k].norm_sqr()).sum();
+    let power: f64 = (k0..=k1)
+        .map(|k| {
+            let w = if derivative {
+                (TAU * k as f64 * df).powi(2)
+            } else {
+                1.0
+            };
+            w * buf[k].norm_sqr()
+        })
+        .sum();
     (2.0 * power).sqrt() / nf
 }
 
@@ -189,6 +228,33 @@ fn band(f: f64, z: f64) -> (f64, f64) {
     }
     let w = (3.0 * z).max(0.02);
     (f * (1.0 - w), f * (1.0 + w))
+}
+
+/// The amplitude a candidate is driven at in output record `y`: for a pair, the rms of `y`
+/// in the band of the pair `at` (its frequency at this level); for a friction-damped rigid
+/// body's corner, the rms *velocity* of `y` from its lowest line up to three times the linear
+/// corner (at most half the lowest pair's frequency): Coulomb friction `F·sign(v)` acts on a
+/// Gaussian velocity as the viscous damping `√(2/π)·F/σ_v` (its describing function), and
+/// the velocity of a damped rigid body is flat to its corner and falls as `1/f` above, so the
+/// band holds its rms at every amplitude where the corner falls.
+fn mode_amplitude(basis: &ModalBasis, pm: usize, at: C, y: &[f64], fs: f64) -> f64 {
+    if !basis.is_real(pm) {
+        let (lo, hi) = band_of(at);
+        return band_rms(y, fs, lo, hi);
+    }
+    let poles = basis.poles();
+    let corner = natural(poles[pm], [[0.0; 2]; 2]).0;
+    let lowest_pair = (0..poles.len())
+        .filter(|&j| !basis.is_real(j))
+        .map(|j| natural(poles[j], [[0.0; 2]; 2]).0)
+        .fold(f64::INFINITY, f64::min);
+    let top = (3.0 * corner).min(0.5 * lowest_pair);
+    if basis.is_rigid_damping(pm) {
+        weighted_band_rms(y, fs, (0.0, top), true)
+    } else {
+        let (lo, hi) = band_of(poles[pm]);
+        band_rms(y, fs, lo, hi)
+    }
 }
 
 /// The steady output of an experiment.
@@ -324,14 +390,7 @@ fn finish(
             }
         };
         let nat = natural(poles[pm], [[c(0, 0), c(0, 1)], [c(1, 0), c(1, 1)]]);
-        // a corner's band stays the linear one (a corner moves by a decade)
-        let at = if real {
-            linear_basis.poles()[pm]
-        } else {
-            poles[pm]
-        };
-        let (lo, hi) = band_of(at);
-        amplitude.push(band_rms(y, fs, lo, hi));
+        amplitude.push(mode_amplitude(linear_basis, pm, poles[pm], y, fs));
         modal.push(nat);
     }
     let linear = cand
@@ -662,15 +721,7 @@ impl AmplitudeModel {
             amp = self
                 .cand
                 .iter()
-                .map(|&pm| {
-                    let at = if self.basis.is_real(pm) {
-                        self.basis.poles()[pm]
-                    } else {
-                        pairs[pm]
-                    };
-                    let (lo, hi) = band_of(at);
-                    band_rms(y, fs, lo, hi)
-                })
+                .map(|&pm| mode_amplitude(&self.basis, pm, pairs[pm], y, fs))
                 .collect();
             pairs = self.pairs_at(&amp);
         }
@@ -857,6 +908,10 @@ mod tests {
         // whole periods: exact but for the removed trend's share of the sines (≤ 1e-3)
         assert!((band_rms(&x, fs, 45.0, 55.0) / (2.0 / 2f64.sqrt()) - 1.0).abs() < 1e-3);
         assert!((band_rms(&x, fs, 190.0, 210.0) / (0.5 / 2f64.sqrt()) - 1.0).abs() < 1e-3);
+        // the derivative's rms: 2πf times the amplitude over √2, both sines together
+        let v = ((TAU * 50.0 * 2.0).powi(2) + (TAU * 200.0 * 0.5).powi(2)).sqrt() / 2f64.sqrt();
+        let got = weighted_band_rms(&x, fs, (0.0, 300.0), true);
+        assert!((got / v - 1.0).abs() < 1e-3, "{got} {v}");
     }
 
     /// A record that does not end where it starts (a slow drift 1000× the sine's amplitude,

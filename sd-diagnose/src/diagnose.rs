@@ -1,7 +1,7 @@
 //! The diagnosis as named stages (crate documentation): data → FRFs → model → consistency
 //! checks → hypotheses → validation → findings.
 
-use crate::amplitude::{candidates, fit_level, kinds, AmplitudeModel, Level, LevelFit};
+use crate::amplitude::{candidates, describes, fit_level, kinds, AmplitudeModel, Level, LevelFit};
 use crate::data::{
     earlier_label, estimate, held_out_label, level, parts, rate_factor, Estimate, Part,
 };
@@ -581,6 +581,41 @@ fn level_fits(
     Some((cand, fits))
 }
 
+/// Slack on the model experiment's statistic within which a slow pole counts as unneeded.
+const SLOW_POLE_SLACK: f64 = 1.1;
+
+/// A friction-damped rigid body's basis without the slow real poles and overdamped pairs
+/// ([`ModalBasis::slow_extras`]) the model experiment does not need: each, slowest first, is
+/// dropped when the basis without it still describes the model experiment `reference`
+/// within [`SLOW_POLE_SLACK`] times the larger of the verdict's threshold and the full
+/// basis's statistic (a sensor filter's pole raises it several-fold and stays; a pole the
+/// fit spent on the friction's distortion does not).
+fn without_unneeded_slow_poles(
+    damped: &ModalBasis,
+    h: f64,
+    reference: &Level<'_>,
+    alpha: f64,
+) -> Result<ModalBasis> {
+    let extras = damped.slow_extras();
+    if extras.is_empty() {
+        return Ok(damped.clone());
+    }
+    let full = describes(damped, h, reference, alpha)?;
+    let bound = SLOW_POLE_SLACK * full.threshold.max(full.value);
+    let mut dropped: Vec<num_complex::Complex64> = Vec::new();
+    let mut basis = damped.clone();
+    for p in extras {
+        dropped.push(p);
+        let trial = damped.without_poles(&dropped)?;
+        if describes(&trial, h, reference, alpha).is_ok_and(|s| s.value <= bound) {
+            basis = trial;
+        } else {
+            dropped.pop();
+        }
+    }
+    Ok(basis)
+}
+
 /// A same-level repeat at the model experiment's rate that disagrees while neither of the
 /// pair shows distortion: drift (a pair that shows distortion differs by the nonlinearity's
 /// stochastic contributions, another phase realisation, and is no evidence of drift).
@@ -670,20 +705,21 @@ fn nonlinearity(
         .basis
         .with_damped_rigid_body(std::f64::consts::TAU * f0)?;
     progress("modal fit of every level");
-    // the damped rigid body first; if its fits fail, the model's own basis
-    let tried = level_fits(&damped, data, &levels).map(|x| (&damped, x));
-    let tried = match tried {
-        None if damped.is_damped() => {
-            level_fits(&j.modal.basis, data, &levels).map(|x| (&j.modal.basis, x))
-        }
-        t => t,
-    };
-    // a mode the model split into two close pairs: one pair
-    let merged = damped.without_close_pairs()?;
-    let tried = match (tried, &merged) {
-        (None, Some(m)) => level_fits(m, data, &levels).map(|x| (m, x)),
-        (t, _) => t,
-    };
+    // the damped rigid body without the slow poles the model experiment does not need, then
+    // with them; if its fits fail, the model's own basis; a mode the model split into two
+    // close pairs as one pair
+    let mut bases = vec![without_unneeded_slow_poles(
+        &damped, data.h, &levels[0], alpha,
+    )?];
+    if damped.is_damped() {
+        bases.push(damped.clone());
+        bases.push(j.modal.basis.clone());
+    }
+    bases.extend(damped.without_close_pairs()?);
+    bases.dedup_by(|a, b| a.poles() == b.poles() && a.is_damped() == b.is_damped());
+    let tried = bases
+        .iter()
+        .find_map(|b| level_fits(b, data, &levels).map(|x| (b, x)));
     let Some((basis, (cand, fits))) = tried else {
         return Ok(per_level(data, found, (relative_levels, check), alpha));
     };

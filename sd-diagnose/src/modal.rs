@@ -140,6 +140,51 @@ impl ModalBasis {
         Self::build((self.rigid, self.rigid_damping), &self.real, &keep).map(Some)
     }
 
+    /// A friction-damped rigid body's basis' ([`ModalBasis::with_damped_rigid_body`]) real
+    /// poles and overdamped pairs (`ζ > 0.5`) below its lowest lightly damped pair, slowest
+    /// first (real poles as `s + 0j`): a fit of a stage at the friction's level may spend
+    /// them on the nonlinear low-frequency response, where they stay put while the corner
+    /// moves. Empty when the rigid body is not damped.
+    pub(crate) fn slow_extras(&self) -> Vec<C> {
+        if !self.is_damped() {
+            return Vec::new();
+        }
+        let zeta = |p: &C| -p.re / p.norm().max(f64::MIN_POSITIVE);
+        let lowest = self
+            .pairs
+            .iter()
+            .filter(|p| zeta(p) <= 0.5)
+            .map(|p| p.norm())
+            .fold(f64::INFINITY, f64::min);
+        let mut out: Vec<C> = self
+            .real
+            .iter()
+            .map(|r| C::new(*r, 0.0))
+            .chain(self.pairs.iter().copied().filter(|p| zeta(p) > 0.5))
+            .filter(|p| p.norm() < lowest)
+            .collect();
+        out.sort_by(|a, b| a.norm().total_cmp(&b.norm()));
+        out
+    }
+
+    /// The basis without the real poles and pairs in `drop` (as [`ModalBasis::slow_extras`]
+    /// gives them).
+    pub(crate) fn without_poles(&self, drop: &[C]) -> Result<Self> {
+        let real: Vec<f64> = self
+            .real
+            .iter()
+            .copied()
+            .filter(|r| !drop.contains(&C::new(*r, 0.0)))
+            .collect();
+        let pairs: Vec<C> = self
+            .pairs
+            .iter()
+            .copied()
+            .filter(|p| !drop.contains(p))
+            .collect();
+        Self::build((self.rigid, self.rigid_damping), &real, &pairs)
+    }
+
     fn build((rigid, damping): (usize, f64), real: &[f64], pairs: &[C]) -> Result<Self> {
         Ok(ModalBasis {
             blocks: Self::blocks((rigid, damping), real, pairs)?,
@@ -608,6 +653,24 @@ mod tests {
             .with_damped_rigid_body(10.0)
             .unwrap()
             .is_rigid_damping(0));
+    }
+
+    /// The slow extras of a damped rigid body's basis are the real poles and overdamped
+    /// pairs below the lowest lightly damped pair, slowest first; an undamped basis has none.
+    #[test]
+    fn slow_extras_are_the_poles_below_the_first_mode() {
+        let mode = C::new(-20.0, 2000.0);
+        let over = C::new(-900.0, 300.0);
+        let b = ModalBasis::build((2, 50.0), &[-5000.0, -400.0], &[mode, over]).unwrap();
+        let extras = b.slow_extras();
+        assert_eq!(extras, vec![C::new(-400.0, 0.0), over], "{extras:?}");
+        let slim = b.without_poles(&extras).unwrap();
+        assert!(slim.is_damped());
+        let left: Vec<C> = slim.poles();
+        assert_eq!(left.len(), 3, "{left:?}");
+        assert!(left.contains(&C::new(-5000.0, 0.0)) && left.contains(&mode));
+        let undamped = ModalBasis::build((2, 0.0), &[-400.0], &[mode]).unwrap();
+        assert!(undamped.slow_extras().is_empty());
     }
 
     /// The basis spans the paper's two-mode stage exactly: its residue fit on noise-free

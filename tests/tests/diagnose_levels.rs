@@ -6,9 +6,9 @@
 //! A held-out level counts as *visible* when the linear model's statistic on it (in the moving
 //! mode's band, the gain's metric) is at least [`VISIBLE`]: there the extension must gain at
 //! least 3. Seeds: development `0..20` (and `100..125`, `150..170`, `300..325`, `350..386`,
-//! reported by earlier versions); the default run `50..53` (non-periodic `50..52`); reported
-//! (not looked at before the figures were taken) `400..425` (periodic) and `450..466`
-//! (non-periodic):
+//! `400..425`, `450..466`, reported by earlier versions); the default run `50..53`
+//! (non-periodic `50..52`); reported (not looked at before the figures were taken) `800..825`
+//! (periodic) and `850..866` (non-periodic):
 //! `cargo test --release -p sd-tests --test diagnose_levels -- --ignored --nocapture`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -19,10 +19,10 @@ use sd_tests::diagcases::{
 
 /// The linear model's held-out statistic from which a level's nonlinearity counts as visible.
 const VISIBLE: f64 = 5.0;
-const REPORT_SEEDS: std::ops::Range<u64> = 400..425;
+const REPORT_SEEDS: std::ops::Range<u64> = 800..825;
 const CI_SEEDS: std::ops::Range<u64> = 50..53;
 /// Reported seeds of the non-periodic forms (separate noise records, one rising record).
-const REPORT_SEEDS_NOISE: std::ops::Range<u64> = 450..466;
+const REPORT_SEEDS_NOISE: std::ops::Range<u64> = 850..866;
 /// The default run's non-periodic subset.
 const CI_SEEDS_NOISE: std::ops::Range<u64> = 50..52;
 
@@ -48,8 +48,9 @@ struct Outcome {
     corner: Option<CornerTrend>,
     /// Pooled held-out gain.
     gain: Option<f64>,
-    /// Per held-out level: (before, after).
-    levels: Vec<(String, f64, f64)>,
+    /// Per held-out level: name, before, after, and whether its amplitude lay beyond the
+    /// levels the model was fitted on (extrapolated).
+    levels: Vec<(String, f64, f64, bool)>,
     /// Relative error of the predicted frequency shift at each held-out level.
     shift_errors: Vec<f64>,
     seconds: f64,
@@ -139,6 +140,34 @@ fn run(seed: u64, effect: LevelEffect, levels: &[f64], form: Form) -> Option<Out
         for e in &d.evidence {
             println!("    {:.3} / {:.3} {}", e.statistic, e.threshold, e.test);
         }
+        for c in &d.causes {
+            if let Cause::Nonlinearity { modes, .. } = c {
+                for m in modes {
+                    println!(
+                        "    mode {:?} lin {:.2} Hz ζ {:.4} moves f {} ζ {} trend k {} slope {:.3e}",
+                        m.pole,
+                        m.linear_freq_hz,
+                        m.linear_damping,
+                        m.frequency_moves,
+                        m.damping_moves,
+                        m.frequency.exponent,
+                        m.frequency.slope
+                    );
+                    for p in &m.points {
+                        println!(
+                            "      {} ρ {:.2} f {:.3}±{:.3} ζ {:.4}±{:.4} loo {:?}",
+                            p.experiment,
+                            p.relative_amplitude,
+                            p.freq_hz,
+                            p.freq_hz_std,
+                            p.damping,
+                            p.damping_std,
+                            p.held_out_prediction
+                        );
+                    }
+                }
+            }
+        }
     }
     let (mut kind, mut damping, mut drift_check, mut corner) = (None, None, None, None);
     for c in &d.causes {
@@ -166,7 +195,14 @@ fn run(seed: u64, effect: LevelEffect, levels: &[f64], form: Form) -> Option<Out
         levels: d
             .experiments
             .iter()
-            .filter_map(|x| Some((x.name.clone(), x.held_out?.before, x.held_out?.after)))
+            .filter_map(|x| {
+                let h = x.held_out?;
+                let extrapolated =
+                    d.gain.held_out.iter().any(|l| {
+                        l.starts_with(&format!("{} (", x.name)) && l.contains("extrapolated")
+                    });
+                Some((x.name.clone(), h.before, h.after, extrapolated))
+            })
             .collect(),
         shift_errors: shift_errors(&d, case.mode_hz),
         seconds,
@@ -182,7 +218,7 @@ fn run(seed: u64, effect: LevelEffect, levels: &[f64], form: Form) -> Option<Out
         out.gain.map(|g| (g * 10.0).round() / 10.0),
         out.levels
             .iter()
-            .map(|(n, b, a)| format!("{n} {b:.2}→{a:.2}"))
+            .map(|(n, b, a, x)| format!("{n} {b:.2}→{a:.2}{}", if *x { " (extrapolated)" } else { "" }))
             .collect::<Vec<_>>(),
         out.shift_errors
             .iter()
@@ -237,25 +273,42 @@ fn median(x: &[f64]) -> f64 {
     v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
 }
 
-/// Prints the summary; returns (wrong, visible levels below a gain of 3).
+/// Gains (before/after) of the visible held-out levels of `out`: (interpolated, extrapolated).
+fn visible_gains(out: &[&Outcome]) -> (Vec<f64>, Vec<f64>) {
+    let vis = |extra: bool| -> Vec<f64> {
+        out.iter()
+            .flat_map(|o| o.levels.iter())
+            .filter(|l| l.1 >= VISIBLE && l.3 == extra)
+            .map(|l| l.1 / l.2)
+            .collect()
+    };
+    (vis(false), vis(true))
+}
+
+/// `n with gain median m, worst w, ≥ 3 in k`.
+fn gain_line(g: &[f64]) -> String {
+    format!(
+        "{} with gain median {:.2}, worst {:.2}, ≥ 3 in {}",
+        g.len(),
+        median(g),
+        g.iter().cloned().fold(f64::INFINITY, f64::min),
+        g.iter().filter(|x| **x >= 3.0).count()
+    )
+}
+
+/// Prints the summary; returns (wrong, cubic cases' visible levels inside the fitted
+/// amplitudes with a gain below 3). A level beyond the others' amplitudes (the top level,
+/// left out) is an extrapolation, reported apart.
 fn summarize(out: &[Outcome]) -> (usize, usize) {
     let wrong = out.iter().filter(|o| !o.right()).count();
-    let nl: Vec<&Outcome> = out
-        .iter()
-        .filter(|o| {
-            matches!(
-                o.case.effect,
-                LevelEffect::Hardening | LevelEffect::Softening
-            )
-        })
-        .collect();
+    let of = |effects: &[LevelEffect]| -> Vec<&Outcome> {
+        out.iter()
+            .filter(|o| effects.contains(&o.case.effect))
+            .collect()
+    };
+    let nl = of(&[LevelEffect::Hardening, LevelEffect::Softening]);
     let gains: Vec<f64> = nl.iter().filter_map(|o| o.gain).collect();
-    let visible: Vec<f64> = nl
-        .iter()
-        .flat_map(|o| o.levels.iter())
-        .filter(|l| l.1 >= VISIBLE)
-        .map(|l| l.1 / l.2)
-        .collect();
+    let (vis, vis_x) = visible_gains(&nl);
     let errs: Vec<f64> = nl
         .iter()
         .flat_map(|o| o.shift_errors.iter().copied())
@@ -263,27 +316,24 @@ fn summarize(out: &[Outcome]) -> (usize, usize) {
     let t: Vec<f64> = out.iter().map(|o| o.seconds).collect();
     println!(
         "{} cases, {wrong} wrong (kind of the nonlinear ones, `none` for the linear, no kind for \
-         the drifting); pooled held-out gain median {:.2}, worst {:.2} over {}; visible levels \
-         (before ≥ {VISIBLE}): {} with gain median {:.2}, worst {:.2}; predicted frequency \
-         shift at held-out levels: relative error median {:.3}, worst {:.3} over {}; diagnosis \
-         median {:.2} s, worst {:.2} s",
+         the drifting); cubic: pooled held-out gain median {:.2}, worst {:.2} over {}; visible \
+         levels (before ≥ {VISIBLE}) {}; extrapolated {}; predicted frequency shift at \
+         held-out levels: relative error median {:.3}, worst {:.3} over {}; diagnosis median \
+         {:.2} s, worst {:.2} s",
         out.len(),
         median(&gains),
         gains.iter().cloned().fold(f64::INFINITY, f64::min),
         gains.len(),
-        visible.len(),
-        median(&visible),
-        visible.iter().cloned().fold(f64::INFINITY, f64::min),
+        gain_line(&vis),
+        gain_line(&vis_x),
         median(&errs),
         errs.iter().cloned().fold(0.0, f64::max),
         errs.len(),
         median(&t),
         t.iter().cloned().fold(0.0, f64::max)
     );
-    let coulomb: Vec<&Outcome> = out
-        .iter()
-        .filter(|o| o.case.effect == LevelEffect::Coulomb)
-        .collect();
+    let coulomb = of(&[LevelEffect::Coulomb]);
+    let (cvis, cvis_x) = visible_gains(&coulomb);
     if !coulomb.is_empty() {
         let falling = coulomb
             .iter()
@@ -293,24 +343,18 @@ fn summarize(out: &[Outcome]) -> (usize, usize) {
             .iter()
             .filter(|o| o.kind.is_some_and(|k| k != FreqTrend::None))
             .count();
-        let vis: Vec<f64> = coulomb
-            .iter()
-            .flat_map(|o| o.levels.iter())
-            .filter(|l| l.1 >= VISIBLE)
-            .map(|l| l.1 / l.2)
-            .collect();
         println!(
             "Coulomb friction: {} cases, rigid-body corner falling in {falling}, a mode's \
-             frequency trend claimed in {claimed}; visible levels {}: gain median {:.2}, worst \
-             {:.2}, ≥ 3 in {}",
+             frequency trend claimed in {claimed}; visible levels {}; extrapolated {}",
             coulomb.len(),
-            vis.len(),
-            median(&vis),
-            vis.iter().cloned().fold(f64::INFINITY, f64::min),
-            vis.iter().filter(|g| **g >= 3.0).count()
+            gain_line(&cvis),
+            gain_line(&cvis_x),
         );
     }
-    (wrong, visible.iter().filter(|g| **g < 3.0).count())
+    // friction's visible levels are reported, not yet required (a corner the level fits do
+    // not find moving leaves the friction unmodelled: gain ≈ 1)
+    let weak = vis.iter().filter(|g| **g < 3.0).count();
+    (wrong, weak)
 }
 
 /// The default run's subset: every case right, every visible level gains ≥ 3.
@@ -336,7 +380,7 @@ fn levels_default_subset_nonperiodic() {
     }
 }
 
-/// The reported seeds of the non-periodic forms (`450..466`).
+/// The reported seeds of the non-periodic forms (`850..866`).
 #[test]
 #[ignore]
 fn levels_reported_nonperiodic() {
@@ -392,7 +436,7 @@ fn four_levels_speed() {
     }
 }
 
-/// The reported periodic seeds (`400..425`).
+/// The reported periodic seeds (`800..825`).
 #[test]
 #[ignore]
 fn levels_reported() {
@@ -499,9 +543,8 @@ fn level_and_rate_together() {
 }
 
 /// Coulomb friction on the rigid body at four levels (periodic): the first seed from 50 whose
-/// diagnosis finds the damped rigid body's corner falling gains ≥ 2 on its held-out levels
-/// (≥ 3 is not reached on every friction case yet: see `summarize`'s friction line), and its
-/// report has the corner's table and a one-panel figure of the corner against
+/// diagnosis finds the damped rigid body's corner falling gains ≥ 3 on each visible held-out
+/// level, and its report has the corner's table and a one-panel figure of the corner against
 /// amplitude. Seeds 50..53 give at least one such case.
 #[test]
 fn friction_corner_is_reported() {
@@ -521,7 +564,14 @@ fn friction_corner_is_reported() {
     });
     let (seed, d) = found.expect("no seed of 50..53 finds the friction corner falling");
     println!("seed {seed}: gain {:?}", d.gain.ratio);
-    assert!(d.gain.ratio.is_some_and(|g| g >= 2.0), "{:?}", d.gain);
+    let visible: Vec<(f64, f64)> = d
+        .experiments
+        .iter()
+        .filter_map(|x| x.held_out.map(|h| (h.before, h.after)))
+        .filter(|(b, _)| *b >= VISIBLE)
+        .collect();
+    assert!(!visible.is_empty(), "{:?}", d.experiments);
+    assert!(visible.iter().all(|(b, a)| b / a >= 3.0), "{visible:?}");
     let dir = std::env::temp_dir().join(format!("sd_friction_report_{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let figs = sd_report::diagnosis::write(&dir, &d, "friction").unwrap();
