@@ -1,6 +1,6 @@
 //! Intersample analysis of a slow loop around a fast plant (the paper's §V): the error spectrum
 //! at the fast rate next to the at-sample (slow-rate) one, from the disturbance spectra
-//! (DESIGN §5 formulas, [`sd_multirate::MultirateLoop`]), and the control sensitivity
+//! (the lifted closed loop of [`sd_multirate::MultirateLoop`]), and the control sensitivity
 //! `|K_d S_d|` — large where the slow controller amplifies what it sees, which is what excites
 //! the plant between the samples.
 

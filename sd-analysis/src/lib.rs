@@ -4,9 +4,9 @@
 //!   definitions), bandwidth, the `sdctl analyze` summary.
 //! - [`spectra`]: Welch and periodogram PSDs with windows, cumulative power spectrum, rms,
 //!   dominant frequency.
-//! - [`standstill`]: disturbance simulation of a single-rate loop, and of a slow controller on a
+//! - [`standstill()`]: disturbance simulation of a single-rate loop, and of a slow controller on a
 //!   fast plant (errors at both rates).
-//! - [`intersample`]: predicted fast- and slow-rate error spectra of a multirate loop and the
+//! - [`intersample()`]: predicted fast- and slow-rate error spectra of a multirate loop and the
 //!   control sensitivity `K_d S_d`.
 
 pub mod closed_loop;
@@ -21,3 +21,8 @@ pub use error::{AnalysisError, Result};
 pub use intersample::{intersample, Intersample};
 pub use spectra::{cps, periodogram, rms, welch, Spectrum, Window};
 pub use standstill::{standstill, standstill_multirate, MultirateStandstill, Standstill};
+
+/// The crate README's example, compiled and run as a doctest.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctest;

@@ -177,7 +177,7 @@ pub fn rms(x: &[f64], detrend: bool) -> f64 {
     } else {
         0.0
     };
-    (x.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / x.len() as f64).sqrt()
+    sd_model::rms_of(x.iter().map(|v| v - m))
 }
 
 #[cfg(test)]

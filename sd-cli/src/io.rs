@@ -116,6 +116,31 @@ pub fn read_text(path: &str) -> Result<String, CliError> {
     Ok(s)
 }
 
+/// The experiments of a manifest (docs/formats.md) with their CSV files (relative to the
+/// manifest), those `keep` accepts by name; the one manifest loader of the CLI.
+pub fn load_experiments(
+    manifest: &str,
+    keep: impl Fn(&str) -> bool,
+) -> Result<Vec<sd_ident::Experiment>, CliError> {
+    let text = read_text(manifest)?;
+    let specs = sd_ident::parse_manifest(&text).map_err(|e| from_ident(manifest, e))?;
+    let base = std::path::Path::new(manifest)
+        .parent()
+        .map(|p| p.to_path_buf())
+        .unwrap_or_default();
+    let mut exps = Vec::new();
+    for spec in specs.into_iter().filter(|s| keep(&s.name)) {
+        let path = base.join(&spec.file);
+        let file = std::fs::File::open(&path)
+            .map_err(|e| CliError::input(format!("cannot open {}: {e}", path.display())))?;
+        exps.push(
+            sd_ident::Experiment::from_reader(spec, std::io::BufReader::new(file))
+                .map_err(|e| from_ident(manifest, e))?,
+        );
+    }
+    Ok(exps)
+}
+
 /// Reads a model file.
 pub fn read_model(path: &str) -> Result<StateSpace, CliError> {
     let text = read_text(path)?;

@@ -1,9 +1,10 @@
-//! `sdctl`: the toolkit's capabilities on files (DESIGN §4 formats).
+//! `sdctl`: the toolkit's capabilities on files (formats in docs/formats.md).
 //!
 //! Exit status: 0 success; 2 bad input or usage (one line on stderr saying what and where);
 //! 1 a numerical failure that is not the input's fault. Outputs are written atomically
 //! (temporary file + rename), so a failed run never leaves a half-written file.
 
+mod cmd;
 mod commands;
 mod io;
 

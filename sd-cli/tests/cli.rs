@@ -1,4 +1,4 @@
-//! sdctl contract tests (issue #2): outputs, exit codes, one-line errors, atomic files.
+//! sdctl contract tests: outputs, exit codes, one-line errors, atomic files.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::path::PathBuf;
@@ -48,7 +48,7 @@ const CT: &str =
 const DT: &str = r#"{"type":"ss","ts":0.001,"a":[[0.5]],"b":[[1]],"c":[[1]],"d":[[0]]}"#;
 
 #[test]
-fn issue2_alias_json() {
+fn alias_json() {
     let o = sdctl(&["alias", "--freq-hz", "653", "--rate-hz", "1000", "--json"]);
     assert!(o.status.success());
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
@@ -62,7 +62,7 @@ fn issue2_alias_json() {
 }
 
 #[test]
-fn issue2_c2d_d2c_freqresp_poles_norm_reduce_connect() {
+fn c2d_d2c_freqresp_poles_norm_reduce_connect() {
     let d = tmpdir("ok");
     let ct = write(&d, "ct.json", CT);
     let out = d.join("dt.json").to_string_lossy().into_owned();
@@ -104,7 +104,7 @@ fn issue2_c2d_d2c_freqresp_poles_norm_reduce_connect() {
 }
 
 #[test]
-fn issue2_bad_inputs_exit_2_with_one_line() {
+fn bad_inputs_exit_2_with_one_line() {
     let d = tmpdir("bad");
     // (file, contents, what the one-line message must name); needle None = the file's path
     let bad_models: [(&str, &str, Option<&str>); 6] = [
@@ -195,7 +195,7 @@ fn model_of(o: &Output) -> sd_model::StateSpace {
 }
 
 #[test]
-fn issue3_downsample_c2d_nonideal_and_alias_factor() {
+fn downsample_c2d_nonideal_and_alias_factor() {
     let dir = tmpdir("issue3");
     let ct = write(&dir, "ct.json", CT);
     // c2d at 1 ms, and at 0.2 ms then downsample by 5: the same model (Lemma 5 then Lemma 6)
@@ -312,7 +312,7 @@ fn issue3_downsample_c2d_nonideal_and_alias_factor() {
 }
 
 #[test]
-fn issue4_weight_and_loopshape() {
+fn weight_and_loopshape() {
     let dir = tmpdir("issue4");
     let ct = write(&dir, "ct.json", CT);
     let p = dir.join("p.json").to_string_lossy().into_owned();
@@ -386,7 +386,7 @@ fn issue4_weight_and_loopshape() {
 }
 
 #[test]
-fn issue5_frf_and_fit() {
+fn frf_and_fit() {
     let dir = tmpdir("issue5");
     // a 2nd-order resonance at 100 Hz, sampled at 1 kHz, driven by a multisine (4 periods)
     let ct = write(
@@ -457,7 +457,7 @@ fn issue5_frf_and_fit() {
 }
 
 #[test]
-fn issue6_analyze_and_intersample() {
+fn analyze_and_intersample() {
     let dir = tmpdir("issue6");
     // the paper's stage at 5 kHz and 1 kHz, and a PID-like controller at 1 kHz
     let stage = r#"{"type":"ss","ts":null,"a":[[0,1,0,0],[0,0,0,0],[0,0,0,1],[0,0,-16834268.0,-82.05]],"b":[[0],[0.05],[0],[0.1]],"c":[[1,0,1,0]],"d":[[0]]}"#;
@@ -540,7 +540,7 @@ fn issue6_analyze_and_intersample() {
 }
 
 #[test]
-fn issue7_testbed() {
+fn testbed() {
     let dir = tmpdir("issue7");
     let out = dir.join("run").to_string_lossy().into_owned();
     let cfg = write(
@@ -592,7 +592,7 @@ fn issue7_testbed() {
 }
 
 #[test]
-fn issue8_testbed_then_diagnose() {
+fn testbed_then_diagnose() {
     let dir = tmpdir("issue8");
     let cfg = write(
         &dir,

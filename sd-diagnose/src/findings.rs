@@ -76,7 +76,7 @@ pub(crate) fn dominant_fold(model: &StateSpace, pair: &Pair<'_>, f: f64) -> f64 
     let terms: Vec<(f64, f64, Option<f64>)> = (0..factor)
         .map(|k| {
             let fk = f - k as f64 / t;
-            let fk = (fk - fs * (fk / fs).round()).abs();
+            let fk = sd_model::fold(fk, fs).abs();
             let w = hold_weight(2.0 * PI * fk * h, factor).norm();
             let g = ev.eval_hz(fk)[(0, 0)];
             let miss = pair

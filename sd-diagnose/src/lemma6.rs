@@ -37,7 +37,7 @@ impl Pair<'_> {
     /// The fast FRF (and its variance) at a signed frequency folded into the fast band.
     pub(crate) fn fast_at(&self, f: f64) -> Option<(C, f64)> {
         let fs = 1.0 / self.h;
-        let g = f - fs * (f / fs).round();
+        let g = sd_model::fold(f, fs);
         let fa = g.abs();
         let freq = self.fast.freq_hz();
         let i = freq.partition_point(|&x| x < fa - 1e-9 * fs);

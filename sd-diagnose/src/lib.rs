@@ -732,3 +732,8 @@ pub(crate) fn merged_parameters(causes: &[Cause]) -> serde_json::Value {
     }
     serde_json::Value::Object(m)
 }
+
+/// The crate README's example, compiled and run as a doctest.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctest;

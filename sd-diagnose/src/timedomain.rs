@@ -19,6 +19,7 @@ use crate::{DiagnoseError, Result};
 use num_complex::Complex64 as C;
 use rustfft::FftPlanner;
 use sd_ident::Experiment;
+use sd_model::rms_of as rms;
 
 /// One averaged steady period of an experiment, restricted to the bins where the input is
 /// measured.
@@ -211,12 +212,6 @@ impl AveragedPeriod {
     pub fn error_rms(&self, sim: &[f64]) -> f64 {
         rms(self.y.iter().zip(sim).map(|(a, b)| a - b))
     }
-}
-
-/// Root mean square of a sequence.
-pub(crate) fn rms(x: impl Iterator<Item = f64>) -> f64 {
-    let (s, n) = x.fold((0.0, 0usize), |(s, n), v| (s + v * v, n + 1));
-    (s / n.max(1) as f64).sqrt()
 }
 
 #[cfg(test)]

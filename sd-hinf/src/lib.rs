@@ -2,7 +2,7 @@
 //!
 //! - [`dare`], [`care`]: the stabilizing solution (cross term S allowed), its residual, closed
 //!   loop and condition estimate, or an error saying why there is none.
-//! - [`loopshape`]: `G_s = W₂PW₁`, γ_min, the central controller for γ = factor·γ_min (or the
+//! - [`loopshape()`]: `G_s = W₂PW₁`, γ_min, the central controller for γ = factor·γ_min (or the
 //!   strictly proper one), `K = W₁K_sW₂` for negative feedback, the achieved 4-block norm.
 //! - [`weights`]: PID-like, notch and low-pass weights, discrete by prewarped Tustin.
 //! - `lmi` (feature `lmi`): the H∞ norm by the bounded-real lemma as an SDP (clarabel), the
@@ -29,3 +29,8 @@ pub mod weights;
 pub use error::{HinfError, Result};
 pub use loopshape::{gamma_min, loopshape, Loopshape, LoopshapeOptions, RiccatiReport};
 pub use riccati::{care, dare, RiccatiSolution};
+
+/// The crate README's example, compiled and run as a doctest.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctest;

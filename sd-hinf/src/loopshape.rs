@@ -4,7 +4,7 @@
 //! factors: find K_s minimizing `‖[I; K_s](I + G_s K_s)⁻¹[I  G_s]‖∞`; the optimum is
 //! `γ_min = sqrt(1 + ρ(XZ))` (McFarlane & Glover 1990; Skogestad & Postlethwaite §9.4).
 //!
-//! **Discrete time.** γ_min comes from the DT Riccati equations of DESIGN §5
+//! **Discrete time.** γ_min comes from the discrete Riccati equations
 //! (`X = dare(A, B, CᵀC, I)`, `Z = dare(Aᵀ, Cᵀ, BBᵀ, I)` for D = 0; with D ≠ 0 the standard
 //! `R = I + DᵀD`, `S = CᵀD` forms). The central controller is obtained through the exact
 //! bilinear map `z = (1 + s)/(1 − s)`: it maps the unit circle onto the imaginary axis, so the

@@ -2,7 +2,7 @@
 //!
 //! Each weight is built as a series of first- and second-order sections (never one
 //! high-order polynomial, whose coefficients span many decades) and discretised by the
-//! prewarped Tustin map ([`sd_model::c2d`]) at its characteristic frequency, so the discrete
+//! prewarped Tustin map ([`sd_model::c2d()`]) at its characteristic frequency, so the discrete
 //! weight equals the continuous one exactly there (at 347 Hz and 1 kHz, prewarping moves the
 //! notch by a factor tan(π·0.347)/(π·0.347) = 1.77 otherwise).
 //!

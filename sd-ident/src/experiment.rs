@@ -1,4 +1,4 @@
-//! Measured experiments: the TOML manifest and the CSV data of DESIGN §4.
+//! Measured experiments: the TOML manifest and the CSV data of docs/formats.md.
 //!
 //! The manifest lists `[[experiment]]` tables (`name`, `file`, `sample_rate_hz`, optional
 //! `period_samples`, `skip_periods`, `reference`, `role`, and the `input` and `output` column
@@ -65,7 +65,7 @@ fn fmt_err(detail: String) -> IdentError {
     }
 }
 
-/// Parses a manifest (DESIGN §4).
+/// Parses a manifest (docs/formats.md).
 ///
 /// # Errors
 /// TOML syntax (with line and column), a missing or mistyped field, duplicate names, a

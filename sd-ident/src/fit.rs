@@ -1,6 +1,6 @@
 //! Discrete-time rational models fitted to an FRD, up to order ~60.
 //!
-//! **Model** (partial fractions in z, a well-conditioned basis; DESIGN §5):
+//! **Model** (partial fractions in z, a well-conditioned basis):
 //! `Ĝ(z) = Σ_i r_i/(z − p_i) + Σ_{l=1}^{m} c_l/(z − 1)^l + d`, free poles p_i real or in
 //! complex-conjugate pairs, m ∈ {0, 1, 2} fixed rigid-body poles at z = 1, optional d.
 //!

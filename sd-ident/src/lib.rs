@@ -2,11 +2,11 @@
 //!
 //! - [`multisine`]: random-phase, Schroeder and random-odd multisines on fold-aware grids, crest
 //!   factor, CSV output.
-//! - [`experiment`]: the DESIGN §4 manifest (TOML) and robust CSV reading.
+//! - [`experiment`]: the manifest of docs/formats.md (TOML) and robust CSV reading.
 //! - [`frf`]: FRF of periodic data — closed loop `(Y/R)/(U/R)` or open loop — with variances
 //!   from the spread over periods, and noise / nonlinear-distortion levels.
-//! - [`lpm`]: the local polynomial method for transients and non-periodic (MIMO) data.
-//! - [`fit`]: discrete-time rational fitting up to order ~60 (SK iterations in a partial-fraction
+//! - [`lpm()`]: the local polynomial method for transients and non-periodic (MIMO) data.
+//! - [`fit()`]: discrete-time rational fitting up to order ~60 (SK iterations in a partial-fraction
 //!   basis, then Levenberg–Marquardt on the variance-weighted cost; stability by reflection;
 //!   rigid-body poles at z = 1 optionally fixed; order selection).
 
@@ -30,3 +30,8 @@ pub use frf::{
 };
 pub use lpm::{lpm, lpm_closed_loop, lpm_closed_loop_snr, LpmEstimate, LpmOptions};
 pub use multisine::{crest_factor, design, write_csv, Lines, Multisine, MultisineSpec, Phases};
+
+/// The crate README's example, compiled and run as a doctest.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctest;

@@ -31,6 +31,13 @@ fn check(v: f64, what: &str, allow_zero: bool) -> Result<()> {
     Ok(())
 }
 
+/// `f − fs·round(f/fs)`: the signed frequency in `[−fs/2, fs/2]` that `f` (Hz, any sign) lands
+/// on when sampled at `fs` (its absolute value is the alias). The one fold of the workspace;
+/// no argument checks (callers pass finite values, `fs > 0`).
+pub fn fold(f: f64, fs: f64) -> f64 {
+    f - fs * (f / fs).round()
+}
+
 /// The alias of `freq_hz` at sample rate `rate_hz`.
 pub fn alias(freq_hz: f64, rate_hz: f64) -> Result<Alias> {
     check(freq_hz, "frequency", true)?;

@@ -2,7 +2,7 @@
 //!
 //! - **ZOH** (Oomen et al. 2007, Lemma 5; Van Loan, IEEE TAC 23(3), 1978):
 //!   `exp([[A, B], [0, 0]]·h) = [[A_d, B_d], [0, I]]`, i.e. `A_d = e^{Ah}`, `B_d = ∫₀ʰ e^{As} ds B`,
-//!   `C_d = C`, `D_d = D`. One block exponential ([`crate::linalg::expm`]); accuracy that of expm
+//!   `C_d = C`, `D_d = D`. One block exponential ([`crate::linalg::expm()`]); accuracy that of expm
 //!   (≤ 1e-12 relative on the project's reference set, see `tests/zoh_reference.rs`).
 //! - **FOH** (triangle hold; Franklin, Powell & Workman, *Digital Control of Dynamic Systems*,
 //!   §6.3.2): `exp([[A, B, 0], [0, 0, I], [0, 0, 0]]·h)` gives Φ, Γ₁, Γ₂; `A_d = Φ`,

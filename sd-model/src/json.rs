@@ -1,4 +1,4 @@
-//! JSON (de)serialisation of models and FRDs in the formats of DESIGN §4 (contracts).
+//! JSON (de)serialisation of models and FRDs in the formats of docs/formats.md.
 //!
 //! Model: `{"type": "ss", "ts": 0.0002 | null, "a": [[..]], "b": [[..]], "c": [[..]], "d": [[..]],
 //! "name"?, "inputs"?, "outputs"?}` with row-major arrays of rows; `d` fixes ny and nu. A SISO

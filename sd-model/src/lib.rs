@@ -2,8 +2,8 @@
 //!
 //! State space ([`StateSpace`]), SISO transfer functions ([`TransferFunction`]) and frequency
 //! response data ([`Frd`]) with JSON in the project's file formats; exact discretisation
-//! ([`c2d`], Lemma 5 of Oomen et al. 2007) and its principal inverse with alias candidates
-//! ([`d2c`], [`d2c_with_aliases`]); frequency response after one block-diagonal reduction;
+//! ([`c2d()`], Lemma 5 of Oomen et al. 2007) and its principal inverse with alias candidates
+//! ([`d2c()`], [`d2c_with_aliases`]); frequency response after one block-diagonal reduction;
 //! interconnection; poles and invariant zeros; minimal realisation; balanced truncation; H2 and
 //! H∞ norms; simulation. Every numerical routine documents its method, reference and accuracy.
 //!
@@ -35,7 +35,7 @@ pub mod stage;
 pub mod tf;
 pub mod time;
 
-pub use alias::{alias, folding_frequencies, Alias};
+pub use alias::{alias, fold, folding_frequencies, Alias};
 pub use c2d::{c2d, Discretization};
 pub use connect::{append, feedback, parallel, series};
 pub use d2c::{d2c, d2c_with_aliases, ModeAliases};
@@ -53,3 +53,13 @@ pub use sim::{rms, rms_of, Simulation};
 pub use ss::StateSpace;
 pub use tf::TransferFunction;
 pub use time::SampleTime;
+
+/// The crate README's example, compiled and run as a doctest.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctest;
+
+/// The workspace README's Rust example, compiled and run as a doctest.
+#[cfg(doctest)]
+#[doc = include_str!("../../README.md")]
+pub struct WorkspaceReadmeDoctest;

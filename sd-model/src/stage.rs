@@ -1,6 +1,6 @@
 //! Motion-stage models: a rigid body plus lightly damped flexible modes (force in, position out).
 //!
-//! `P(s) = 1/(m s²) + Σ_i r_i / (m (s² + 2ζ_iω_i s + ω_i²))` (DESIGN §6). Realised in physical
+//! `P(s) = 1/(m s²) + Σ_i r_i / (m (s² + 2ζ_iω_i s + ω_i²))` (docs/stage.md). Realised in physical
 //! (position, velocity) coordinates per mode — `[[0, 1], [−ω², −2ζω]]` blocks — which is how
 //! such models arrive from modal analysis, and which makes ‖A‖ ≈ ω_max² large: a realistic
 //! numerical stress test.
@@ -89,7 +89,7 @@ pub fn stage60() -> Result<StateSpace> {
     stage_model(20.0, true, &stage60_modes())
 }
 
-/// The paper's stage (DESIGN §6): m = 20 kg, rigid body, 653 Hz mode with ζ and r = 2.
+/// The paper's stage (docs/stage.md): m = 20 kg, rigid body, 653 Hz mode with ζ and r = 2.
 pub fn paper_stage(zeta: f64) -> Result<StateSpace> {
     stage_model(
         20.0,
@@ -102,7 +102,7 @@ pub fn paper_stage(zeta: f64) -> Result<StateSpace> {
     )
 }
 
-/// The paper's stage with DESIGN §6's optional second mode: rigid body, 653 Hz (ζ = 0.01,
+/// The paper's stage with the optional second mode of docs/stage.md: rigid body, 653 Hz (ζ = 0.01,
 /// r = 2) and 1.65 kHz (ζ = 0.005, r = 0.3), m = 20 kg.
 pub fn paper_stage_two_modes() -> Result<StateSpace> {
     stage_model(

@@ -1,7 +1,7 @@
 //! Alias maps between rates.
 //!
-//! - Where a continuous frequency appears at a sample rate: [`sd_model::alias`] (re-exported as
-//!   [`appears_at`]); e.g. 653 Hz at 1 kHz appears at 347 Hz.
+//! - Where a continuous frequency appears at a sample rate: [`sd_model::alias()`] (re-exported as
+//!   [`appears_at()`]); e.g. 653 Hz at 1 kHz appears at 347 Hz.
 //! - Which fast-rate frequencies fold onto a slow-rate one, and how strongly the slow hold
 //!   passes them ([`fold_map`]). With `T = F·h`, a slow frequency `f` receives the fast
 //!   frequencies `f_k = f − k/T`, k = 0…F−1 (taken modulo the fast rate), weighted in Lemma 6's

@@ -13,7 +13,7 @@
 //!
 //! `z` is the fast-rate error (the standstill error with r = 0, up to sign), `y` the slow one.
 //!
-//! **Lifted closed loop** ([`MultirateLoop::lifted`]): the lifted plant ([`crate::lift`])
+//! **Lifted closed loop** ([`MultirateLoop::lifted`]): the lifted plant ([`crate::lift()`])
 //! closed with `K_d` through the hold `ū = [I; …; I] u_k` and the sampler `y_k = z̄_k[0]`; an LTI
 //! model at T from `[d̄; v̄]` (F·nu + F·ny) to `[z̄; u]` (F·ny + nu). Its state matrix equals the
 //! slow closed loop of `P_d = downsample(P_h, F)` with `K_d`, which is Lemma 7 of Oomen et al.
@@ -350,7 +350,7 @@ impl MultirateLoop {
     /// `Φ_v(f) = |P_h(f)|² Φ_d(f) + Φ_n(f)` at a frequency folded into [0, fast Nyquist].
     fn phi_v(&self, f_hz: f64, phi_d: &dyn Fn(f64) -> f64, phi_n: &dyn Fn(f64) -> f64) -> f64 {
         let fs = 1.0 / self.h;
-        let fa = (f_hz - fs * (f_hz / fs).round()).abs();
+        let fa = sd_model::fold(f_hz, fs).abs();
         let p = self.ev_ph.eval_hz(fa)[(0, 0)].norm_sqr();
         p * phi_d(fa) + phi_n(fa)
     }

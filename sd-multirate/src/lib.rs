@@ -1,14 +1,14 @@
 //! `sd-multirate`: the multirate side of sampled-data control (Oomen, van de Wal & Bosgra,
 //! ACC 2007, Lemmas 6 and 7).
 //!
-//! - [`downsample`]: Lemma 6, a fast model seen through a slow hold and sampler, in the same
+//! - [`downsample()`]: Lemma 6, a fast model seen through a slow hold and sampler, in the same
 //!   state coordinates (binary powering of `[A B; 0 I]`, never a companion form).
 //! - [`c2d_nonideal`], [`downsample_nonideal`]: rate-tied non-idealities — a hold that switches a
 //!   fraction α of the period late, a sampler that averages over the last fraction β — exactly,
 //!   from a continuous model (block exponentials) or from a fast discrete one (lifted).
-//! - [`fold_map`], [`appears_at`]: which frequencies alias onto which, with the slow hold's
+//! - [`fold_map`], [`appears_at()`]: which frequencies alias onto which, with the slow hold's
 //!   weights `|H_F|/F`.
-//! - [`lift`], [`PeriodicSystem`]: lifting a fast model to an F-input/F-output slow LTI model
+//! - [`lift()`], [`PeriodicSystem`]: lifting a fast model to an F-input/F-output slow LTI model
 //!   and back.
 //! - [`MultirateLoop`]: a slow controller around a fast plant — lifted closed loop (Lemma 7),
 //!   fast-rate simulation, harmonic transfer function, fast and slow error spectra,
@@ -39,3 +39,8 @@ pub use downsample::downsample;
 pub use error::{MultirateError, Result};
 pub use lift::{lift, stack, unstack, PeriodicSystem, Phase};
 pub use nonideal::{c2d_nonideal, downsample_nonideal, NonIdeal, MAX_HOLD_DELAY};
+
+/// The crate README's example, compiled and run as a doctest.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctest;

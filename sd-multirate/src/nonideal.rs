@@ -28,7 +28,7 @@
 //! output `y_k = w_k` with β > 0, else `y_k = C x_k + D u(kh)` where the input seen at the
 //! sample instant is `u_{k−1}` for α > 0 (the switch comes τ later) and `u_k` for α = 0. The
 //! first n states are the continuous state at the sample instants, the same coordinates as the
-//! ideal ZOH model; α = β = 0 returns exactly [`sd_model::c2d`] with ZOH.
+//! ideal ZOH model; α = β = 0 returns exactly [`sd_model::c2d()`] with ZOH.
 //! Accuracy: that of expm; within 1e-8 of a brute-force fine-step simulation
 //! (`tests/tests/nonideal_sim.rs`).
 //!

@@ -1,6 +1,8 @@
 //! SVG figures with plotters: magnitude plots in dB against frequency in Hz.
 
 use plotters::prelude::*;
+/// The colour of a curve (plotters' RGB colour, re-exported so a user needs no plotters dependency).
+pub use plotters::style::RGBColor;
 
 /// The legend of every figure: a framed, slightly transparent box at `pos`.
 fn legend<'a, DB: DrawingBackend + 'a, CT: plotters::coord::CoordTranslate>(

@@ -1,5 +1,5 @@
 //! The testbed configuration file (`sdctl testbed --config STAGE.toml`), documented in the
-//! README. Every table and key is optional; missing ones take the DESIGN §6 defaults.
+//! README. Every table and key is optional; missing ones take the virtual stage's defaults (docs/stage.md).
 //!
 //! ```toml
 //! seed = 1                         # default seed of every experiment's noise
@@ -49,7 +49,7 @@ use crate::experiments::{
 };
 use crate::sim::NonIdealities;
 use crate::truth::{ModeSpec, Truth};
-use sd_ident::{Lines, MultisineSpec, Phases, Role};
+use sd_ident::{Lines, Multisine, MultisineSpec, Phases, Role};
 use sd_model::connect::series;
 use sd_model::StateSpace;
 
@@ -130,12 +130,46 @@ pub fn parse_config(source: &str) -> Result<TestbedConfig> {
         .map_err(|e: toml::de::Error| err(e.to_string().replace('\n', " ")))?;
     let empty = toml::Table::new();
     let seed = int(&doc, "seed", 1)? as u64;
-    let tt = match doc.get("truth") {
+    let truth = parse_truth(table(&doc, "truth", &empty)?)?;
+    let nonideal = parse_nonideal(table(&doc, "nonideal", &empty)?)?;
+    let mut identification = Vec::new();
+    let mut standstill = Vec::new();
+    let exps = match doc.get("experiment") {
+        Some(v) => v
+            .as_array()
+            .ok_or_else(|| err("[[experiment]] must be an array".into()))?
+            .clone(),
+        None => Vec::new(),
+    };
+    for (i, e) in exps.iter().enumerate() {
+        let e = e
+            .as_table()
+            .ok_or_else(|| err(format!("experiment {} is not a table", i + 1)))?;
+        match parse_experiment(i, e, seed, &truth, nonideal)? {
+            Parsed::Identification(x) => identification.push(x),
+            Parsed::Standstill(x) => standstill.push(x),
+        }
+    }
+    Ok(TestbedConfig {
+        truth,
+        nonideal,
+        identification,
+        standstill,
+    })
+}
+
+/// The table `key` of `doc` (`empty` when absent).
+fn table<'a>(doc: &'a toml::Table, key: &str, empty: &'a toml::Table) -> Result<&'a toml::Table> {
+    match doc.get(key) {
         Some(v) => v
             .as_table()
-            .ok_or_else(|| err("[truth] must be a table".into()))?,
-        None => &empty,
-    };
+            .ok_or_else(|| err(format!("[{key}] must be a table"))),
+        None => Ok(empty),
+    }
+}
+
+/// `[truth]` with its `[[truth.mode]]` tables.
+fn parse_truth(tt: &toml::Table) -> Result<Truth> {
     let mut truth = Truth {
         mass: num(tt, "mass", 20.0)?,
         amplifier_hz: opt_num(tt, "amplifier_hz")?,
@@ -165,126 +199,145 @@ pub fn parse_config(source: &str) -> Result<TestbedConfig> {
             .collect::<Result<Vec<_>>>()?;
     }
     truth.validate()?;
-    let nt = match doc.get("nonideal") {
-        Some(v) => v
-            .as_table()
-            .ok_or_else(|| err("[nonideal] must be a table".into()))?,
-        None => &empty,
-    };
-    let nonideal = NonIdealities {
+    Ok(truth)
+}
+
+/// `[nonideal]`.
+fn parse_nonideal(nt: &toml::Table) -> Result<NonIdealities> {
+    Ok(NonIdealities {
         hold_delay: num(nt, "hold_delay", 0.0)?,
         averaging: num(nt, "averaging", 0.0)?,
         clock_error: num(nt, "clock_error", 0.0)?,
         quantization: num(nt, "quantization", 0.0)?,
+    })
+}
+
+/// One parsed `[[experiment]]`.
+enum Parsed {
+    Identification(Identification),
+    Standstill(Standstill),
+}
+
+/// The `i`-th `[[experiment]]` table.
+fn parse_experiment(
+    i: usize,
+    e: &toml::Table,
+    seed: u64,
+    truth: &Truth,
+    nonideal: NonIdealities,
+) -> Result<Parsed> {
+    let ctx = |m: TestbedError| err(format!("experiment {}: {m}", i + 1));
+    let name = text(e, "name", "")?.to_string();
+    if name.is_empty() {
+        return Err(err(format!("experiment {} needs a `name`", i + 1)));
+    }
+    let rate = num(e, "rate_hz", f64::NAN)?;
+    if !(rate.is_finite() && rate > 0.0) {
+        return Err(err(format!("experiment `{name}`: `rate_hz` must be > 0")));
+    }
+    let noise = Noise {
+        force_rms: num(e, "force_noise", 0.05)?,
+        sensor_rms: num(e, "sensor_noise", 3e-10)?,
+        sensor_drift: num(e, "sensor_drift", 0.0)?,
+        seed: int(e, "seed", seed as usize)? as u64,
     };
-    let mut identification = Vec::new();
-    let mut standstill = Vec::new();
-    let exps = match doc.get("experiment") {
-        Some(v) => v
-            .as_array()
-            .ok_or_else(|| err("[[experiment]] must be an array".into()))?
-            .clone(),
-        None => Vec::new(),
-    };
-    for (i, e) in exps.iter().enumerate() {
-        let e = e
-            .as_table()
-            .ok_or_else(|| err(format!("experiment {} is not a table", i + 1)))?;
-        let ctx = |m: TestbedError| err(format!("experiment {}: {m}", i + 1));
-        let name = text(e, "name", "")?.to_string();
-        if name.is_empty() {
-            return Err(err(format!("experiment {} needs a `name`", i + 1)));
-        }
-        let rate = num(e, "rate_hz", f64::NAN)?;
-        if !(rate.is_finite() && rate > 0.0) {
-            return Err(err(format!("experiment `{name}`: `rate_hz` must be > 0")));
-        }
-        let noise = Noise {
-            force_rms: num(e, "force_noise", 0.05)?,
-            sensor_rms: num(e, "sensor_noise", 3e-10)?,
-            sensor_drift: num(e, "sensor_drift", 0.0)?,
-            seed: int(e, "seed", seed as usize)? as u64,
-        };
-        let k = controller(e, truth.mass, 1.0 / rate).map_err(ctx)?;
-        match text(e, "kind", "identification")? {
-            "identification" => {
-                let period = int(e, "period", (rate as usize).max(16))?;
-                let lines = match text(e, "multisine", "random")? {
-                    "random" | "schroeder" => Lines::Full,
-                    "random-odd" => Lines::RandomOdd {
-                        group: 3,
-                        seed: noise.seed ^ 0x5eed,
-                    },
-                    other => {
-                        return Err(err(format!(
-                            "experiment `{name}`: unknown multisine `{other}`"
-                        )))
-                    }
-                };
-                let phases = match text(e, "multisine", "random")? {
-                    "schroeder" => Phases::Schroeder,
-                    _ => Phases::Random {
-                        seed: noise.seed.wrapping_add(7),
-                    },
-                };
-                let excitation = sd_ident::design(&MultisineSpec {
-                    fs: rate,
-                    period,
-                    f_min: num(e, "f_min", rate / period as f64)?,
-                    f_max: num(e, "f_max", 0.45 * rate)?,
-                    lines,
-                    phases,
-                    rms: num(e, "rms", 1.0)?,
-                    fold_rate_hz: None,
-                })
-                .map_err(|x| ctx(x.into()))?;
-                let injection = match text(e, "injection", "reference")? {
-                    "reference" => Injection::Reference,
-                    "input" => Injection::Input,
-                    other => {
-                        return Err(err(format!(
-                            "experiment `{name}`: unknown injection `{other}`"
-                        )))
-                    }
-                };
-                let role = match text(e, "role", "validation")? {
-                    "model" => Role::Model,
-                    "validation" => Role::Validation,
-                    other => {
-                        return Err(err(format!("experiment `{name}`: unknown role `{other}`")))
-                    }
-                };
-                identification.push(Identification {
-                    name,
-                    controller: k,
-                    excitation,
-                    periods: int(e, "periods", 6)?,
-                    transient_periods: int(e, "transient_periods", 1)?,
-                    injection,
-                    noise,
-                    nonideal,
-                    role,
-                    substeps: None,
-                    fine_steps: None,
-                });
-            }
-            "standstill" => standstill.push(Standstill {
-                name,
+    let k = controller(e, truth.mass, 1.0 / rate).map_err(ctx)?;
+    match text(e, "kind", "identification")? {
+        "identification" => {
+            let excitation = parse_excitation(e, &name, rate, noise.seed).map_err(|x| match x {
+                TestbedError::Config(_) => x,
+                other => ctx(other),
+            })?;
+            Ok(Parsed::Identification(Identification {
                 controller: k,
-                factor: int(e, "factor", 5)?.max(1),
-                samples: int(e, "samples", 70_000)?,
+                excitation,
+                periods: int(e, "periods", 6)?,
+                transient_periods: int(e, "transient_periods", 1)?,
+                injection: choice(
+                    e,
+                    &name,
+                    "injection",
+                    "reference",
+                    &[
+                        ("reference", Injection::Reference),
+                        ("input", Injection::Input),
+                    ],
+                )?,
+                role: choice(
+                    e,
+                    &name,
+                    "role",
+                    "validation",
+                    &[("model", Role::Model), ("validation", Role::Validation)],
+                )?,
+                name,
                 noise,
                 nonideal,
-            }),
-            other => return Err(err(format!("experiment `{name}`: unknown kind `{other}`"))),
+                substeps: None,
+                fine_steps: None,
+            }))
         }
+        "standstill" => Ok(Parsed::Standstill(Standstill {
+            name,
+            controller: k,
+            factor: int(e, "factor", 5)?.max(1),
+            samples: int(e, "samples", 70_000)?,
+            noise,
+            nonideal,
+        })),
+        other => Err(err(format!("experiment `{name}`: unknown kind `{other}`"))),
     }
-    Ok(TestbedConfig {
-        truth,
-        nonideal,
-        identification,
-        standstill,
+}
+
+/// The string key `key` of experiment `name` as one of `options` (`default` when absent).
+fn choice<T: Copy>(
+    e: &toml::Table,
+    name: &str,
+    key: &str,
+    default: &str,
+    options: &[(&str, T)],
+) -> Result<T> {
+    let v = text(e, key, default)?;
+    options
+        .iter()
+        .find(|(k, _)| *k == v)
+        .map(|(_, t)| *t)
+        .ok_or_else(|| err(format!("experiment `{name}`: unknown {key} `{v}`")))
+}
+
+/// An identification experiment's multisine (`period`, `multisine`, `f_min`, `f_max`, `rms`).
+fn parse_excitation(e: &toml::Table, name: &str, rate: f64, seed: u64) -> Result<Multisine> {
+    let period = int(e, "period", (rate as usize).max(16))?;
+    let kind = text(e, "multisine", "random")?;
+    let lines = match kind {
+        "random" | "schroeder" => Lines::Full,
+        "random-odd" => Lines::RandomOdd {
+            group: 3,
+            seed: seed ^ 0x5eed,
+        },
+        other => {
+            return Err(err(format!(
+                "experiment `{name}`: unknown multisine `{other}`"
+            )))
+        }
+    };
+    let phases = match kind {
+        "schroeder" => Phases::Schroeder,
+        _ => Phases::Random {
+            seed: seed.wrapping_add(7),
+        },
+    };
+    sd_ident::design(&MultisineSpec {
+        fs: rate,
+        period,
+        f_min: num(e, "f_min", rate / period as f64)?,
+        f_max: num(e, "f_max", 0.45 * rate)?,
+        lines,
+        phases,
+        rms: num(e, "rms", 1.0)?,
+        fold_rate_hz: None,
     })
+    .map_err(Into::into)
 }
 
 /// Runs every experiment of a configuration, in order (identification, then standstill).

@@ -1,4 +1,4 @@
-//! Experiments on the virtual stage, producing data in the DESIGN §4 format.
+//! Experiments on the virtual stage, producing data in the docs/formats.md format.
 //!
 //! - **Identification** ([`run_identification`]): closed loop with a stabilizing discrete
 //!   controller at the experiment's rate (checked on the exact LTI model; an unstable loop is an

@@ -4,7 +4,7 @@
 //! pole, sensor filters, cubic stiffness and Coulomb friction) is simulated exactly when linear
 //! and by an exponential integrator when not ([`PlantSim`]), with rate-tied non-idealities
 //! (hold delay, averaging sampler), sample-clock error and quantization; experiments
-//! ([`run_identification`], [`run_standstill`]) give DESIGN §4 data, seeded and reproducible.
+//! ([`run_identification`], [`run_standstill`]) give data in the docs/formats.md format, seeded and reproducible.
 
 pub mod config;
 pub mod error;
@@ -20,3 +20,8 @@ pub use experiments::{
 };
 pub use sim::{default_substeps, NonIdealities, PlantSim};
 pub use truth::{ModeSpec, Truth};
+
+/// The crate README's example, compiled and run as a doctest.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctest;

@@ -11,7 +11,7 @@
 //! ```
 //!
 //! With `F_c = 0` and every `κ_i = 0` the truth is LTI (`linear_model`), and its transfer
-//! function is DESIGN §6's `1/(m s²) + Σ r_i/(m(s² + 2ζ_iω_is + ω_i²))` (with viscous friction
+//! function is the virtual stage's (docs/stage.md) `1/(m s²) + Σ r_i/(m(s² + 2ζ_iω_is + ω_i²))` (with viscous friction
 //! `c_v` the rigid body becomes `1/(s(ms + c_v))`). The Coulomb term is smoothed by `tanh` with a
 //! velocity scale `v_s`, so the right-hand side is smooth and the fine-step integrator's error
 //! can be checked by halving its step.
@@ -54,7 +54,7 @@ pub struct Truth {
 }
 
 impl Default for Truth {
-    /// DESIGN §6: m = 20 kg, 653 Hz (ζ 0.01, r 2) and 1.65 kHz (ζ 0.005, r 0.3) modes.
+    /// docs/stage.md: m = 20 kg, 653 Hz (ζ 0.01, r 2) and 1.65 kHz (ζ 0.005, r 0.3) modes.
     fn default() -> Self {
         Truth {
             mass: 20.0,
@@ -155,7 +155,7 @@ impl Truth {
     }
 
     /// The linear part `(A, B, C, D)` (force command in, measured position out); the nonlinear
-    /// terms are added by [`Truth::nonlinear_term`].
+    /// terms are added by `Truth::nonlinear_term`.
     ///
     /// # Errors
     /// Invalid parameters.

@@ -187,18 +187,15 @@ fn identify(st: &Stage, rec: &Recording, x: &Exp<'_>) -> Option<Experiment> {
     } else {
         x.rms
     };
-    let excitation = match &x.signal {
-        Some(sig) => Some(sd_ident::Multisine {
-            signal: sig.clone(),
-            excited: Vec::new(),
-            detection_odd: Vec::new(),
-            detection_even: Vec::new(),
-            f0: x.rate / sig.len() as f64,
-            fs: x.rate,
-            crest_factor: sd_ident::crest_factor(sig),
-        }),
-        None => None,
-    };
+    let excitation = x.signal.as_ref().map(|sig| sd_ident::Multisine {
+        signal: sig.clone(),
+        excited: Vec::new(),
+        detection_odd: Vec::new(),
+        detection_even: Vec::new(),
+        f0: x.rate / sig.len() as f64,
+        fs: x.rate,
+        crest_factor: sd_ident::crest_factor(sig),
+    });
     let excitation = match excitation {
         Some(e) => e,
         None => sd_ident::design(&MultisineSpec {
@@ -533,7 +530,7 @@ fn size_cubic(st: &mut Stage, effect: LevelEffect, base: &Experiment, top: f64) 
 }
 
 /// The level case of `seed`: the drawn stage (one or two modes at least 15 % apart), the first
-/// mode made amplitude-dependent by cubic stiffness ([`size_cubic`]), one experiment per level
+/// mode made amplitude-dependent by cubic stiffness (`size_cubic`), one experiment per level
 /// at 0.5 N rms × level (the model experiment first). Periodic recordings: random-phase odd
 /// multisines with one detection line per group of three odd lines (the same lines at every
 /// level, a new phase realisation per experiment). Non-periodic: one record of

@@ -1,4 +1,4 @@
-//! Issue #6 acceptance: the paper's two 1 kHz controllers on the stage (DESIGN §6).
+//! the paper's two 1 kHz controllers on the stage (docs/stage.md).
 //! Controller 2 = a PID with ≈65 Hz bandwidth alone; Controller 1 = the same with a 347 Hz
 //! notch (low gain at the aliased mode).
 //! - C2: |S_d| peak ≥ 10 dB within 10 Hz of 347 Hz; C1: |S_d(347 Hz)| ≤ 3 dB; both stable; with
@@ -36,7 +36,7 @@ fn plant(zeta: f64, ts: f64) -> StateSpace {
 }
 
 #[test]
-fn issue6_paper_controllers_at_1khz() {
+fn paper_controllers_at_1khz() {
     let p = plant(0.01, TS);
     let c2 = ClosedLoop::new(&p, &controller2())
         .unwrap()
@@ -77,7 +77,7 @@ fn worst_band(f: &[f64], sim: &[f64], pred: &[f64], width: f64) -> f64 {
 }
 
 #[test]
-fn issue6_multirate_standstill() {
+fn multirate_standstill() {
     let (h, factor) = (2e-4, 5usize);
     let p = plant(0.01, h);
     let (sd, sn) = (0.05, 0.3e-9);

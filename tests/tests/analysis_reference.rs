@@ -1,4 +1,4 @@
-//! Issue #6 acceptance: margins, |S| peaks and sensitivities against python-control on six
+//! margins, |S| peaks and sensitivities against python-control on six
 //! reference loops (`test_data/analysis_reference.json`, generated once by
 //! `tools/gen_analysis_reference.py` with python-control 0.10.1 and scipy).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
@@ -20,7 +20,7 @@ fn rel(a: f64, b: f64) -> f64 {
 }
 
 #[test]
-fn issue6_margins_and_peaks_match_python_control() {
+fn margins_and_peaks_match_python_control() {
     let refs = read_json("analysis_reference.json");
     let mut worst: f64 = 0.0;
     for case in refs["loops"].as_array().unwrap() {

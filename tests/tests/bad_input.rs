@@ -1,4 +1,4 @@
-//! Issue #2: bad input returns errors that say what to fix — one test per kind.
+//! bad input returns errors that say what to fix — one test per kind.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use nalgebra::DMatrix;
@@ -9,7 +9,7 @@ fn m(r: usize, c: usize) -> DMatrix<f64> {
 }
 
 #[test]
-fn issue2_wrong_shapes() {
+fn wrong_shapes() {
     let e =
         StateSpace::new(m(2, 2), m(3, 1), m(1, 2), m(1, 1), SampleTime::Continuous).unwrap_err();
     assert!(
@@ -22,7 +22,7 @@ fn issue2_wrong_shapes() {
 }
 
 #[test]
-fn issue2_ragged_rows() {
+fn ragged_rows() {
     let e = model_from_json_str(
         r#"{"type":"ss","ts":null,"a":[[1,2],[3]],"b":[[1],[1]],"c":[[1,0]],"d":[[0]]}"#,
     )
@@ -31,7 +31,7 @@ fn issue2_ragged_rows() {
 }
 
 #[test]
-fn issue2_nan_and_inf() {
+fn nan_and_inf() {
     let mut a = m(1, 1);
     a[(0, 0)] = f64::NAN;
     assert!(matches!(
@@ -51,7 +51,7 @@ fn issue2_nan_and_inf() {
 }
 
 #[test]
-fn issue2_nonpositive_sample_time() {
+fn nonpositive_sample_time() {
     for ts in [0.0, -1e-3, f64::NAN, f64::INFINITY] {
         assert!(matches!(
             SampleTime::discrete(ts),
@@ -67,7 +67,7 @@ fn issue2_nonpositive_sample_time() {
 }
 
 #[test]
-fn issue2_c2d_of_discrete_model() {
+fn c2d_of_discrete_model() {
     let g = StateSpace::gain(
         DMatrix::from_element(1, 1, 1.0),
         SampleTime::discrete(0.1).unwrap(),
@@ -78,7 +78,7 @@ fn issue2_c2d_of_discrete_model() {
 }
 
 #[test]
-fn issue2_sample_time_mismatch() {
+fn sample_time_mismatch() {
     let a = StateSpace::gain(
         DMatrix::from_element(1, 1, 1.0),
         SampleTime::discrete(0.1).unwrap(),
@@ -101,7 +101,7 @@ fn issue2_sample_time_mismatch() {
 }
 
 #[test]
-fn issue2_unreadable_json() {
+fn unreadable_json() {
     for txt in [
         "",
         "{",
@@ -119,7 +119,7 @@ fn issue2_unreadable_json() {
 }
 
 #[test]
-fn issue2_bad_frequency_grids() {
+fn bad_frequency_grids() {
     assert!(sd_model::grid(10.0, 1.0, 5, false).is_err());
     assert!(sd_model::grid(0.0, 1.0, 5, true).is_err());
     assert!(sd_model::grid(1.0, f64::NAN, 5, false).is_err());
@@ -129,7 +129,7 @@ fn issue2_bad_frequency_grids() {
 }
 
 #[test]
-fn issue2_ill_posed_problems() {
+fn ill_posed_problems() {
     // algebraic loop 1 + D1 D2 = 0
     let g = StateSpace::gain(DMatrix::from_element(1, 1, 1.0), SampleTime::Continuous).unwrap();
     let k = StateSpace::gain(DMatrix::from_element(1, 1, -1.0), SampleTime::Continuous).unwrap();
@@ -146,7 +146,7 @@ fn issue2_ill_posed_problems() {
 }
 
 #[test]
-fn issue3_issue4_bad_input_is_an_error_not_a_panic() {
+fn bad_input_is_an_error_not_a_panic() {
     use sd_hinf::{care, dare, loopshape, LoopshapeOptions};
     use sd_multirate::{c2d_nonideal, downsample, lift, MultirateLoop, NonIdeal};
     let d = |v: &[f64], r: usize| DMatrix::from_row_slice(r, v.len() / r, v);

@@ -1,4 +1,4 @@
-//! Issue #2: FOH and Tustin (with prewarping) against scipy / python-control references.
+//! FOH and Tustin (with prewarping) against scipy / python-control references.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use num_complex::Complex64 as C;
@@ -6,7 +6,7 @@ use sd_model::{c2d, Discretization, SampleTime, StateSpace};
 use sd_tests::{mat, read_json, rel_err};
 
 #[test]
-fn issue2_foh_and_tustin_match_scipy() {
+fn foh_and_tustin_match_scipy() {
     let data = read_json("c2d_methods.json");
     for c in data["cases"].as_array().unwrap() {
         let name = c["name"].as_str().unwrap();
@@ -45,7 +45,7 @@ fn issue2_foh_and_tustin_match_scipy() {
 }
 
 #[test]
-fn issue2_tustin_prewarp_is_exact_at_the_prewarp_frequency() {
+fn tustin_prewarp_is_exact_at_the_prewarp_frequency() {
     // notch-like resonance at 347 Hz, 1 kHz: |G_d(347 Hz)| must equal |G_c(j2π347)|
     let w = 2.0 * std::f64::consts::PI * 347.0;
     let sys = StateSpace::new(

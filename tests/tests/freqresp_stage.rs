@@ -1,4 +1,4 @@
-//! Issue #2 acceptance: frequency response of the 60-state stage at 5 kHz on 200 000
+//! frequency response of the 60-state stage at 5 kHz on 200 000
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 //! frequencies, against dense LU solves of (zI − A) X = B.
 
@@ -35,19 +35,19 @@ fn check(step: usize) -> f64 {
 }
 
 #[test]
-fn issue2_freqresp_stage60_vs_lu_subset() {
+fn freqresp_stage60_vs_lu_subset() {
     assert!(check(40) <= 1e-10);
 }
 
 /// All 200 000 frequencies against LU (about a minute): `cargo test -p sd-tests --release --test freqresp_stage -- --ignored`.
 #[test]
 #[ignore]
-fn issue2_freqresp_stage60_vs_lu_all() {
+fn freqresp_stage60_vs_lu_all() {
     assert!(check(1) <= 1e-10);
 }
 
 #[test]
-fn issue2_freqresp_stage60_at_1khz_with_folded_modes() {
+fn freqresp_stage60_at_1khz_with_folded_modes() {
     // At 1 kHz most of the 29 modes (300 Hz – 6 kHz) fold below 500 Hz: close poles.
     let pd = c2d(
         &sd_model::stage::stage60().unwrap(),

@@ -1,4 +1,4 @@
-//! Issue #5 acceptance on simulated closed-loop data (seeded): a stage with three lightly damped
+//! Acceptance on simulated closed-loop data (seeded): a stage with three lightly damped
 //! modes at 5 kHz under a low-bandwidth PID, a random-phase multisine added at the plant input,
 //! white force and sensor noise.
 //! - the indirect estimate (Y/R)/(U/R) is unbiased: median |Ĝ − G|²/var in [0.5, 2];
@@ -84,7 +84,7 @@ fn modal(poles: &[C], ts: f64) -> Vec<(f64, f64)> {
 }
 
 #[test]
-fn issue5_closed_loop_frf_unbiased_direct_biased_and_order8_fit() {
+fn closed_loop_frf_unbiased_direct_biased_and_order8_fit() {
     let p = plant();
     let k = pid(30.0, 20.0, 1.0 / FS);
     // the identification loop must be stable

@@ -1,4 +1,4 @@
-//! Issue #5 acceptance on real data (DaISy, `test_data/daisy`, see its README for the source).
+//! Acceptance on real data (DaISy, `test_data/daisy`, see its README for the source).
 //! - Flexible robot arm: one period of 1024 samples (u = torque, y = acceleration). The FRF on
 //!   the excited bins, and a fit whose two resonances sit at DFT bins 61 and 129.
 //! - CD-player arm (2×2, non-periodic, 2048 samples): the LPM estimate; what it gives is
@@ -22,7 +22,7 @@ fn load(name: &str, cols: usize) -> DMatrix<f64> {
 }
 
 #[test]
-fn issue5_daisy_robot_arm() {
+fn daisy_robot_arm() {
     let d = load("robot_arm.dat", 2);
     let (u, y): (Vec<f64>, Vec<f64>) = (
         d.column(0).iter().cloned().collect(),
@@ -99,7 +99,7 @@ fn issue5_daisy_robot_arm() {
 }
 
 #[test]
-fn issue5_daisy_cd_player_lpm() {
+fn daisy_cd_player_lpm() {
     let d = load("CD_player_arm.dat", 4);
     let x = d.columns(0, 2).into_owned();
     let z = d.columns(2, 2).into_owned();
@@ -129,7 +129,7 @@ fn issue5_daisy_cd_player_lpm() {
 }
 
 #[test]
-fn issue8_daisy_robot_arm_halves_are_consistent() {
+fn daisy_robot_arm_halves_are_consistent() {
     // the two halves of the record as two non-periodic experiments at the same rate and level
     let d = load("robot_arm.dat", 2);
     let (u, y): (Vec<f64>, Vec<f64>) = (

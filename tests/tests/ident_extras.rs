@@ -1,4 +1,4 @@
-//! Issue #5: nonlinear-distortion detection with random-odd multisines, the LPM on
+//! nonlinear-distortion detection with random-odd multisines, the LPM on
 //! non-periodic data (unbiased, calibrated variance), and reading a 10⁶-row CSV.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -37,7 +37,7 @@ fn run(p: &StateSpace, u: &[f64], cubic: f64, noise: f64, seed: u64) -> Vec<f64>
 }
 
 #[test]
-fn issue5_random_odd_multisine_detects_odd_distortion() {
+fn random_odd_multisine_detects_odd_distortion() {
     let fs = 1000.0;
     let p = resonance(1.0 / fs);
     let ms = design(&MultisineSpec {
@@ -72,7 +72,7 @@ fn issue5_random_odd_multisine_detects_odd_distortion() {
 }
 
 #[test]
-fn issue5_lpm_on_non_periodic_data_is_unbiased_with_calibrated_variance() {
+fn lpm_on_non_periodic_data_is_unbiased_with_calibrated_variance() {
     let fs = 1000.0;
     let p = resonance(1.0 / fs);
     let mut rng = Rng::new(3);
@@ -104,7 +104,7 @@ fn issue5_lpm_on_non_periodic_data_is_unbiased_with_calibrated_variance() {
 }
 
 #[test]
-fn issue5_reads_a_million_row_csv() {
+fn reads_a_million_row_csv() {
     let rows = 1_000_000;
     let mut text = String::with_capacity(rows * 40);
     text.push_str("\"t\",\"u\", \"y\",extra,\n");

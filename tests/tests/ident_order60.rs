@@ -1,4 +1,4 @@
-//! Issue #5 acceptance: an order-60 fit to 2500 lines of the 29-mode stage's FRF (5 kHz ZOH,
+//! an order-60 fit to 2500 lines of the 29-mode stage's FRF (5 kHz ZOH,
 //! rigid body + modes 300 Hz–6 kHz) at 40 dB SNR (complex Gaussian noise of 1 % of |G| per line,
 //! seeded): converges, stable, median relative error ≤ 1 %, within 5 s on this machine (the
 //! time is printed here and measured in `cargo xtask bench`).
@@ -11,7 +11,7 @@ use sd_model::{c2d, Discretization, Frd};
 use sd_tests::gen::Rng;
 
 #[test]
-fn issue5_order60_fit_of_the_stage() {
+fn order60_fit_of_the_stage() {
     let p = sd_model::stage::stage60().unwrap();
     let pd = c2d(&p, 2e-4, Discretization::Zoh).unwrap();
     let f: Vec<f64> = (1..=2500).map(|k| k as f64 * 0.999).collect();

@@ -1,4 +1,4 @@
-//! Issue #4 acceptance: the achieved loopshaping levels confirmed by an independent method,
+//! the achieved loopshaping levels confirmed by an independent method,
 //! the bounded-real lemma solved as an SDP by clarabel (`sd_hinf::lmi`).
 //! Run: `cargo test --release -p sd-tests --features lmi --test lmi_crosscheck` (CI does).
 #![cfg(feature = "lmi")]
@@ -28,7 +28,7 @@ fn confirm(name: &str, p: &StateSpace, w1: Option<&StateSpace>, opt: LoopshapeOp
 }
 
 #[test]
-fn issue4_lmi_confirms_achieved_gamma() {
+fn lmi_confirms_achieved_gamma() {
     let (g, w) = sp93();
     confirm(
         "S&P 9.3 continuous",

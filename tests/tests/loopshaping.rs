@@ -1,4 +1,4 @@
-//! Issue #4 acceptance: McFarlane–Glover loopshaping against published γ_min values
+//! McFarlane–Glover loopshaping against published γ_min values
 //! (`test_data/loopshaping_refs.json`: Skogestad & Postlethwaite Ex. 9.3, the MathWorks
 //! lightly damped resonance, the SLICOT SB10KD example, MATLAB's ncfmargin), the achieved
 //! 4-block norm ≤ γ by the H∞ norm, and the paper's design on the 1 kHz stage model.
@@ -67,7 +67,7 @@ fn check(name: &str, d: &Loopshape, expected_gamma_min: Option<f64>) {
 }
 
 #[test]
-fn issue4_skogestad_postlethwaite_9_3_continuous_and_discrete() {
+fn skogestad_postlethwaite_9_3_continuous_and_discrete() {
     let (g, w1) = sp93();
     let d = loopshape(&g, Some(&w1), None, &LoopshapeOptions::default()).unwrap();
     check(
@@ -83,7 +83,7 @@ fn issue4_skogestad_postlethwaite_9_3_continuous_and_discrete() {
 }
 
 #[test]
-fn issue4_lightly_damped_resonance() {
+fn lightly_damped_resonance() {
     // G = 16/(s² + 0.16 s + 16), W1 = (1 + 0.8/s)/(s/20 + 1) (negative-feedback sign)
     let (g, w1) = resonance();
     let d = loopshape(&g, Some(&w1), None, &LoopshapeOptions::default()).unwrap();
@@ -95,7 +95,7 @@ fn issue4_lightly_damped_resonance() {
 }
 
 #[test]
-fn issue4_slicot_sb10kd_example_and_strictly_proper() {
+fn slicot_sb10kd_example_and_strictly_proper() {
     let g = sb10kd_plant();
     let d = loopshape(&g, None, None, &LoopshapeOptions::default()).unwrap();
     check(
@@ -123,7 +123,7 @@ fn issue4_slicot_sb10kd_example_and_strictly_proper() {
 }
 
 #[test]
-fn issue4_ncf_margin_matches_matlab_doc() {
+fn ncf_margin_matches_matlab_doc() {
     // b(P, K) = 1/‖[I; K](I + PK)⁻¹[I P]‖∞ for P = 4/(s − 0.001), K = 1 and 10
     let p = tf(vec![4.0], vec![1.0, -0.001]);
     for (k, want) in [(1.0, 0.7069299823996891), (10.0, 0.09950371909980187)] {
@@ -134,7 +134,7 @@ fn issue4_ncf_margin_matches_matlab_doc() {
 }
 
 #[test]
-fn issue4_paper_design_dips_at_the_aliased_mode() {
+fn paper_design_dips_at_the_aliased_mode() {
     // the 1 kHz model of the stage: its 653 Hz mode appears at 347 Hz
     let ts = 1e-3;
     let p = sd_tests::designs::paper_stage_1khz();
@@ -165,7 +165,7 @@ fn issue4_paper_design_dips_at_the_aliased_mode() {
 }
 
 #[test]
-fn issue4_shaped_plant_with_feedthrough() {
+fn shaped_plant_with_feedthrough() {
     // a shaped plant with D ≠ 0: handled by the R = I + DᵀD, S = CᵀD forms, in both domains
     for (name, (g, w)) in [("discrete", sp93_discrete()), ("continuous", sp93())] {
         let gd = StateSpace::new(

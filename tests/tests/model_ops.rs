@@ -1,4 +1,4 @@
-//! Issue #2 acceptance: d2c with alias candidates, balanced truncation bound, norms, zeros,
+//! d2c with alias candidates, balanced truncation bound, norms, zeros,
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 //! minimal realisation, simulation.
 
@@ -18,7 +18,7 @@ fn ct(a: &[f64], b: &[f64], c: &[f64], d: &[f64], n: usize, nu: usize, ny: usize
 }
 
 #[test]
-fn issue2_d2c_inverts_c2d_in_principal_strip() {
+fn d2c_inverts_c2d_in_principal_strip() {
     // Stage with rigid body (Jordan block at z = 1) and modes below Nyquist at 5 kHz.
     let p = sd_model::stage::paper_stage_two_modes().unwrap();
     let pd = c2d(&p, 2e-4, Discretization::Zoh).unwrap();
@@ -43,7 +43,7 @@ fn issue2_d2c_inverts_c2d_in_principal_strip() {
 }
 
 #[test]
-fn issue2_d2c_refuses_negative_real_pole() {
+fn d2c_refuses_negative_real_pole() {
     let g = StateSpace::new(
         DMatrix::from_element(1, 1, -0.5),
         DMatrix::from_element(1, 1, 1.0),
@@ -74,7 +74,7 @@ fn issue2_d2c_refuses_negative_real_pole() {
 }
 
 #[test]
-fn issue2_alias_candidates_of_653hz_mode_at_1khz() {
+fn alias_candidates_of_653hz_mode_at_1khz() {
     let p = sd_model::stage::paper_stage(0.01).unwrap();
     let pd = c2d(&p, 1e-3, Discretization::Zoh).unwrap();
     let (_, modes) = d2c_with_aliases(&pd, 3000.0).unwrap();
@@ -107,7 +107,7 @@ fn hinf_grid(err: &StateSpace, fmax: f64) -> f64 {
 }
 
 #[test]
-fn issue2_balanced_truncation_bound_ct_and_dt() {
+fn balanced_truncation_bound_ct_and_dt() {
     // a stable 60-state model: the stage without rigid body plus one slow real pole pair
     let modes = sd_model::stage::stage60_modes();
     let mut p = sd_model::stage::stage_model(20.0, false, &modes).unwrap();
@@ -153,7 +153,7 @@ fn issue2_balanced_truncation_bound_ct_and_dt() {
 }
 
 #[test]
-fn issue2_hinf_norm_accuracy() {
+fn hinf_norm_accuracy() {
     // Second-order resonance: peak known in closed form, |G|max = 1/(2ζ√(1−ζ²)) for ζ < 1/√2.
     let z: f64 = 0.01;
     let w: f64 = 2.0 * std::f64::consts::PI * 653.0;
@@ -221,7 +221,7 @@ fn issue2_hinf_norm_accuracy() {
 }
 
 #[test]
-fn issue2_zeros_and_minreal() {
+fn zeros_and_minreal() {
     // G(s) = (s + 2)(s + 3) / ((s + 1)(s + 4)(s + 5)) : zeros −2, −3
     let tf = sd_model::TransferFunction::new(
         vec![1.0, 5.0, 6.0],
@@ -265,7 +265,7 @@ fn issue2_zeros_and_minreal() {
 }
 
 #[test]
-fn issue2_simulation_zoh_matches_discretisation() {
+fn simulation_zoh_matches_discretisation() {
     let p = sd_model::stage::paper_stage(0.01).unwrap();
     let u = DMatrix::from_fn(500, 1, |k, _| ((k as f64) * 0.37).sin());
     let y1 = p.simulate_zoh(&u, 2e-4, None).unwrap().y;
@@ -281,7 +281,7 @@ fn issue2_simulation_zoh_matches_discretisation() {
 }
 
 #[test]
-fn issue7_freqresp_of_a_series_with_coincident_defective_poles() {
+fn freqresp_of_a_series_with_coincident_defective_poles() {
     // a fitted-style rigid body (Jordan block at z = 1, tiny gains) in series with a PID's
     // integrator: the block form fails its accuracy check and the evaluator falls back to dense
     // solves; the response must equal the product of the factors' responses

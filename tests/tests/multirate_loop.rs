@@ -1,4 +1,4 @@
-//! Issue #3: Lemma 7 and the multirate error spectra against long fast-rate simulations.
+//! Lemma 7 and the multirate error spectra against long fast-rate simulations.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use nalgebra::DMatrix;
@@ -52,7 +52,7 @@ fn lemma7(ph: &StateSpace, kd: &StateSpace, factor: usize) -> bool {
 }
 
 #[test]
-fn issue3_lemma7_stage_and_pid_family() {
+fn lemma7_stage_and_pid_family() {
     let (mut stable, mut unstable) = (0, 0);
     for &zeta in &[0.005, 0.01, 0.02] {
         let ph = c2d(
@@ -74,7 +74,7 @@ fn issue3_lemma7_stage_and_pid_family() {
 }
 
 #[test]
-fn issue3_lemma7_random_plants_and_gains() {
+fn lemma7_random_plants_and_gains() {
     let (mut stable, mut unstable) = (0, 0);
     for seed in 0..60u64 {
         let mut r = Rng::new(seed);
@@ -145,8 +145,8 @@ fn band_ratios(f: &[f64], sim: &[f64], pred: &[f64], width: f64, fmax: f64) -> V
 }
 
 #[test]
-fn issue3_error_spectra_match_long_simulation() {
-    // Controller 2 of DESIGN §6 (PID at ≈65 Hz, 1 kHz) on the paper stage at 5 kHz
+fn error_spectra_match_long_simulation() {
+    // Controller 2 of docs/stage.md (PID at ≈65 Hz, 1 kHz) on the paper stage at 5 kHz
     let (h, factor) = (2e-4, 5usize);
     let ph = c2d(
         &sd_model::stage::paper_stage(0.01).unwrap(),

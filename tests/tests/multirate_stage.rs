@@ -1,4 +1,4 @@
-//! Issue #3 acceptance on the 60-state stage: Lemma 6 from 5 kHz with F = 5 equals Lemma 5 at
+//! Acceptance on the 60-state stage: Lemma 6 from 5 kHz with F = 5 equals Lemma 5 at
 //! 1 kHz to 1e-8 relative in frequency response over 0–500 Hz.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -7,7 +7,7 @@ use sd_multirate::downsample;
 use sd_tests::rel_err;
 
 #[test]
-fn issue3_stage60_downsampled_equals_zoh_at_1khz() {
+fn stage60_downsampled_equals_zoh_at_1khz() {
     let p = sd_model::stage::stage60().unwrap();
     assert_eq!(p.n(), 60);
     let fast = c2d(&p, 2e-4, Discretization::Zoh).unwrap();

@@ -1,4 +1,4 @@
-//! Issue #3 acceptance: the delayed-hold and averaging-sampler discretisations against a
+//! the delayed-hold and averaging-sampler discretisations against a
 //! brute-force fine-step simulation of the continuous system (to 1e-8), and the fast-model
 //! route against a direct fast-rate simulation.
 //!
@@ -131,7 +131,7 @@ fn delayed_hold_beyond_one_period_vs_fine_simulation() {
 }
 
 #[test]
-fn issue3_nonideal_paper_stage_at_1khz_vs_fine_simulation() {
+fn nonideal_paper_stage_at_1khz_vs_fine_simulation() {
     // the 653 Hz mode above the 500 Hz Nyquist frequency is where the effects matter
     let p = sd_model::stage::paper_stage_two_modes().unwrap();
     let w = check(&p, 1e-3, 1000, &CASES, 1);
@@ -139,7 +139,7 @@ fn issue3_nonideal_paper_stage_at_1khz_vs_fine_simulation() {
 }
 
 #[test]
-fn issue3_nonideal_random_mimo_with_feedthrough_vs_fine_simulation() {
+fn nonideal_random_mimo_with_feedthrough_vs_fine_simulation() {
     let mut r = Rng::new(42);
     let h = 1e-3;
     let pairs: Vec<(f64, f64)> = [300.0, 650.0, 1400.0]
@@ -156,7 +156,7 @@ fn issue3_nonideal_random_mimo_with_feedthrough_vs_fine_simulation() {
 }
 
 #[test]
-fn issue3_nonideal_from_fast_model_equals_direct_fast_simulation() {
+fn nonideal_from_fast_model_equals_direct_fast_simulation() {
     // slow hold delayed by m fast samples, mean of the last q fast outputs
     let p = sd_model::stage::paper_stage_two_modes().unwrap();
     let (h, f) = (2e-4, 5usize);

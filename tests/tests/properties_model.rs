@@ -1,4 +1,4 @@
-//! Issue #2 property tests (proptest, 256 cases each by default).
+//! Property tests (proptest, 256 cases each by default).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use nalgebra::DMatrix;
@@ -34,7 +34,7 @@ proptest! {
     #![proptest_config(ProptestConfig::with_cases(256))]
 
     #[test]
-    fn issue2_c2d_keeps_dc_gain(seed in any::<u64>(), np in 0usize..4, nr in 0usize..3, nu in 1usize..4, ny in 1usize..4, fb in any::<bool>(), h in 1e-3f64..0.5) {
+    fn c2d_keeps_dc_gain(seed in any::<u64>(), np in 0usize..4, nr in 0usize..3, nu in 1usize..4, ny in 1usize..4, fb in any::<bool>(), h in 1e-3f64..0.5) {
         let g = stable_model(seed, np, nr, nu, ny, fb);
         for method in [Discretization::Zoh, Discretization::Foh, Discretization::Tustin { prewarp_hz: None }] {
             let gd = c2d(&g, h, method).unwrap();
@@ -46,7 +46,7 @@ proptest! {
     }
 
     #[test]
-    fn issue2_zoh_stability_preserved(seed in any::<u64>(), np in 1usize..5, unstable in any::<bool>(), h in 1e-3f64..0.2) {
+    fn zoh_stability_preserved(seed in any::<u64>(), np in 1usize..5, unstable in any::<bool>(), h in 1e-3f64..0.2) {
         let mut r = Rng::new(seed);
         let mut pairs: Vec<(f64, f64)> = (0..np).map(|_| (-r.range(0.05, 5.0), r.range(0.5, 50.0))).collect();
         if unstable {
@@ -63,7 +63,7 @@ proptest! {
     }
 
     #[test]
-    fn issue2_interconnections_match_frequency_responses(seed in any::<u64>(), n1 in 0usize..3, n2 in 0usize..3, m in 1usize..3, dt in any::<bool>()) {
+    fn interconnections_match_frequency_responses(seed in any::<u64>(), n1 in 0usize..3, n2 in 0usize..3, m in 1usize..3, dt in any::<bool>()) {
         let mut g1 = stable_model(seed, n1, 1, m, m, true);
         let mut g2 = stable_model(seed ^ 0xabcdef, n2, 1, m, m, true);
         let mut s = C::new(0.3, 1.7);

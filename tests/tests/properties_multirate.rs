@@ -1,4 +1,4 @@
-//! Issue #3 property tests (proptest, 256 cases each by default; failures are kept in
+//! Property tests (proptest, 256 cases each by default; failures are kept in
 //! `tests/tests/properties_multirate.proptest-regressions`, committed and replayed first).
 //!
 //! For random continuous models — stable; lightly damped with modes above the slow Nyquist
@@ -114,7 +114,7 @@ proptest! {
     #![proptest_config(ProptestConfig::with_cases(256))]
 
     #[test]
-    fn issue3_lemma6_equals_zoh_at_slow_rate(p in strategy()) {
+    fn lemma6_equals_zoh_at_slow_rate(p in strategy()) {
         let c = case(p.0, p.1, p.2, p.3, p.4, p.5, p.6);
         prop_assert!(c.pc.n() <= 20);
         let direct = c2d(&c.pc, c.h * c.factor as f64, Discretization::Zoh).unwrap();
@@ -128,7 +128,7 @@ proptest! {
     }
 
     #[test]
-    fn issue3_lemma6_frequency_response(p in strategy()) {
+    fn lemma6_frequency_response(p in strategy()) {
         let c = case(p.0, p.1, p.2, p.3, p.4, p.5, p.6);
         let direct = c2d(&c.pc, c.h * c.factor as f64, Discretization::Zoh).unwrap();
         let down = downsample(&c2d(&c.pc, c.h, Discretization::Zoh).unwrap(), c.factor).unwrap();
@@ -140,7 +140,7 @@ proptest! {
     }
 
     #[test]
-    fn issue3_folding_identity(p in strategy()) {
+    fn folding_identity(p in strategy()) {
         let c = case(p.0, p.1, p.2, p.3, p.4, p.5, p.6);
         let fast = c2d(&c.pc, c.h, Discretization::Zoh).unwrap();
         let down = downsample(&fast, c.factor).unwrap();
@@ -162,7 +162,7 @@ proptest! {
 /// `cargo test --release -p sd-tests --test properties_multirate -- --ignored --nocapture`.
 #[test]
 #[ignore]
-fn issue3_report_worst_errors() {
+fn report_worst_errors() {
     let (mut wm, mut wf, mut wi) = (0.0f64, 0.0f64, 0.0f64);
     let mut cases = 0;
     for seed in 0..3000u64 {

@@ -1,4 +1,4 @@
-//! Issue #4 acceptance: every CAREX/DAREX case of `test_data/riccati_exact.json` against its
+//! every CAREX/DAREX case of `test_data/riccati_exact.json` against its
 //! analytic solution. Pass: relative error within scipy's (recorded per case in the file) or
 //! 1e-13, whichever is larger — or, where ill-conditioning makes that impossible, within
 //! 10·κ·ε with κ our condition estimate (the estimate "says so"). CAREX 2.6 at ε = 1e6 must
@@ -9,7 +9,7 @@ use sd_hinf::{care, dare};
 use sd_tests::{mat, read_json, rel_err};
 
 #[test]
-fn issue4_riccati_exact_cases() {
+fn riccati_exact_cases() {
     let cases = read_json("riccati_exact.json");
     let mut rows = Vec::new();
     let mut failures = Vec::new();

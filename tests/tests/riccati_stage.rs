@@ -1,4 +1,4 @@
-//! Issue #4 acceptance: the lightly damped 60-state stage (rigid body + 29 modes) at 1 kHz and
+//! the lightly damped 60-state stage (rigid body + 29 modes) at 1 kHz and
 //! 5 kHz, Q = CᵀC, R = 1 — the problem SLICOT SB02OD (python-control's route) fails on.
 //! Relative residual ≤ 1e-12 and ρ(A − BK) < 1. Timing is reported here and measured against
 //! scipy in `cargo xtask bench`.
@@ -9,7 +9,7 @@ use sd_hinf::dare;
 use sd_model::{c2d, Discretization};
 
 #[test]
-fn issue4_stage60_dare() {
+fn stage60_dare() {
     let p = sd_model::stage::stage60().unwrap();
     for ts in [1e-3, 2e-4] {
         let pd = c2d(&p, ts, Discretization::Zoh).unwrap();

@@ -1,4 +1,4 @@
-//! Issue #7 acceptance: the virtual stage.
+//! the virtual stage.
 //! - LTI experiments are exact: a noise-free closed-loop experiment's FRF equals the truth's
 //!   exact discretization (sd-multirate) to 1e-9, with the ideal, delayed and averaging samplers.
 //! - The nonlinear integrator with the nonlinearity off equals the exact LTI result to 1e-8;
@@ -63,7 +63,7 @@ fn experiment_skip(
 }
 
 #[test]
-fn issue7_lti_experiments_are_exact() {
+fn lti_experiments_are_exact() {
     let truth = Truth::default();
     let lin = truth.linear_model().unwrap();
     let rate = 5000.0;
@@ -112,7 +112,7 @@ fn issue7_lti_experiments_are_exact() {
 }
 
 #[test]
-fn issue7_nonlinear_integrator_checks() {
+fn nonlinear_integrator_checks() {
     // 1. nonlinearity off: the integrator equals the exact LTI route
     let truth = Truth::default();
     let ni = NonIdealities {
@@ -171,7 +171,7 @@ fn issue7_nonlinear_integrator_checks() {
 }
 
 #[test]
-fn issue7_speed() {
+fn speed() {
     let rate = 5000.0;
     let t0 = std::time::Instant::now();
     let d = run_identification(
@@ -212,7 +212,7 @@ fn issue7_speed() {
 /// the exact slow model `c2d_nonideal(P, T, α, β)` driven by the recorded controller output, to
 /// 1e-9 of the signal; the ideal slow model misses them.
 #[test]
-fn issue7_standstill_nonidealities_tied_to_the_controller_period() {
+fn standstill_nonidealities_tied_to_the_controller_period() {
     let truth = Truth::default();
     let lin = truth.linear_model().unwrap();
     let (ts, factor, samples, sigma, seed) = (1e-3, 5usize, 4000usize, 1e-6, 4u64);

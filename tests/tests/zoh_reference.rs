@@ -1,4 +1,4 @@
-//! Issue #2 acceptance: exact ZOH (Lemma 5) against published and high-precision references.
+//! exact ZOH (Lemma 5) against published and high-precision references.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use sd_model::{c2d, Discretization, SampleTime, StateSpace};
@@ -23,7 +23,7 @@ fn zoh(
 }
 
 #[test]
-fn issue2_zoh_published_cases() {
+fn zoh_published_cases() {
     let cases = read_json("zoh_cases.json");
     let mut worst: f64 = 0.0;
     for c in cases.as_array().unwrap() {
@@ -50,7 +50,7 @@ fn issue2_zoh_published_cases() {
 }
 
 #[test]
-fn issue2_zoh_random_and_stage_against_mpmath() {
+fn zoh_random_and_stage_against_mpmath() {
     let data = read_json("zoh_random.json");
     let mut worst: f64 = 0.0;
     for c in data["cases"].as_array().unwrap() {
@@ -73,7 +73,7 @@ fn issue2_zoh_random_and_stage_against_mpmath() {
 }
 
 #[test]
-fn issue2_stage60_matches_the_reference_realisation() {
+fn stage60_matches_the_reference_realisation() {
     let data = read_json("zoh_random.json");
     let c = data["cases"]
         .as_array()

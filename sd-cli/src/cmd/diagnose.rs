@@ -1,0 +1,78 @@
+//! `sdctl diagnose`.
+
+use crate::io::{emit, read_model, CliError};
+
+/// Arguments of `sdctl diagnose`.
+#[derive(clap::Args, Debug)]
+pub(crate) struct Args {
+    /// Experiment manifest (TOML, docs/formats.md).
+    pub(crate) manifest: String,
+    /// A given model (model JSON; discrete at the model experiment's rate, or continuous).
+    /// Absent: fitted to the model experiment.
+    #[arg(long)]
+    pub(crate) model: Option<String>,
+    /// Output folder for diagnosis.json, report.md and the SVG figures.
+    #[arg(long)]
+    pub(crate) out: String,
+    /// False-alarm probability of the verdict (a consistent model is called a discrepancy
+    /// this often).
+    #[arg(long, default_value_t = 0.01)]
+    pub(crate) alpha: f64,
+    /// Highest model order tried when the model is fitted (the scan stops six orders
+    /// past the best held-out error).
+    #[arg(long, default_value_t = 60)]
+    pub(crate) max_order: usize,
+}
+
+impl Args {
+    /// Runs the command.
+    pub(crate) fn run(self) -> Result<(), CliError> {
+        let Args {
+            manifest,
+            model,
+            out,
+            alpha,
+            max_order,
+        } = self;
+        let exps = crate::io::load_experiments(&manifest, |_| true)?;
+        let opt = sd_diagnose::DiagnoseOptions {
+            model: model.as_deref().map(read_model).transpose()?,
+            alpha,
+            max_order,
+        };
+        // progress for a person at a terminal; scripts get one line (or one error line)
+        let start = std::time::Instant::now();
+        let tty = std::io::IsTerminal::is_terminal(&std::io::stderr());
+        let d = sd_diagnose::diagnose_with_progress(&exps, &opt, &mut |m| {
+            if tty {
+                eprintln!("[diagnose {:6.2} s] {m}", start.elapsed().as_secs_f64())
+            }
+        })
+        .map_err(|e| match e {
+            sd_diagnose::DiagnoseError::Numerical(_) => {
+                CliError::numerical(format!("{manifest}: {e}"))
+            }
+            _ => CliError::input(format!("{manifest}: {e}")),
+        })?;
+        std::fs::create_dir_all(&out)
+            .map_err(|e| CliError::input(format!("cannot create {out}: {e}")))?;
+        let dir = std::path::Path::new(&out);
+        let js = serde_json::to_string_pretty(&d.to_json())
+            .map_err(|e| CliError::numerical(format!("diagnosis JSON: {e}")))?;
+        emit(&js, Some(&dir.join("diagnosis.json").to_string_lossy()))?;
+        let figs = sd_report::diagnosis::write(dir, &d, &manifest)
+            .map_err(|e| CliError::input(e.to_string()))?;
+        let gain = match d.gain_ratio() {
+            Some(r) => format!("held-out gain ×{r:.1}"),
+            None => "no held-out gain".into(),
+        };
+        eprintln!(
+            "[diagnose] {} / {} {} ({gain}); report.md and {} figures in {out}",
+            d.verdict,
+            d.cause,
+            d.parameters,
+            figs.len()
+        );
+        Ok(())
+    }
+}

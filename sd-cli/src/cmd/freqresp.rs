@@ -1,0 +1,37 @@
+//! `sdctl freqresp`.
+
+use crate::commands::parse_grid;
+use crate::io::{emit, from_model, read_model, CliError};
+
+/// Arguments of `sdctl freqresp`.
+#[derive(clap::Args, Debug)]
+pub(crate) struct Args {
+    pub(crate) model: String,
+    #[arg(long)]
+    pub(crate) grid: String,
+    #[arg(short, long)]
+    pub(crate) output: Option<String>,
+}
+
+impl Args {
+    /// Runs the command.
+    pub(crate) fn run(self) -> Result<(), CliError> {
+        let Args {
+            model,
+            grid,
+            output,
+        } = self;
+        let sys = read_model(&model)?;
+        let f = parse_grid(&grid)?;
+        if let Some(ny) = sys.time().nyquist_hz() {
+            if let Some(fm) = f.iter().cloned().reduce(f64::max) {
+                if fm > ny * (1.0 + 1e-12) {
+                    return Err(CliError::input(format!("--grid {grid}: FMAX = {fm} Hz is above the model's Nyquist frequency {ny} Hz")));
+                }
+            }
+        }
+        let frd = sys.freqresp(&f).map_err(|e| from_model(&model, e))?;
+        let txt = sd_model::frd_to_json_string(&frd).map_err(|e| from_model("output", e))?;
+        emit(&txt, output.as_deref())
+    }
+}

@@ -1,0 +1,100 @@
+//! `sdctl intersample`.
+
+use crate::io::{emit, from_analysis, read_model, CliError};
+use serde_json::json;
+
+/// Arguments of `sdctl intersample`.
+#[derive(clap::Args, Debug)]
+pub(crate) struct Args {
+    /// Fast discrete plant (period h).
+    #[arg(long)]
+    pub(crate) plant_fast: String,
+    /// Slow discrete controller (period F·h, F an integer).
+    #[arg(long)]
+    pub(crate) controller: String,
+    /// Force disturbance rms per fast sample (white).
+    #[arg(long, default_value_t = 0.05, allow_negative_numbers = true)]
+    pub(crate) force_rms: f64,
+    /// Sensor disturbance rms per fast sample (white).
+    #[arg(long, default_value_t = 3e-10, allow_negative_numbers = true)]
+    pub(crate) sensor_rms: f64,
+    /// Frequency points per band.
+    #[arg(long, default_value_t = 2000)]
+    pub(crate) points: usize,
+    #[arg(long)]
+    pub(crate) json: bool,
+}
+
+impl Args {
+    /// Runs the command.
+    pub(crate) fn run(self) -> Result<(), CliError> {
+        let Args {
+            plant_fast,
+            controller,
+            force_rms,
+            sensor_rms,
+            points,
+            json,
+        } = self;
+        let p = read_model(&plant_fast)?;
+        let k = read_model(&controller)?;
+        let (h, t) = match (p.ts(), k.ts()) {
+            (Some(h), Some(t)) => (h, t),
+            _ => {
+                return Err(CliError::input(
+                    "intersample needs discrete plant and controller models",
+                ))
+            }
+        };
+        let ratio = t / h;
+        if !(ratio.is_finite() && ratio >= 1.0 && (ratio - ratio.round()).abs() <= 1e-9 * ratio) {
+            return Err(CliError::input(format!(
+                "the controller period {t} s must be an integer multiple of the plant period {h} s"
+            )));
+        }
+        for (v, what) in [(force_rms, "--force-rms"), (sensor_rms, "--sensor-rms")] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(CliError::input(format!(
+                    "{what} {v} must be finite and >= 0"
+                )));
+            }
+        }
+        let (pd, pn) = (
+            2.0 * h * force_rms * force_rms,
+            2.0 * h * sensor_rms * sensor_rms,
+        );
+        let r = sd_analysis::intersample(&p, &k, ratio.round() as usize, &|_| pd, &|_| pn, points)
+            .map_err(|e| from_analysis("intersample", e))?;
+        let argmax = |f: &[f64], v: &[f64]| {
+            (0..v.len())
+                .max_by(|&a, &b| v[a].total_cmp(&v[b]))
+                .map(|i| f[i])
+                .unwrap_or(f64::NAN)
+        };
+        let (df, ds, dk) = (
+            argmax(&r.fast_hz, &r.fast_psd),
+            argmax(&r.slow_hz, &r.slow_psd),
+            argmax(&r.slow_hz, &r.control_sensitivity),
+        );
+        if json {
+            let v = json!({
+                "factor": ratio.round() as usize,
+                "rms_fast": r.rms_fast, "rms_slow": r.rms_slow,
+                "dominant_hz_fast": df, "dominant_hz_slow": ds,
+                "control_sensitivity_peak_hz": dk,
+                "fast_hz": r.fast_hz, "fast_psd": r.fast_psd,
+                "slow_hz": r.slow_hz, "slow_psd": r.slow_psd,
+                "control_sensitivity": r.control_sensitivity,
+            });
+            emit(&v.to_string(), None)
+        } else {
+            emit(
+            &format!(
+                "predicted error rms: fast rate {:.4e}, at the samples {:.4e}\ndominant frequency: fast {:.2} Hz, slow {:.2} Hz\n|K S| peaks at {:.2} Hz",
+                r.rms_fast, r.rms_slow, df, ds, dk
+            ),
+            None,
+        )
+        }
+    }
+}

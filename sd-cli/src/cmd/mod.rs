@@ -1,0 +1,19 @@
+//! One module per `sdctl` command: its clap arguments and its body.
+
+pub(crate) mod alias;
+pub(crate) mod analyze;
+pub(crate) mod c2d;
+pub(crate) mod connect;
+pub(crate) mod d2c;
+pub(crate) mod diagnose;
+pub(crate) mod downsample;
+pub(crate) mod fit;
+pub(crate) mod freqresp;
+pub(crate) mod frf;
+pub(crate) mod intersample;
+pub(crate) mod loopshape;
+pub(crate) mod norm;
+pub(crate) mod reduce;
+pub(crate) mod roots;
+pub(crate) mod testbed;
+pub(crate) mod weight;

@@ -1,0 +1,105 @@
+//! `sdctl weight`.
+
+use crate::commands::model_json;
+use crate::io::{emit, from_hinf, CliError};
+
+#[derive(clap::Subcommand, Debug)]
+pub(crate) enum WeightKind {
+    /// PID-like: integrator, lead around the bandwidth, optional low-pass; |W/(m s²)| = 1 at the bandwidth.
+    Pid {
+        #[arg(long, allow_negative_numbers = true)]
+        bandwidth_hz: f64,
+        /// The plant's high-frequency mass line 1/(m s²): m in the plant's units.
+        #[arg(long, allow_negative_numbers = true)]
+        mass: f64,
+        #[arg(long, allow_negative_numbers = true)]
+        ts: Option<f64>,
+        #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
+        integrator_ratio: f64,
+        #[arg(long, default_value_t = 3.0, allow_negative_numbers = true)]
+        lead_ratio: f64,
+        /// 0: no low-pass.
+        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+        lowpass_ratio: f64,
+        #[arg(long, default_value_t = 0.7, allow_negative_numbers = true)]
+        lowpass_zeta: f64,
+        #[arg(short, long)]
+        output: Option<String>,
+    },
+    /// Notch (s² + 2ζz ω s + ω²)/(s² + 2ζp ω s + ω²), prewarped at its frequency.
+    Notch {
+        #[arg(long, allow_negative_numbers = true)]
+        freq_hz: f64,
+        #[arg(long, default_value_t = 0.01, allow_negative_numbers = true)]
+        zeta_zero: f64,
+        #[arg(long, default_value_t = 0.2, allow_negative_numbers = true)]
+        zeta_pole: f64,
+        #[arg(long, allow_negative_numbers = true)]
+        ts: Option<f64>,
+        #[arg(short, long)]
+        output: Option<String>,
+    },
+    /// Second-order low-pass ω²/(s² + 2ζω s + ω²), prewarped at its corner.
+    Lowpass {
+        #[arg(long, allow_negative_numbers = true)]
+        freq_hz: f64,
+        #[arg(long, default_value_t = 0.7, allow_negative_numbers = true)]
+        zeta: f64,
+        #[arg(long, allow_negative_numbers = true)]
+        ts: Option<f64>,
+        #[arg(short, long)]
+        output: Option<String>,
+    },
+}
+
+/// Arguments of `sdctl weight`.
+#[derive(clap::Args, Debug)]
+pub(crate) struct Args {
+    #[command(subcommand)]
+    pub(crate) kind: WeightKind,
+}
+
+impl Args {
+    /// Runs the command.
+    pub(crate) fn run(self) -> Result<(), CliError> {
+        let Args { kind } = self;
+        let (w, output) = match kind {
+            WeightKind::Pid {
+                bandwidth_hz,
+                mass,
+                ts,
+                integrator_ratio,
+                lead_ratio,
+                lowpass_ratio,
+                lowpass_zeta,
+                output,
+            } => {
+                let opt = sd_hinf::weights::PidOptions {
+                    integrator_ratio,
+                    lead_ratio,
+                    lowpass_ratio,
+                    lowpass_zeta,
+                };
+                (sd_hinf::weights::pid(bandwidth_hz, mass, ts, &opt), output)
+            }
+            WeightKind::Notch {
+                freq_hz,
+                zeta_zero,
+                zeta_pole,
+                ts,
+                output,
+            } => (
+                sd_hinf::weights::notch(freq_hz, zeta_zero, zeta_pole, ts),
+                output,
+            ),
+            WeightKind::Lowpass {
+                freq_hz,
+                zeta,
+                ts,
+                output,
+            } => (sd_hinf::weights::lowpass(freq_hz, zeta, ts), output),
+        };
+        let w = w.map_err(|e| from_hinf("weight", e))?;
+        emit(&model_json(&w)?, output.as_deref())
+    }
+}
