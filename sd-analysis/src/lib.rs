@@ -19,8 +19,9 @@ pub mod tol;
 pub use closed_loop::{ClosedLoop, Margins, Responses, Summary};
 pub use error::{AnalysisError, Result};
 pub use intersample::{intersample, Intersample};
+pub use sd_multirate::MultirateSimulation;
 pub use spectra::{cps, periodogram, rms, welch, Spectrum, Window};
-pub use standstill::{standstill, standstill_multirate, MultirateStandstill, Standstill};
+pub use standstill::{standstill, standstill_multirate, Standstill};
 
 /// The crate README's example, compiled and run as a doctest.
 #[cfg(doctest)]

@@ -9,7 +9,7 @@
 use crate::error::{AnalysisError, Result};
 use nalgebra::{DMatrix, DVector};
 use sd_model::StateSpace;
-use sd_multirate::MultirateLoop;
+use sd_multirate::{MultirateLoop, MultirateSimulation};
 
 /// Signals of a single-rate standstill simulation.
 #[derive(Debug, Clone)]
@@ -17,17 +17,6 @@ pub struct Standstill {
     /// Error (measured output), N×ny.
     pub error: DMatrix<f64>,
     /// Controller output, N×nu.
-    pub control: DMatrix<f64>,
-}
-
-/// Signals of a multirate standstill simulation.
-#[derive(Debug, Clone)]
-pub struct MultirateStandstill {
-    /// Error at the fast rate (N×ny).
-    pub error_fast: DMatrix<f64>,
-    /// Error at the slow rate (every F-th fast sample).
-    pub error_slow: DMatrix<f64>,
-    /// Slow controller output.
     pub control: DMatrix<f64>,
 }
 
@@ -93,7 +82,8 @@ pub fn standstill(
 }
 
 /// Multirate standstill: slow controller `k` (period F·h) around the fast plant `p_fast`
-/// (period h); `d`, `v` at the fast rate.
+/// (period h); `d`, `v` at the fast rate. The fast error is `z_fast`, the slow one (every F-th
+/// fast sample) `y_slow`, the controller's output `u_slow`.
 ///
 /// # Errors
 /// As [`sd_multirate::MultirateLoop::new`] and its simulation.
@@ -103,12 +93,7 @@ pub fn standstill_multirate(
     factor: usize,
     d: &DMatrix<f64>,
     v: &DMatrix<f64>,
-) -> Result<MultirateStandstill> {
+) -> Result<MultirateSimulation> {
     let l = MultirateLoop::new(p_fast, k, factor)?;
-    let s = l.simulate(d, v)?;
-    Ok(MultirateStandstill {
-        error_fast: s.z_fast,
-        error_slow: s.y_slow,
-        control: s.u_slow,
-    })
+    Ok(l.simulate(d, v)?)
 }

@@ -403,12 +403,45 @@ pub fn write(dir: &Path, d: &Diagnosis, title: &str) -> Result<Vec<String>> {
     }
     figs.extend(amplitude_figures(dir, d)?);
     let md = markdown(d, title, &figs);
-    let path = dir.join("report.md");
-    std::fs::write(&path, md).map_err(|source| ReportError::Io {
-        path: path.display().to_string(),
+    write_atomic(&dir.join("report.md"), &md)?;
+    Ok(figs)
+}
+
+/// Everything a diagnosis writes, for `sdctl diagnose` and `cargo xtask paper` alike:
+/// `diagnosis.json` (its fields in docs/diagnosis.md), `report.md` and the figures, into `dir`
+/// (created when missing); returns the figure file names. The two texts are written
+/// atomically (a temporary file in `dir`, then a rename).
+///
+/// # Errors
+/// The folder, a figure or a file cannot be written.
+pub fn write_all(dir: &Path, d: &Diagnosis, title: &str) -> Result<Vec<String>> {
+    std::fs::create_dir_all(dir).map_err(|source| ReportError::Io {
+        path: dir.display().to_string(),
         source,
     })?;
-    Ok(figs)
+    let js =
+        serde_json::to_string_pretty(&d.to_json()).map_err(|e| ReportError::Json(e.to_string()))?;
+    write_atomic(&dir.join("diagnosis.json"), &js)?;
+    write(dir, d, title)
+}
+
+/// Writes `text` to `path` through a temporary file in the same folder and a rename, so a
+/// reader never sees half a file.
+fn write_atomic(path: &Path, text: &str) -> Result<()> {
+    let io = |source| ReportError::Io {
+        path: path.display().to_string(),
+        source,
+    };
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let tmp = path.with_file_name(format!(".{name}.tmp{}", std::process::id()));
+    std::fs::write(&tmp, text).map_err(io)?;
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        io(e)
+    })
 }
 
 /// A table cell: the number (3 decimals, or 3 significant digits in scientific notation), or

@@ -12,6 +12,9 @@ pub enum ReportError {
     /// Drawing a figure failed (the message names the figure).
     #[error("figure: {0}")]
     Plot(String),
+    /// The diagnosis could not be serialised.
+    #[error("diagnosis JSON: {0}")]
+    Json(String),
     /// Writing a file failed.
     #[error("cannot write {path}: {source}")]
     Io {

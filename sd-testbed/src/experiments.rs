@@ -374,36 +374,42 @@ impl ExperimentData {
         }
     }
 
-    /// The `[[experiment]]` table of the manifest (file `<name>.csv`).
-    pub fn manifest_entry(&self) -> String {
-        let mut s = String::new();
-        let _ = writeln!(s, "[[experiment]]");
-        let _ = writeln!(s, "name = \"{}\"", self.name);
-        let _ = writeln!(s, "file = \"{}.csv\"", self.name);
-        let _ = writeln!(s, "sample_rate_hz = {:?}", self.rate_hz);
+    /// The `[[experiment]]` table of this experiment (file `<name>.csv`; docs/formats.md).
+    fn manifest_table(&self) -> toml::Table {
+        let mut t = toml::Table::new();
+        let mut put = |k: &str, v: toml::Value| {
+            t.insert(k.into(), v);
+        };
+        put("name", self.name.clone().into());
+        put("file", format!("{}.csv", self.name).into());
+        put("sample_rate_hz", self.rate_hz.into());
         if let Some(p) = self.period {
-            let _ = writeln!(s, "period_samples = {p}");
-            let _ = writeln!(s, "skip_periods = {}", self.skip_periods);
+            put("period_samples", (p as i64).into());
+            put("skip_periods", (self.skip_periods as i64).into());
         }
         if self.r.is_some() {
-            let _ = writeln!(s, "reference = \"r\"");
+            put("reference", "r".into());
         }
-        let _ = writeln!(s, "input = \"u\"");
-        let _ = writeln!(s, "output = \"y\"");
+        put("input", "u".into());
+        put("output", "y".into());
         if self.role == Role::Model {
-            let _ = writeln!(s, "role = \"model\"");
+            put("role", "model".into());
         }
-        s
+        t
     }
 }
 
 /// A manifest listing the experiments.
+///
+/// Written with the `toml` serializer, so any experiment name is quoted and escaped.
 pub fn manifest(experiments: &[ExperimentData]) -> String {
-    experiments
+    let tables: Vec<toml::Value> = experiments
         .iter()
-        .map(|e| e.manifest_entry())
-        .collect::<Vec<_>>()
-        .join("\n")
+        .map(|e| toml::Value::Table(e.manifest_table()))
+        .collect();
+    let mut doc = toml::Table::new();
+    doc.insert("experiment".into(), toml::Value::Array(tables));
+    toml::to_string(&doc).unwrap_or_default()
 }
 
 /// The continuous truth (linear part) as a model, for export.

@@ -42,26 +42,11 @@ pub fn rel_err(x: &DMatrix<f64>, y: &DMatrix<f64>) -> f64 {
 pub mod designs;
 pub mod gen;
 
-/// A PID-like controller (integrator, lead around the bandwidth, first-order roll-off) for a
-/// mass `m` with crossover near `bw_hz`, discretised by Tustin at `ts`:
-/// `K(s) = k (s/ω_z + 1)(s + ω_i) / (s (s/ω_p + 1))`, ω_z = ω_c/3, ω_p = 3ω_c, ω_i = ω_c/5,
-/// `k = m ω_c²/3` (|m s² K| ≈ 1 at ω_c).
+/// The library's PID-like controller ([`sd_hinf::weights::pid`] with its default shape:
+/// integrator at ω_c/5, lead from ω_c/3 to 3ω_c, `|K/(m ω_c²)| = 1` at the crossover) for a
+/// mass `mass` with crossover at `bw_hz`, discretised (prewarped Tustin) at `ts`.
 pub fn pid(bw_hz: f64, mass: f64, ts: f64) -> sd_model::StateSpace {
-    use sd_model::{c2d, Discretization, SampleTime, TransferFunction};
-    let wc = 2.0 * std::f64::consts::PI * bw_hz;
-    let (wz, wp, wi) = (wc / 3.0, wc * 3.0, wc / 5.0);
-    let k = mass * wc * wc / 3.0;
-    let tf = TransferFunction::new(
-        vec![k / wz, k * (1.0 + wi / wz), k * wi],
-        vec![1.0 / wp, 1.0, 0.0],
-        SampleTime::Continuous,
-    )
-    .unwrap();
-    c2d(
-        &tf.to_ss().unwrap(),
-        ts,
-        Discretization::Tustin { prewarp_hz: None },
-    )
-    .unwrap()
+    sd_hinf::weights::pid(bw_hz, mass, Some(ts), &Default::default())
+        .expect("a valid PID-like weight")
 }
 pub mod diagcases;

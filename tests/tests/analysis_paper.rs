@@ -93,9 +93,9 @@ fn multirate_standstill() {
     ] {
         let s = standstill_multirate(&p, &k, factor, &d, &v).unwrap();
         let skip = 25_000;
-        let ef: Vec<f64> = s.error_fast.column(0).iter().skip(skip).cloned().collect();
+        let ef: Vec<f64> = s.z_fast.column(0).iter().skip(skip).cloned().collect();
         let es: Vec<f64> = s
-            .error_slow
+            .y_slow
             .column(0)
             .iter()
             .skip(skip / factor)

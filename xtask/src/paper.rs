@@ -292,17 +292,10 @@ fn diagnosis(
         diag.gain_ratio()
             .map_or("not measured".into(), |r| format!("×{r:.1}"))
     );
-    let diag_dir = std::path::Path::new(out).join("diagnosis");
-    std::fs::create_dir_all(&diag_dir).map_err(s)?;
-    let figs = sd_report::diagnosis::write(
-        &diag_dir,
+    let figs = sd_report::diagnosis::write_all(
+        &std::path::Path::new(out).join("diagnosis"),
         &diag,
         "the virtual stage (5 kHz model, 1 kHz validation)",
-    )
-    .map_err(s)?;
-    std::fs::write(
-        diag_dir.join("diagnosis.json"),
-        serde_json::to_string_pretty(&diag.to_json()).map_err(s)?,
     )
     .map_err(s)?;
     Ok((diag, figs))

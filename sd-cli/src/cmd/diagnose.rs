@@ -1,6 +1,6 @@
 //! `sdctl diagnose`.
 
-use crate::io::{emit, read_model, CliError};
+use crate::io::{read_model, CliError};
 
 /// Arguments of `sdctl diagnose`.
 #[derive(clap::Args, Debug)]
@@ -54,14 +54,11 @@ impl Args {
             }
             _ => CliError::input(format!("{manifest}: {e}")),
         })?;
-        std::fs::create_dir_all(&out)
-            .map_err(|e| CliError::input(format!("cannot create {out}: {e}")))?;
-        let dir = std::path::Path::new(&out);
-        let js = serde_json::to_string_pretty(&d.to_json())
-            .map_err(|e| CliError::numerical(format!("diagnosis JSON: {e}")))?;
-        emit(&js, Some(&dir.join("diagnosis.json").to_string_lossy()))?;
-        let figs = sd_report::diagnosis::write(dir, &d, &manifest)
-            .map_err(|e| CliError::input(e.to_string()))?;
+        let figs = sd_report::diagnosis::write_all(std::path::Path::new(&out), &d, &manifest)
+            .map_err(|e| match e {
+                sd_report::ReportError::Json(_) => CliError::numerical(e.to_string()),
+                _ => CliError::input(e.to_string()),
+            })?;
         let gain = match d.gain_ratio() {
             Some(r) => format!("held-out gain ×{r:.1}"),
             None => "no held-out gain".into(),
