@@ -1,5 +1,7 @@
 //! A small deterministic random generator (SplitMix64), so that designs are reproducible from a
-//! seed without pulling in a dependency.
+//! seed without pulling in a dependency. The toolkit's one seeded generator (multisine phases,
+//! the testbed's noise, the bench): the stream for a seed is part of the API and stays the same
+//! across versions, since experiments, tests and reported seed ranges are named by their seeds.
 
 /// SplitMix64 (Steele, Lea & Flood 2014).
 #[derive(Debug, Clone)]

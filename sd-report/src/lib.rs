@@ -1,7 +1,9 @@
-//! `sd-report`: what people read. SVG figures with plotters ([`plot`]) and the diagnosis report
-//! ([`diagnosis`]: `report.md` and its figures). The only library crate that writes files; the
+//! `sd-report`: what people read. SVG figures with plotters ([`plot`], on plain slices of
+//! frequencies and values: no toolkit types) and, with the default feature `diagnosis`, the
+//! diagnosis report (`diagnosis`: `report.md`, `diagnosis.json` and its figures). The only library crate that writes files; the
 //! numerics live elsewhere.
 
+#[cfg(feature = "diagnosis")]
 pub mod diagnosis;
 pub mod plot;
 
