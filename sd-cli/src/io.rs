@@ -160,26 +160,7 @@ pub fn emit(text: &str, out: Option<&str>) -> Result<(), CliError> {
                     message: format!("cannot write stdout: {e}"),
                 })
         }
-        Some(path) => {
-            let p = Path::new(path);
-            let dir = p
-                .parent()
-                .filter(|d| !d.as_os_str().is_empty())
-                .unwrap_or(Path::new("."));
-            let name = p
-                .file_name()
-                .ok_or_else(|| CliError::input(format!("invalid output path {path}")))?;
-            let tmp = dir.join(format!(
-                ".{}.tmp{}",
-                name.to_string_lossy(),
-                std::process::id()
-            ));
-            std::fs::write(&tmp, format!("{text}\n"))
-                .map_err(|e| CliError::input(format!("cannot write {}: {e}", tmp.display())))?;
-            std::fs::rename(&tmp, p).map_err(|e| {
-                let _ = std::fs::remove_file(&tmp);
-                CliError::input(format!("cannot write {path}: {e}"))
-            })
-        }
+        Some(path) => sd_report::write_atomic(Path::new(path), &format!("{text}\n"))
+            .map_err(|e| CliError::input(e.to_string())),
     }
 }

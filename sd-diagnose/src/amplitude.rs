@@ -11,8 +11,9 @@
 //! `ζ = −σ/|s|` with standard errors (first-order propagation).
 //!
 //! **Amplitude.** A mode's amplitude in an experiment is the rms of the measured output in the
-//! mode's band (`f(1 ± max(3ζ, 2 %))`), from the DFT of the steady record; the trend uses it
-//! relative to the model experiment's, `ρ = a/a_ref`.
+//! mode's band (`f(1 ± max(3ζ, 2 %))`), from the DFT of the steady record; a friction-damped
+//! rigid body's corner's is the output's rms velocity below three times the linear corner
+//! ([`mode_amplitude`]); the trend uses it relative to the model experiment's, `ρ = a/a_ref`.
 //!
 //! **Trend.** Per mode and quantity `p(ρ) = p_ref + c·(ρ^k − 1)` by weighted least squares over
 //! the levels, with `k ∈ {2, 1, −1}` chosen by the weighted residual (with two levels, where
@@ -123,11 +124,16 @@ pub(crate) fn describes(
     lv: &Level<'_>,
     alpha: f64,
 ) -> Result<crate::stats::Statistic> {
-    let f = lv.est.frd.freq_hz();
-    let phi = basis.responses(h, NonIdeal::ideal(), f)?;
+    let phi = basis.responses(h, NonIdeal::ideal(), lv.est.frd.freq_hz())?;
     let res = Residues::fit(&lv.est.frd, &phi)?;
+    let lines = predicted_lines(lv.est, &phi, &res);
+    Ok(statistic([(lines.as_slice(), lv.est.inflation)], alpha))
+}
+
+/// An estimate's lines against the prediction `Σ r_j φ_j` with the residues' variance.
+fn predicted_lines(est: &Estimate, phi: &[Vec<C>], res: &Residues) -> Vec<Line> {
     let np = res.n_params();
-    let lines = compare(&lv.est.frd, lv.est.dof, |i, _| {
+    compare(&est.frd, est.dof, |i, _| {
         let (value, var) = res.predict(&phi[i]);
         Some(Pred {
             value,
@@ -135,8 +141,7 @@ pub(crate) fn describes(
             dof: f64::INFINITY,
             params: np,
         })
-    });
-    Ok(statistic([(lines.as_slice(), lv.est.inflation)], alpha))
+    })
 }
 
 /// Natural frequency (Hz), damping and their standard errors from a pair and the covariance
@@ -238,7 +243,7 @@ fn band(f: f64, z: f64) -> (f64, f64) {
 /// the velocity of a damped rigid body is flat to its corner and falls as `1/f` above, so the
 /// band holds its rms at every amplitude where the corner falls.
 fn mode_amplitude(basis: &ModalBasis, pm: usize, at: C, y: &[f64], fs: f64) -> f64 {
-    if !basis.is_real(pm) {
+    if !basis.is_rigid_damping(pm) {
         let (lo, hi) = band_of(at);
         return band_rms(y, fs, lo, hi);
     }
@@ -248,13 +253,7 @@ fn mode_amplitude(basis: &ModalBasis, pm: usize, at: C, y: &[f64], fs: f64) -> f
         .filter(|&j| !basis.is_real(j))
         .map(|j| natural(poles[j], [[0.0; 2]; 2]).0)
         .fold(f64::INFINITY, f64::min);
-    let top = (3.0 * corner).min(0.5 * lowest_pair);
-    if basis.is_rigid_damping(pm) {
-        weighted_band_rms(y, fs, (0.0, top), true)
-    } else {
-        let (lo, hi) = band_of(poles[pm]);
-        band_rms(y, fs, lo, hi)
-    }
+    weighted_band_rms(y, fs, (0.0, (3.0 * corner).min(0.5 * lowest_pair)), true)
 }
 
 /// The steady output of an experiment.
@@ -735,17 +734,7 @@ impl AmplitudeModel {
         let b = self.basis.with_poles(&self.pairs_at(&amp))?;
         let f = lv.est.frd.freq_hz();
         let phi = b.responses(self.h, NonIdeal::ideal(), f)?;
-        let res = self.res()?;
-        let np = res.n_params();
-        Ok(compare(&lv.est.frd, lv.est.dof, |i, _| {
-            let (value, var) = res.predict(&phi[i]);
-            Some(Pred {
-                value,
-                var,
-                dof: f64::INFINITY,
-                params: np,
-            })
-        }))
+        Ok(predicted_lines(lv.est, &phi, self.res()?))
     }
 
     /// Whether a level's amplitude lies outside the range of the levels the model was

@@ -804,6 +804,7 @@ fn levels_left_out(
             statistic([(a.as_slice(), c)], alpha).value,
             statistic([(b.as_slice(), c)], alpha).value,
         );
+        let extrapolated = m.extrapolates(lv, &tf);
         per.insert(
             lv.name.clone(),
             HeldOut {
@@ -811,11 +812,11 @@ fn levels_left_out(
                 after: sa,
                 ratio: sb / sa,
                 lines: a.len(),
+                extrapolated,
             },
         );
         after.push((a, c));
         before.push((b, c));
-        let extrapolated = m.extrapolates(lv, &tf);
         held.push(format!(
             "{} (whole experiment, left out{})",
             lv.name,

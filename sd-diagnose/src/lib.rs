@@ -621,6 +621,8 @@ pub struct HeldOut {
     pub ratio: f64,
     /// Lines compared.
     pub lines: usize,
+    /// The experiment's amplitude lay beyond those the extension was fitted on.
+    pub extrapolated: bool,
 }
 
 fn distortion_json<S: serde::Serializer>(

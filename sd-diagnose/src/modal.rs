@@ -47,6 +47,12 @@ pub(crate) struct ModalBasis {
     pairs: Vec<C>,
 }
 
+/// `(|s|, ζ = −Re s/|s|)` of a continuous pole (rad/s; ζ = 0 at the origin).
+fn natural(p: &C) -> (f64, f64) {
+    let m = p.norm();
+    (m, if m > 0.0 { -p.re / m } else { 0.0 })
+}
+
 impl ModalBasis {
     /// From the poles of a model at period `h` (`None`: continuous poles).
     pub(crate) fn from_model(model: &StateSpace) -> Result<Self> {
@@ -115,7 +121,7 @@ impl ModalBasis {
     /// close pairs, which then trade frequency and damping in a level fit); `None` when no
     /// pair is that close to another.
     pub(crate) fn without_close_pairs(&self) -> Result<Option<Self>> {
-        let nat = |p: &C| (p.norm(), -p.re / p.norm());
+        let nat = natural;
         let close = |a: &C, b: &C| {
             let ((fa, za), (fb, zb)) = (nat(a), nat(b));
             (fa - fb).abs() <= 2.0 * (za * fa + zb * fb)
@@ -149,7 +155,7 @@ impl ModalBasis {
         if !self.is_damped() {
             return Vec::new();
         }
-        let zeta = |p: &C| -p.re / p.norm().max(f64::MIN_POSITIVE);
+        let zeta = |p: &C| natural(p).1;
         let lowest = self
             .pairs
             .iter()

@@ -403,7 +403,7 @@ pub fn write(dir: &Path, d: &Diagnosis, title: &str) -> Result<Vec<String>> {
     }
     figs.extend(amplitude_figures(dir, d)?);
     let md = markdown(d, title, &figs);
-    write_atomic(&dir.join("report.md"), &md)?;
+    crate::write_atomic(&dir.join("report.md"), &md)?;
     Ok(figs)
 }
 
@@ -421,27 +421,8 @@ pub fn write_all(dir: &Path, d: &Diagnosis, title: &str) -> Result<Vec<String>> 
     })?;
     let js =
         serde_json::to_string_pretty(&d.to_json()).map_err(|e| ReportError::Json(e.to_string()))?;
-    write_atomic(&dir.join("diagnosis.json"), &js)?;
+    crate::write_atomic(&dir.join("diagnosis.json"), &js)?;
     write(dir, d, title)
-}
-
-/// Writes `text` to `path` through a temporary file in the same folder and a rename, so a
-/// reader never sees half a file.
-fn write_atomic(path: &Path, text: &str) -> Result<()> {
-    let io = |source| ReportError::Io {
-        path: path.display().to_string(),
-        source,
-    };
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let tmp = path.with_file_name(format!(".{name}.tmp{}", std::process::id()));
-    std::fs::write(&tmp, text).map_err(io)?;
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        io(e)
-    })
 }
 
 /// A table cell: the number (3 decimals, or 3 significant digits in scientific notation), or

@@ -38,3 +38,29 @@ pub(crate) fn plot_err<E: std::fmt::Display>(e: E) -> ReportError {
 #[cfg(doctest)]
 #[doc = include_str!("../README.md")]
 pub struct ReadmeDoctest;
+
+/// Writes `text` to `path` through a temporary file in the same folder and a rename, so a
+/// reader never sees half a file; an error names `path`, never the temporary file. The one
+/// atomic writer of the workspace (`sdctl` writes its outputs through it too).
+///
+/// # Errors
+/// The file cannot be written or renamed into place.
+pub fn write_atomic(path: &std::path::Path, text: &str) -> Result<()> {
+    let io = |source| ReportError::Io {
+        path: path.display().to_string(),
+        source,
+    };
+    let name = path.file_name().ok_or_else(|| {
+        io(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "not a file name",
+        ))
+    })?;
+    let name = name.to_string_lossy();
+    let tmp = path.with_file_name(format!(".{name}.tmp{}", std::process::id()));
+    std::fs::write(&tmp, text).map_err(io)?;
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        io(e)
+    })
+}

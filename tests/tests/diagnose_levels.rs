@@ -197,11 +197,7 @@ fn run(seed: u64, effect: LevelEffect, levels: &[f64], form: Form) -> Option<Out
             .iter()
             .filter_map(|x| {
                 let h = x.held_out?;
-                let extrapolated =
-                    d.gain.held_out.iter().any(|l| {
-                        l.starts_with(&format!("{} (", x.name)) && l.contains("extrapolated")
-                    });
-                Some((x.name.clone(), h.before, h.after, extrapolated))
+                Some((x.name.clone(), h.before, h.after, h.extrapolated))
             })
             .collect(),
         shift_errors: shift_errors(&d, case.mode_hz),

@@ -57,6 +57,18 @@ struct Ctx {
     dt_path: PathBuf,
 }
 
+impl Ctx {
+    /// Repeats of the slowest operations (the fit, the testbed, the peer's frequency
+    /// response).
+    fn few(&self) -> usize {
+        if self.quick {
+            1
+        } else {
+            3
+        }
+    }
+}
+
 /// The benchmark entries (JSON) and, per entry, what the Python peers compare it with.
 struct Entries {
     c2d: Value,
@@ -108,10 +120,9 @@ fn build_sdctl(root: &Path) -> Result<PathBuf, String> {
 /// c2d: exact ZOH of the 60-state stage at 5 kHz; returns the discrete stage too.
 fn bench_c2d(
     dir: &Path,
-    quick: bool,
+    reps: usize,
     stage: &StateSpace,
 ) -> Result<(f64, StateSpace, PathBuf, PathBuf), String> {
-    let reps = if quick { 3 } else { 15 };
     let ct_path = dir.join("stage60_ct.json");
     write_model(&ct_path, stage)?;
     eprintln!("[bench] c2d (ZOH) of the 60-state stage at 5 kHz, {reps} repeats...");
@@ -236,9 +247,7 @@ fn bench_fit(ctx: &Ctx) -> Result<Value, String> {
         feedthrough: false,
         ..Default::default()
     };
-    let (t_fit, fit60) = time_it(if ctx.quick { 1 } else { 3 }, || {
-        sd_ident::fit(&frd60, &fopt)
-    });
+    let (t_fit, fit60) = time_it(ctx.few(), || sd_ident::fit(&frd60, &fopt));
     let fit60 = fit60.map_err(err)?;
     Ok(
         json!({"name": "fit_order60", "size": "2500 lines of the 60-state stage at 5 kHz, 40 dB SNR",
@@ -296,7 +305,7 @@ fn identification(
 /// Virtual stage experiments of 70 000 samples (LTI and nonlinear) and a diagnosis of three.
 fn bench_testbed_diagnose(ctx: &Ctx) -> Result<(Value, Value), String> {
     eprintln!("[bench] virtual stage experiments (70 000 samples) and a diagnosis of three...");
-    let few = if ctx.quick { 1 } else { 3 };
+    let few = ctx.few();
     let avg = sd_testbed::NonIdealities {
         averaging: 0.6,
         ..Default::default()
@@ -391,7 +400,7 @@ fn run_peers(root: &Path, ctx: &Ctx, o: &Ours) -> Result<Value, String> {
     let reps = ctx.reps;
     let cases = json!({
         "c2d": {"model": ctx.ct_path, "ts": 2e-4, "repeats": reps * 10},
-        "freqresp": {"model": ctx.dt_path, "fmin": o.fmin, "fmax": o.fmax, "n": o.nfreq, "log": true, "repeats": if ctx.quick { 1 } else { 3 }},
+        "freqresp": {"model": ctx.dt_path, "fmin": o.fmin, "fmax": o.fmax, "n": o.nfreq, "log": true, "repeats": ctx.few()},
         "downsample": {"model": ctx.dt_path, "factor": 5, "repeats": reps * 10},
         "dare": {"model": ctx.dt_path, "repeats": reps},
         "loopshape": {"plant": o.p1k_path, "w1": o.w1_path, "repeats": reps * 4},
@@ -486,11 +495,12 @@ pub fn run(quick: bool) -> Result<(), String> {
     let nfreq = if quick { 20_000 } else { 200_000 };
     let sdctl = build_sdctl(&root)?;
     let stage = sd_model::stage::stage60().map_err(err)?;
-    let (t_c2d, pd, ct_path, dt_path) = bench_c2d(&dir, quick, &stage)?;
+    let reps = if quick { 3 } else { 15 };
+    let (t_c2d, pd, ct_path, dt_path) = bench_c2d(&dir, reps, &stage)?;
     let ctx = Ctx {
         dir,
         quick,
-        reps: if quick { 3 } else { 15 },
+        reps,
         stage,
         pd,
         ct_path,
