@@ -121,7 +121,7 @@ fn bad_inputs_exit_2_with_one_line() {
         (
             "nan.json",
             r#"{"type":"ss","ts":null,"a":[[NaN]],"b":[[1]],"c":[[1]],"d":[[0]]}"#,
-            Some("cannot read"),
+            Some("NaN and infinite values are not allowed"),
         ),
         (
             "inf.json",
@@ -131,7 +131,7 @@ fn bad_inputs_exit_2_with_one_line() {
         (
             "ts0.json",
             r#"{"type":"ss","ts":0,"a":[[0.5]],"b":[[1]],"c":[[1]],"d":[[0]]}"#,
-            Some("sampling period"),
+            Some("write `\"ts\": null` for continuous time"),
         ),
         ("junk.json", "{not json", Some("cannot read")),
     ];
@@ -177,6 +177,147 @@ fn bad_inputs_exit_2_with_one_line() {
             .count(),
         0
     );
+}
+
+/// A typo, a missing `ts` or a non-finite number is never read silently: exit 2 with one line
+/// that names the key, where it is, and the closest allowed key.
+#[test]
+fn typos_and_missing_keys_are_named() {
+    let d = tmpdir("typos");
+    let models: [(&str, &str); 6] = [
+        (
+            r#"{"type":"ss","Ts":0.001,"a":[[0.5]],"b":[[1]],"c":[[1]],"d":[[0]]}"#,
+            "unknown key `Ts` in the file: did you mean `ts`?",
+        ),
+        (
+            r#"{"type":"ss","dt":0.001,"a":[[0.5]],"b":[[1]],"c":[[1]],"d":[[0]]}"#,
+            "unknown key `dt` in the file: did you mean `ts`?",
+        ),
+        (
+            r#"{"type":"ss","a":[[0.5]],"b":[[1]],"c":[[1]],"d":[[0]]}"#,
+            "the key `ts` is missing",
+        ),
+        (
+            r#"{"type":"tf","ts":0.001,"num":[1],"den":[1,-0.5],"nmae":"x"}"#,
+            "unknown key `nmae` in the file: did you mean `name`?",
+        ),
+        (
+            "{\"type\":\"ss\",\"ts\":0.001,\n\"a\":[[-Infinity]],\"b\":[[1]],\"c\":[[1]],\"d\":[[0]]}",
+            "line 2 column 7: NaN and infinite values are not allowed",
+        ),
+        (
+            r#"{"type":"ss","ts":0.001,"a":[[0.5]],"b":[[1]],"c":[[1]],"d":[[0]],"input":["u"]}"#,
+            "did you mean `inputs`?",
+        ),
+    ];
+    for (i, (text, needle)) in models.iter().enumerate() {
+        let path = write(&d, &format!("m{i}.json"), text);
+        assert_input_error(&sdctl(&["poles", &path]), needle);
+    }
+    let frd = write(
+        &d,
+        "f.json",
+        r#"{"type":"frd","ts":0.001,"freq":[1],"re":[[[1]]],"im":[[[0]]]}"#,
+    );
+    assert_input_error(
+        &sdctl(&["fit", &frd, "--order", "2"]),
+        "unknown key `freq` in the file: did you mean `freq_hz`?",
+    );
+    let exp =
+        "name = \"a\"\nfile = \"x.csv\"\nsample_rate_hz = 1000\ninput = \"u\"\noutput = \"y\"\n";
+    for (extra, needle) in [
+        ("perod_samples = 1000\n", "did you mean `period_samples`?"),
+        ("skip_period = 1\n", "did you mean `skip_periods`?"),
+        ("rol = \"model\"\n", "did you mean `role`?"),
+        ("fs = 1000\n", "did you mean `sample_rate_hz`?"),
+    ] {
+        let m = write(&d, "m.toml", &format!("[[experiment]]\n{exp}{extra}"));
+        let o = sdctl(&["frf", &m, "--experiment", "a"]);
+        assert_input_error(&o, needle);
+        assert_input_error(&o, "in experiment 1 (`a`)");
+    }
+    let m = write(&d, "m2.toml", &format!("[[experiments]]\n{exp}"));
+    assert_input_error(
+        &sdctl(&["frf", &m, "--experiment", "a"]),
+        "did you mean `experiment`?",
+    );
+    let id = "[[experiment]]\nname = \"a\"\nrate_hz = 1000.0\n";
+    let out = d.join("tb").to_string_lossy().into_owned();
+    for (text, needle) in [
+        (
+            format!("[nonideal]\nhold_dealy = 0.1\n{id}"),
+            "unknown key `hold_dealy` in [nonideal]: did you mean `hold_delay`?",
+        ),
+        (
+            format!("[nonideals]\nhold_delay = 0.1\n{id}"),
+            "did you mean `nonideal`?",
+        ),
+        (
+            format!("[[truth.mode]]\nfreq = 653.0\n{id}"),
+            "did you mean `freq_hz`?",
+        ),
+        (format!("{id}perods = 3\n"), "did you mean `periods`?"),
+        ("[truth]\nmass = 2.0\n".into(), "no [[experiment]]"),
+        (
+            "[[experiment]]\nkind = \"standstill\"\nname = \"s\"\nrate_hz = 1000.0\nfactor = 0\n"
+                .into(),
+            "`factor` must be ≥ 1",
+        ),
+        (
+            format!("{id}injection = \"reference\"\nrms = 1.0\n"),
+            "1 m rms position reference",
+        ),
+        (
+            "[[experiment]]\nname = \"a\"\nrate_hz = 1e12\n".into(),
+            "more than 80000000 samples",
+        ),
+        (format!("{id}periods = 100000000000\n"), "`periods`"),
+        (
+            "[[experiment]]\nkind = \"standstill\"\nname = \"s\"\nrate_hz = 1000.0\nsamples = 100000000000\n"
+                .into(),
+            "`samples` × `factor`",
+        ),
+    ] {
+        let cfg = write(&d, "c.toml", &text);
+        assert_input_error(
+            &sdctl(&["testbed", "--config", &cfg, "--out", &out]),
+            needle,
+        );
+        assert!(
+            !std::path::Path::new(&out).exists(),
+            "nothing written: {text}"
+        );
+    }
+}
+
+/// A configuration that leaves `injection` out runs the experiments exactly as `sdctl testbed`
+/// without a configuration does (input injection, `rms` in N).
+#[test]
+fn testbed_defaults_are_the_same_with_and_without_a_config() {
+    let d = tmpdir("defaults");
+    let (a, b) = (d.join("a"), d.join("b"));
+    let o = sdctl(&["testbed", "--out", &a.to_string_lossy()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let cfg = write(
+        &d,
+        "c.toml",
+        "[[experiment]]\nname = \"fast\"\nrate_hz = 5000.0\nrole = \"model\"\npid_bandwidth_hz = 30.0\n\
+         pid_lowpass_hz = 1000.0\nperiod = 5000\nperiods = 5\nf_min = 1.0\nf_max = 2400.0\n\
+         [[experiment]]\nname = \"slow\"\nrate_hz = 1000.0\npid_bandwidth_hz = 20.0\nperiod = 1000\n\
+         periods = 5\nf_min = 1.0\nf_max = 499.0\n",
+    );
+    let o = sdctl(&["testbed", "--config", &cfg, "--out", &b.to_string_lossy()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for f in ["fast.csv", "slow.csv", "experiments.toml"] {
+        let (x, y) = (
+            std::fs::read_to_string(a.join(f)).unwrap(),
+            std::fs::read_to_string(b.join(f)).unwrap(),
+        );
+        assert!(
+            x == y,
+            "{f} differs between the default run and the config without injection"
+        );
+    }
 }
 
 /// The JSON a successful command printed, with each of `keys` present.
@@ -641,6 +782,40 @@ fn testbed_then_diagnose() {
         let svg = std::fs::read_to_string(dir.join("diag").join(f)).unwrap();
         assert!(svg.starts_with("<svg") && svg.len() > 2000, "{f}");
         assert!(report.contains(f), "{f} not linked from the report");
+    }
+    // the models are written, and the next step's c2d of the continuous extension reproduces
+    // the extended model at the slow rate
+    assert!(report.contains("## Next steps"), "{report}");
+    let diag = dir.join("diag");
+    let model =
+        sd_model::read_model(std::fs::File::open(diag.join("model.json")).unwrap()).unwrap();
+    assert_eq!(model.ts(), Some(2e-4));
+    let window = v["parameters"]["window_frac"].as_f64().unwrap();
+    let cmd = format!(
+        "sdctl c2d extended_model.json --ts 0.001000 --hold-delay 0.0000 --averaging {window:.4}"
+    );
+    assert!(report.contains(&cmd), "{cmd} not in the report:\n{report}");
+    let p_slow = diag.join("plant_slow.json").to_string_lossy().into_owned();
+    let o = sdctl(&[
+        "c2d",
+        &diag.join("extended_model.json").to_string_lossy(),
+        "--ts",
+        "0.001",
+        "--averaging",
+        &window.to_string(),
+        "-o",
+        &p_slow,
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let via_c2d = sd_model::read_model(std::fs::File::open(&p_slow).unwrap()).unwrap();
+    let written =
+        sd_model::read_model(std::fs::File::open(diag.join("extended_model_slow.json")).unwrap())
+            .unwrap();
+    let f: Vec<f64> = (1..50).map(|k| k as f64 * 9.7).collect();
+    let (a, b) = (via_c2d.freqresp(&f).unwrap(), written.freqresp(&f).unwrap());
+    for (x, y) in a.response().iter().zip(b.response()) {
+        let (x, y) = (x[(0, 0)], y[(0, 0)]);
+        assert!((x - y).norm() <= 1e-6 * y.norm(), "{x} vs {y}");
     }
     // the testbed's truth (continuous) as the given model: same cause, same window
     let truth = dir

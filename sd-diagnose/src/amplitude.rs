@@ -29,7 +29,6 @@
 
 use crate::data::Estimate;
 use crate::lemma6::{compare, Pred};
-use crate::lstsq::scaled_lstsq;
 use crate::modal::{ModalBasis, Residues};
 use crate::stats::{normal_quantile, statistic, threshold, Line};
 use crate::{
@@ -39,6 +38,7 @@ use crate::{
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64 as C;
 use sd_ident::Experiment;
+use sd_model::linalg::lstsq;
 use sd_model::StateSpace;
 use sd_multirate::NonIdeal;
 use std::f64::consts::TAU;
@@ -311,7 +311,7 @@ pub(crate) fn fit_level(
                 }
             }
         }
-        let Some(ls) = scaled_lstsq(&j, &e) else {
+        let Ok(ls) = lstsq(&j, &e) else {
             break;
         };
         jac_cov = Some((ls.cov.view((nb, nb), (np, np)).into_owned(), offs.clone()));
@@ -434,7 +434,7 @@ fn trend_fit(pts: &[(f64, f64, f64)], k: i32) -> Option<(Trend, f64)> {
         w * if c == 0 { 1.0 } else { pts[i].0.powi(k) - 1.0 }
     });
     let g = DVector::from_fn(n, |i, _| pts[i].1 / pts[i].2.max(f64::MIN_POSITIVE));
-    let ls = scaled_lstsq(&x, &g)?;
+    let ls = lstsq(&x, &g).ok()?;
     let r = &g - &x * &ls.x;
     let chi2 = r.norm_squared();
     // the points' scatter beyond their errors widens the trend's

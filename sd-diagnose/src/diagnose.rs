@@ -12,8 +12,8 @@ use crate::modal::{ModalBasis, Residues};
 use crate::stats::{normal_quantile, statistic, Line, Statistic};
 use crate::{
     joined, merged_parameters, Cause, CornerTrend, Curves, DampingTrend, DiagnoseError,
-    DiagnoseOptions, Diagnosis, DriftCheck, DriftSign, Evidence, ExperimentReport, Extension,
-    FreqTrend, Gain, HeldOut, ModelInfo, OwnFit, Ranked, RateTied, Result, Verdict,
+    DiagnoseOptions, Diagnosis, DriftCheck, DriftSign, Evidence, ExperimentReport, ExtendedModel,
+    Extension, FreqTrend, Gain, HeldOut, ModelInfo, OwnFit, Ranked, RateTied, Result, Verdict,
 };
 use num_complex::Complex64 as C;
 use sd_ident::{DistortionReport, Experiment, Role};
@@ -1495,6 +1495,7 @@ pub fn diagnose_with_progress(
     let outcome = decide(&data, &judged, &mut ch, progress)?;
     progress("reports");
     let mut experiments = reports(&data, &judged, &ch, (&outcome.extension, &outcome.models))?;
+    let extended_model = extended_continuous(&judged, &outcome.extension)?;
     for x in &mut experiments {
         x.held_out = outcome.held.get(&x.name).copied();
     }
@@ -1513,6 +1514,7 @@ pub fn diagnose_with_progress(
         model_info: judged.info,
         experiments,
         pieces,
+        extended_model,
     })
 }
 
@@ -1697,6 +1699,21 @@ impl ReportCtx<'_, '_> {
             time_domain: td,
             distortion: est.distortion.clone(),
             held_out: None,
+            extended_model: em,
         })
     }
+}
+
+/// The rate-tied extension as a continuous model with its hold delay and averaging window
+/// (`None` for any other extension).
+fn extended_continuous(j: &Judged<'_>, ext: &Extension) -> Result<Option<ExtendedModel>> {
+    let Extension::RateTied(p) = ext else {
+        return Ok(None);
+    };
+    let res = j.modal.residues(p.nonideal())?;
+    Ok(Some(ExtendedModel {
+        continuous: j.modal.basis.continuous(&res.r)?,
+        hold_delay: p.hold_delay,
+        averaging: p.averaging,
+    }))
 }

@@ -65,7 +65,6 @@ mod data;
 mod findings;
 pub mod hypotheses;
 mod lemma6;
-mod lstsq;
 pub mod modal;
 mod model;
 pub mod pieces;
@@ -608,6 +607,11 @@ pub struct ExperimentReport {
     /// When this whole experiment was held out of the extension's fit: the statistics
     /// before and after on it (in the metric of `gain`).
     pub held_out: Option<HeldOut>,
+    /// The extended model at this experiment's rate (discrete, with the named non-idealities,
+    /// clock error and amplitude), where the extension is a model; written by the report as
+    /// `extended_model_<name>.json`.
+    #[serde(skip)]
+    pub extended_model: Option<StateSpace>,
 }
 
 /// One held-out experiment's statistics before and after the extension.
@@ -700,6 +704,11 @@ pub struct Diagnosis {
     /// Non-periodic records of changing amplitude cut into pieces, each diagnosed as an
     /// experiment of its own level ([`pieces`]); empty when none was cut.
     pub pieces: Vec<Piece>,
+    /// The rate-tied extension as a continuous model with its non-idealities (written by the
+    /// report as `extended_model.json`; `sdctl c2d` with `--hold-delay` and `--averaging`
+    /// discretises it at any rate).
+    #[serde(skip)]
+    pub extended_model: Option<ExtendedModel>,
 }
 
 impl Diagnosis {
@@ -717,6 +726,17 @@ impl Diagnosis {
     pub fn model_source(&self) -> &str {
         &self.model_info.source
     }
+}
+
+/// A continuous model with the rate-tied non-idealities that act when it is discretised.
+#[derive(Debug, Clone)]
+pub struct ExtendedModel {
+    /// The continuous modal model (one input, one output; SI units of the data).
+    pub continuous: StateSpace,
+    /// Hold delay as a fraction of the sample period (`sdctl c2d --hold-delay`).
+    pub hold_delay: f64,
+    /// Averaging window as a fraction of the sample period (`sdctl c2d --averaging`).
+    pub averaging: f64,
 }
 
 /// The cause string of several named causes: names sorted and joined by `+`.

@@ -426,25 +426,35 @@ impl ModalBasis {
 
     /// The discrete model `Σ r_j φ_j` at period `ts` under `ni` (the blocks in parallel).
     pub(crate) fn model(&self, r: &[f64], ts: f64, ni: NonIdeal) -> Result<StateSpace> {
-        let ds = self.discretised(ts, ni)?;
-        let n: usize = ds.iter().map(StateSpace::n).sum();
-        let mut a = DMatrix::zeros(n, n);
-        let mut b = DMatrix::zeros(n, 1);
-        let mut c = DMatrix::zeros(1, n);
-        let mut d = DMatrix::zeros(1, 1);
-        let (mut i, mut j) = (0, 0);
-        for blk in &ds {
-            let (k, m) = (blk.n(), blk.ny());
-            let row = DMatrix::from_row_slice(1, m, &r[j..j + m]);
-            a.view_mut((i, i), (k, k)).copy_from(blk.a());
-            b.view_mut((i, 0), (k, 1)).copy_from(blk.b());
-            c.view_mut((0, i), (1, k)).copy_from(&(&row * blk.c()));
-            d += &row * blk.d();
-            i += k;
-            j += m;
-        }
-        Ok(StateSpace::new(a, b, c, d, SampleTime::discrete(ts)?)?)
+        stacked(&self.discretised(ts, ni)?, r, SampleTime::discrete(ts)?)
     }
+
+    /// The continuous model `Σ r_j φ_j(s)` (the blocks in parallel, before any hold or
+    /// sampler): what `sdctl c2d` discretises with the named non-idealities.
+    pub(crate) fn continuous(&self, r: &[f64]) -> Result<StateSpace> {
+        stacked(&self.blocks, r, SampleTime::Continuous)
+    }
+}
+
+/// The blocks in parallel, each block's outputs weighted by its residues: one input, one output.
+fn stacked(blocks: &[StateSpace], r: &[f64], time: SampleTime) -> Result<StateSpace> {
+    let n: usize = blocks.iter().map(StateSpace::n).sum();
+    let mut a = DMatrix::zeros(n, n);
+    let mut b = DMatrix::zeros(n, 1);
+    let mut c = DMatrix::zeros(1, n);
+    let mut d = DMatrix::zeros(1, 1);
+    let (mut i, mut j) = (0, 0);
+    for blk in blocks {
+        let (k, m) = (blk.n(), blk.ny());
+        let row = DMatrix::from_row_slice(1, m, &r[j..j + m]);
+        a.view_mut((i, i), (k, k)).copy_from(blk.a());
+        b.view_mut((i, 0), (k, 1)).copy_from(blk.b());
+        c.view_mut((0, i), (1, k)).copy_from(&(&row * blk.c()));
+        d += &row * blk.d();
+        i += k;
+        j += m;
+    }
+    Ok(StateSpace::new(a, b, c, d, time)?)
 }
 
 /// Residues fitted to an FRF, with their covariance (and, after [`Residues::with_poles`], the
@@ -496,7 +506,7 @@ impl Residues {
                 j[(2 * k + 1, c)] = row[c].im;
             }
         }
-        let Some(ls) = crate::lstsq::normal_lstsq(&j, &y) else {
+        let Ok(ls) = sd_model::linalg::lstsq(&j, &y) else {
             return Err(DiagnoseError::Setup(
                 "the modal basis has no finite response on the model experiment's lines".into(),
             ));
@@ -531,7 +541,7 @@ impl Residues {
             }
         }
         let g = DVector::zeros(2 * rows.len());
-        if let Some(ls) = crate::lstsq::normal_lstsq(&j, &g) {
+        if let Ok(ls) = sd_model::linalg::lstsq(&j, &g) {
             self.full = Some(ls.cov);
         }
         Ok(self)

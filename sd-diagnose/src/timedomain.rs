@@ -312,7 +312,7 @@ pub fn simulate_record(model: &sd_model::StateSpace, u: &[f64], y: &[f64]) -> Re
         return Ok(yf);
     }
     let r = DVector::from_iterator(m, y.iter().zip(&yf).map(|(a, b)| a - b));
-    if let Some(ls) = crate::lstsq::scaled_lstsq(&o, &r) {
+    if let Ok(ls) = sd_model::linalg::lstsq(&o, &r) {
         let free = &o * ls.x;
         for (a, b) in yf.iter_mut().zip(free.iter()) {
             *a += b;

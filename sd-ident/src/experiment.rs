@@ -65,15 +65,42 @@ fn fmt_err(detail: String) -> IdentError {
     }
 }
 
+/// The keys of one `[[experiment]]` table.
+pub const EXPERIMENT_KEYS: &[&str] = &[
+    "name",
+    "file",
+    "sample_rate_hz",
+    "period_samples",
+    "skip_periods",
+    "reference",
+    "input",
+    "output",
+    "role",
+];
+
+/// Names other tools (and the testbed config) use for manifest keys.
+const EXPERIMENT_ALIASES: &[(&str, &str)] = &[
+    ("fs", "sample_rate_hz"),
+    ("rate_hz", "sample_rate_hz"),
+    ("period", "period_samples"),
+];
+
 /// Parses a manifest (docs/formats.md).
 ///
 /// # Errors
-/// TOML syntax (with line and column), a missing or mistyped field, duplicate names, a
-/// non-positive rate or period.
+/// TOML syntax (with line and column), an unknown key (with the closest allowed one), a
+/// missing or mistyped field, duplicate names, a non-positive rate or period.
 pub fn parse_manifest(text: &str) -> Result<Vec<ExperimentSpec>> {
     let doc: toml::Table = text
         .parse()
         .map_err(|e: toml::de::Error| fmt_err(e.to_string().replace('\n', " ")))?;
+    sd_model::keys::check_keys(
+        doc.keys().map(String::as_str),
+        &["experiment"],
+        &[("experiments", "experiment")],
+        "the manifest's top level",
+    )
+    .map_err(fmt_err)?;
     let list = doc
         .get("experiment")
         .and_then(|v| v.as_array())
@@ -83,8 +110,15 @@ pub fn parse_manifest(text: &str) -> Result<Vec<ExperimentSpec>> {
         let t = item
             .as_table()
             .ok_or_else(|| fmt_err(format!("experiment {} is not a table", i + 1)))?;
+        let name = t.get("name").and_then(|v| v.as_str()).unwrap_or("?");
+        sd_model::keys::check_keys(
+            t.keys().map(String::as_str),
+            EXPERIMENT_KEYS,
+            EXPERIMENT_ALIASES,
+            &format!("experiment {} (`{name}`)", i + 1),
+        )
+        .map_err(fmt_err)?;
         let ctx = |field: &str, what: &str| {
-            let name = t.get("name").and_then(|v| v.as_str()).unwrap_or("?");
             fmt_err(format!("experiment {} ({name}): `{field}` {what}", i + 1))
         };
         let s = |field: &str| -> Result<String> {

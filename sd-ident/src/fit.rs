@@ -24,7 +24,6 @@
 
 use crate::error::{IdentError, Result};
 use crate::tol;
-use faer::linalg::solvers::SolveLstsq;
 use faer::Mat;
 use nalgebra::DMatrix;
 use num_complex::Complex64 as C;
@@ -164,28 +163,14 @@ fn cost(data: &Data, pf: &Pf) -> f64 {
         .sum()
 }
 
-/// Weighted least squares `min ‖A x − b‖` with column scaling, by faer's QR.
+/// Weighted least squares `min ‖A x − b‖` (b one column) by the toolkit's one solver,
+/// [`sd_model::linalg::lstsq_faer`] (column-scaled QR, then the SVD of R with a rank cut).
 fn lstsq(a: &Mat<f64>, b: &Mat<f64>) -> Result<Vec<f64>> {
-    let ncol = a.ncols();
-    let mut scaled = a.clone();
-    let mut s = vec![1.0; ncol];
-    for j in 0..ncol {
-        let nj = scaled.col(j).norm_l2();
-        if nj > 0.0 {
-            s[j] = nj;
-            for i in 0..scaled.nrows() {
-                scaled[(i, j)] /= nj;
-            }
-        }
-    }
-    let x = scaled.qr().solve_lstsq(b);
-    let out: Vec<f64> = (0..ncol).map(|j| x[(j, 0)] / s[j]).collect();
-    if out.iter().any(|v| !v.is_finite()) {
-        return Err(IdentError::Numerical(
-            "the least-squares problem of the fit is singular".into(),
-        ));
-    }
-    Ok(out)
+    let rhs: Vec<f64> = (0..b.nrows()).map(|r| b[(r, 0)]).collect();
+    let ls = sd_model::linalg::lstsq_faer(a.as_ref(), &rhs).map_err(|e| {
+        IdentError::Numerical(format!("the least-squares problem of the fit failed: {e}"))
+    })?;
+    Ok(ls.x.iter().copied().collect())
 }
 
 /// Free-pole basis (real and pair functions) at z, as complex values per column.

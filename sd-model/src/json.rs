@@ -36,6 +36,7 @@ struct SsJson {
 #[derive(Deserialize)]
 struct TfJson {
     ts: Option<f64>,
+    name: Option<String>,
     num: Vec<f64>,
     den: Vec<f64>,
 }
@@ -93,13 +94,92 @@ fn matrix_to_rows(m: &DMatrix<f64>) -> Vec<Vec<f64>> {
         .collect()
 }
 
+const SS_KEYS: &[&str] = &[
+    "type", "ts", "a", "b", "c", "d", "name", "inputs", "outputs",
+];
+const TF_KEYS: &[&str] = &["type", "ts", "num", "den", "name"];
+const FRD_KEYS: &[&str] = &["type", "ts", "freq_hz", "re", "im", "var"];
+/// Names other tools use for the sampling period.
+const TS_ALIASES: &[(&str, &str)] = &[("dt", "ts"), ("Ts", "ts"), ("sample_time", "ts")];
+
+/// A JSON syntax error, with NaN and infinities named (JSON has no literal for them).
+fn syntax_err(what: &str, text: &str, e: serde_json::Error) -> ModelError {
+    let line: Vec<char> = text
+        .lines()
+        .nth(e.line().saturating_sub(1))
+        .unwrap_or("")
+        .chars()
+        .collect();
+    // the token may start one column earlier, at its sign
+    let mut col = e.column().saturating_sub(1).min(line.len());
+    if col > 0 && matches!(line[col - 1], '-' | '+') {
+        col -= 1;
+    }
+    let at: String = line[col..].iter().take(9).collect();
+    let at = at.trim_start_matches(['-', '+']).to_ascii_lowercase();
+    if at.starts_with("nan") || at.starts_with("inf") {
+        return parse_err(
+            what,
+            format!(
+                "line {} column {}: NaN and infinite values are not allowed; every number must \
+                 be finite",
+                e.line(),
+                col + 1
+            ),
+        );
+    }
+    parse_err(what, e)
+}
+
+/// The top-level object of a model or FRD file with its keys checked against `allowed`, and
+/// `ts` present (a number of seconds, or `null` for continuous time; `0` is explained).
+fn checked_object<'a>(
+    v: &'a serde_json::Value,
+    what: &str,
+    allowed: &[&str],
+) -> Result<&'a serde_json::Map<String, serde_json::Value>> {
+    let obj = v
+        .as_object()
+        .ok_or_else(|| parse_err(what, "the file must hold one JSON object"))?;
+    crate::keys::check_keys(
+        obj.keys().map(String::as_str),
+        allowed,
+        TS_ALIASES,
+        "the file",
+    )
+    .map_err(|m| parse_err(what, m))?;
+    match obj.get("ts") {
+        None => Err(parse_err(
+            what,
+            "the key `ts` is missing: give the sampling period in seconds, or `\"ts\": null` \
+             for a continuous-time model",
+        )),
+        Some(t) if t.as_f64() == Some(0.0) => Err(parse_err(
+            what,
+            "`\"ts\": 0` is not a sampling period: write `\"ts\": null` for continuous time \
+             (python-control's dt = 0) or the sampling period in seconds",
+        )),
+        Some(_) => Ok(obj),
+    }
+}
+
 /// Reads a model (state space, or SISO transfer function) from JSON text.
+///
+/// # Errors
+/// Syntax (NaN and infinities named), an unknown key (with the closest allowed one), a missing
+/// `ts` or `ts = 0`, wrong shapes, an invalid model.
 pub fn model_from_json_str(text: &str) -> Result<StateSpace> {
     let v: serde_json::Value =
-        serde_json::from_str(text).map_err(|e| parse_err("model JSON", e))?;
-    let kind = v.get("type").and_then(|t| t.as_str()).unwrap_or("ss");
+        serde_json::from_str(text).map_err(|e| syntax_err("model JSON", text, e))?;
+    let kind = match v.get("type") {
+        None => "ss",
+        Some(t) => t
+            .as_str()
+            .ok_or_else(|| parse_err("model JSON", "\"type\" must be \"ss\" or \"tf\""))?,
+    };
     match kind {
         "ss" => {
+            checked_object(&v, "state-space model JSON", SS_KEYS)?;
             let s: SsJson =
                 serde_json::from_value(v).map_err(|e| parse_err("state-space model JSON", e))?;
             let ny = s.d.len();
@@ -117,9 +197,15 @@ pub fn model_from_json_str(text: &str) -> Result<StateSpace> {
             sys.with_signal_names(s.inputs, s.outputs)
         }
         "tf" => {
+            checked_object(&v, "transfer-function JSON", TF_KEYS)?;
             let t: TfJson =
                 serde_json::from_value(v).map_err(|e| parse_err("transfer-function JSON", e))?;
-            TransferFunction::new(t.num, t.den, SampleTime::from_option(t.ts)?)?.to_ss()
+            let sys =
+                TransferFunction::new(t.num, t.den, SampleTime::from_option(t.ts)?)?.to_ss()?;
+            Ok(match t.name {
+                Some(n) => sys.with_name(n),
+                None => sys,
+            })
         }
         other => Err(parse_err(
             "model JSON",
@@ -160,8 +246,14 @@ pub fn write_model<W: Write>(sys: &StateSpace, mut w: W) -> Result<()> {
 }
 
 /// Reads an FRD from JSON text.
+///
+/// # Errors
+/// As [`model_from_json_str`], for the FRD keys.
 pub fn frd_from_json_str(text: &str) -> Result<Frd> {
-    let f: FrdJson = serde_json::from_str(text).map_err(|e| parse_err("FRD JSON", e))?;
+    let v: serde_json::Value =
+        serde_json::from_str(text).map_err(|e| syntax_err("FRD JSON", text, e))?;
+    checked_object(&v, "FRD JSON", FRD_KEYS)?;
+    let f: FrdJson = serde_json::from_value(v).map_err(|e| parse_err("FRD JSON", e))?;
     if f.kind != "frd" {
         return Err(parse_err(
             "FRD JSON",

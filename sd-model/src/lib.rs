@@ -25,6 +25,7 @@ pub mod error;
 pub mod frd;
 pub mod freqresp;
 pub mod json;
+pub mod keys;
 pub mod linalg;
 pub mod norms;
 pub mod poles;

@@ -422,7 +422,122 @@ pub fn write_all(dir: &Path, d: &Diagnosis, title: &str) -> Result<Vec<String>> 
     let js =
         serde_json::to_string_pretty(&d.to_json()).map_err(|e| ReportError::Json(e.to_string()))?;
     crate::write_atomic(&dir.join("diagnosis.json"), &js)?;
+    for (file, model) in model_files(d) {
+        let text =
+            sd_model::model_to_json_string(model).map_err(|e| ReportError::Json(e.to_string()))?;
+        crate::write_atomic(&dir.join(&file), &text)?;
+    }
     write(dir, d, title)
+}
+
+/// The model files a diagnosis writes: `model.json` (the model judged), `extended_model.json`
+/// (the rate-tied extension as a continuous model) and `extended_model_<experiment>.json` (the
+/// extended model at each experiment's rate, where the extension is a model).
+pub fn model_files(d: &Diagnosis) -> Vec<(String, &sd_model::StateSpace)> {
+    let mut out = vec![("model.json".to_string(), &d.model)];
+    if let Some(x) = &d.extended_model {
+        out.push(("extended_model.json".into(), &x.continuous));
+    }
+    for x in &d.experiments {
+        if let Some(m) = &x.extended_model {
+            out.push((format!("extended_model_{}.json", file_safe(&x.name)), m));
+        }
+    }
+    out
+}
+
+/// An experiment name as part of a file name (anything but letters, digits, `-`, `_` and `.`
+/// becomes `_`).
+fn file_safe(name: &str) -> String {
+    name.chars()
+        .map(|c| {
+            if c.is_alphanumeric() || matches!(c, '-' | '_' | '.') {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+/// The slowest experiment (largest rate factor), where a controller would run.
+fn slowest(d: &Diagnosis) -> Option<&ExperimentReport> {
+    d.experiments.iter().max_by_key(|x| x.factor)
+}
+
+/// "What to do next": the files written and the commands that use them, from the verdict and
+/// the named causes.
+fn next_steps(md: &mut String, d: &Diagnosis) {
+    let _ = writeln!(md, "\n## Next steps\n");
+    let files: Vec<String> = model_files(d)
+        .iter()
+        .map(|(f, _)| format!("`{f}`"))
+        .collect();
+    let _ = writeln!(
+        md,
+        "Model files written beside this report: {}.\n",
+        files.join(", ")
+    );
+    let slow = slowest(d);
+    let (ts, factor) = slow
+        .map(|x| (1.0 / x.rate_hz, x.factor))
+        .unwrap_or((d.model.ts().unwrap_or(0.0), 1));
+    let names: Vec<&str> = d.causes.iter().map(Cause::name).collect();
+    if d.verdict == sd_diagnose::Verdict::Consistent {
+        let _ = writeln!(
+            md,
+            "- The model reproduces every experiment within the noise: design on it. \
+             `sdctl downsample model.json --factor {factor} -o plant_slow.json` gives the plant at \
+             {:.6} s (Lemma 6); then `sdctl analyze --plant plant_slow.json --controller \
+             controller.json` checks a controller on it.",
+            ts
+        );
+        return;
+    }
+    if let Some(x) = &d.extended_model {
+        let _ = writeln!(
+            md,
+            "- Design on the extended model: `sdctl c2d extended_model.json --ts {ts:.6} \
+             --hold-delay {:.4} --averaging {:.4} -o plant_slow.json` discretises it with the named \
+             hold and sampler at the controller's period; then \
+             `sdctl analyze --plant plant_slow.json --controller controller.json` checks a \
+             controller on it.",
+            x.hold_delay, x.averaging
+        );
+    }
+    for name in names {
+        let step = match name {
+            "clock_error" => {
+                "- A sample clock runs off its nominal period: check the time base \
+                 of the named experiments' data acquisition; the extended models \
+                 `extended_model_<experiment>.json` include the measured error."
+            }
+            "fast_model_error" => {
+                "- The experiments agree with each other but the model misses \
+                 them: fit a higher order (`sdctl diagnose ... --max-order N` with N above the \
+                 model's order, or `sdctl fit frd.json --order N`) or pass a better model with \
+                 `--model`."
+            }
+            "nonlinearity" => {
+                "- The dynamics depend on the excitation level: design at the level \
+                 of operation (`extended_model_<experiment>.json` is the model at each measured \
+                 level) and check the controller on the models of the other levels."
+            }
+            "drift" => {
+                "- The plant changed with time between the experiments: repeat the model \
+                 experiment after the others and fit the model on data taken in the state the \
+                 controller will meet."
+            }
+            "unexplained" => {
+                "- No cataloged cause explains the excess (see the best partial \
+                 explanation above): check that the rates are exact integer ratios, the timing \
+                 of hold and sampler, and the sensor chain; a repeat of the model experiment \
+                 separates drift from a rate effect."
+            }
+            _ => continue,
+        };
+        let _ = writeln!(md, "{step}");
+    }
 }
 
 /// A table cell: the number (3 decimals, or 3 significant digits in scientific notation), or
@@ -911,6 +1026,7 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> String {
         }
     }
     hypotheses_section(&mut md, d);
+    next_steps(&mut md, d);
     if !figures.is_empty() {
         let _ = writeln!(md, "\n## Figures\n");
         for f in figures {

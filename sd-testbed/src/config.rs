@@ -1,5 +1,8 @@
-//! The testbed configuration file (`sdctl testbed --config STAGE.toml`), documented in the
-//! README. Every table and key is optional; missing ones take the virtual stage's defaults (docs/stage.md).
+//! The testbed configuration file (`sdctl testbed --config STAGE.toml`), documented in
+//! docs/formats.md. Every table and key but at least one `[[experiment]]` (with its `name` and `rate_hz`)
+//! is optional; missing ones take the virtual stage's defaults (docs/stage.md). A key that is not
+//! listed below is an error naming the closest allowed key, so a typo never changes a result
+//! silently; `factor = 0` and a position reference above 1 cm rms are errors too.
 //!
 //! ```toml
 //! seed = 1                         # default seed of every experiment's noise
@@ -32,9 +35,9 @@
 //! transient_periods = 1
 //! f_min = 1.0                      # excited band (Hz)
 //! f_max = 2400.0
-//! rms = 1.0                        # excitation rms (N)
+//! rms = 1.0                        # excitation rms: N (input), m (reference, ≤ 0.01)
 //! multisine = "random"             # "random", "schroeder" or "random-odd"
-//! injection = "reference"          # or "input"
+//! injection = "input"              # force at the plant input (default) or "reference"
 //! force_noise = 0.05               # rms per sample (N)
 //! sensor_noise = 3e-10             # rms per sample (m)
 //! sensor_drift = 0.0               # random-walk sensor offset, rms step per sample (m)
@@ -68,6 +71,75 @@ pub struct TestbedConfig {
 
 fn err(m: String) -> TestbedError {
     TestbedError::Config(m)
+}
+
+const TOP_KEYS: &[&str] = &["seed", "truth", "nonideal", "experiment"];
+const TRUTH_KEYS: &[&str] = &[
+    "mass",
+    "amplifier_hz",
+    "viscous",
+    "coulomb",
+    "coulomb_velocity",
+    "mode",
+];
+const MODE_KEYS: &[&str] = &["freq_hz", "zeta", "residue", "cubic"];
+const NONIDEAL_KEYS: &[&str] = &["hold_delay", "averaging", "clock_error", "quantization"];
+/// The keys of an `[[experiment]]` table (both kinds; the module docs say which applies).
+const EXPERIMENT_KEYS: &[&str] = &[
+    "kind",
+    "name",
+    "rate_hz",
+    "role",
+    "seed",
+    "pid_bandwidth_hz",
+    "pid_lowpass_hz",
+    "notch_hz",
+    "period",
+    "periods",
+    "transient_periods",
+    "f_min",
+    "f_max",
+    "rms",
+    "multisine",
+    "injection",
+    "force_noise",
+    "sensor_noise",
+    "sensor_drift",
+    "factor",
+    "samples",
+];
+/// Plural or manifest spellings users type for config keys.
+const ALIASES: &[(&str, &str)] = &[
+    ("nonideals", "nonideal"),
+    ("non_ideal", "nonideal"),
+    ("modes", "mode"),
+    ("experiments", "experiment"),
+    ("sample_rate_hz", "rate_hz"),
+    ("period_samples", "period"),
+];
+/// The most samples one experiment may simulate (per signal: 8·10⁷ f64 = 640 MB), so that a typo
+/// in `period`, `periods`, `samples`, `factor` or `rate_hz` is an error instead of an
+/// allocation that fails.
+pub const MAX_SAMPLES: usize = 80_000_000;
+
+/// `Err` naming the experiment and the keys when `count` samples exceed [`MAX_SAMPLES`].
+fn within_budget(name: &str, count: Option<usize>, keys: &str) -> Result<()> {
+    match count {
+        Some(c) if c <= MAX_SAMPLES => Ok(()),
+        _ => Err(err(format!(
+            "experiment `{name}`: {keys} ask for more than {MAX_SAMPLES} samples; shorten the \
+             experiment"
+        ))),
+    }
+}
+
+/// A position reference above this rms (m) is not a precision-stage experiment.
+const MAX_REFERENCE_RMS_M: f64 = 1e-2;
+
+/// Every key of `t` is one of `allowed` (else an error naming the key, the place and the
+/// closest allowed key).
+fn keys(t: &toml::Table, allowed: &[&str], place: &str) -> Result<()> {
+    sd_model::keys::check_keys(t.keys().map(String::as_str), allowed, ALIASES, place).map_err(err)
 }
 
 fn num(t: &toml::Table, key: &str, default: f64) -> Result<f64> {
@@ -128,6 +200,7 @@ pub fn parse_config(source: &str) -> Result<TestbedConfig> {
     let doc: toml::Table = source
         .parse()
         .map_err(|e: toml::de::Error| err(e.to_string().replace('\n', " ")))?;
+    keys(&doc, TOP_KEYS, "the configuration's top level")?;
     let empty = toml::Table::new();
     let seed = int(&doc, "seed", 1)? as u64;
     let truth = parse_truth(table(&doc, "truth", &empty)?)?;
@@ -141,6 +214,13 @@ pub fn parse_config(source: &str) -> Result<TestbedConfig> {
             .clone(),
         None => Vec::new(),
     };
+    if exps.is_empty() {
+        return Err(err(
+            "the configuration has no [[experiment]] table, so nothing would be written: add an \
+             identification or standstill experiment (the keys are in docs/formats.md)"
+                .into(),
+        ));
+    }
     for (i, e) in exps.iter().enumerate() {
         let e = e
             .as_table()
@@ -170,6 +250,7 @@ fn table<'a>(doc: &'a toml::Table, key: &str, empty: &'a toml::Table) -> Result<
 
 /// `[truth]` with its `[[truth.mode]]` tables.
 fn parse_truth(tt: &toml::Table) -> Result<Truth> {
+    keys(tt, TRUTH_KEYS, "[truth]")?;
     let mut truth = Truth {
         mass: num(tt, "mass", 20.0)?,
         amplifier_hz: opt_num(tt, "amplifier_hz")?,
@@ -189,6 +270,7 @@ fn parse_truth(tt: &toml::Table) -> Result<Truth> {
                 let m = m
                     .as_table()
                     .ok_or_else(|| err(format!("truth.mode {} is not a table", i + 1)))?;
+                keys(m, MODE_KEYS, &format!("[[truth.mode]] {}", i + 1))?;
                 Ok(ModeSpec {
                     freq_hz: num(m, "freq_hz", f64::NAN)?,
                     zeta: num(m, "zeta", 0.01)?,
@@ -204,6 +286,7 @@ fn parse_truth(tt: &toml::Table) -> Result<Truth> {
 
 /// `[nonideal]`.
 fn parse_nonideal(nt: &toml::Table) -> Result<NonIdealities> {
+    keys(nt, NONIDEAL_KEYS, "[nonideal]")?;
     Ok(NonIdealities {
         hold_delay: num(nt, "hold_delay", 0.0)?,
         averaging: num(nt, "averaging", 0.0)?,
@@ -228,6 +311,11 @@ fn parse_experiment(
 ) -> Result<Parsed> {
     let ctx = |m: TestbedError| err(format!("experiment {}: {m}", i + 1));
     let name = text(e, "name", "")?.to_string();
+    keys(
+        e,
+        EXPERIMENT_KEYS,
+        &format!("experiment {} (`{name}`)", i + 1),
+    )?;
     if name.is_empty() {
         return Err(err(format!("experiment {} needs a `name`", i + 1)));
     }
@@ -248,21 +336,36 @@ fn parse_experiment(
                 TestbedError::Config(_) => x,
                 other => ctx(other),
             })?;
+            let injection = choice(
+                e,
+                &name,
+                "injection",
+                "input",
+                &[
+                    ("reference", Injection::Reference),
+                    ("input", Injection::Input),
+                ],
+            )?;
+            let rms = num(e, "rms", 1.0)?;
+            if injection == Injection::Reference && rms > MAX_REFERENCE_RMS_M {
+                return Err(err(format!(
+                    "experiment `{name}`: `rms = {rms}` with injection = \"reference\" is a \
+                     {rms} m rms position reference; give it in metres (a precision stage moves \
+                     µm to mm, e.g. rms = 1e-5) or set injection = \"input\" for a force in N"
+                )));
+            }
+            let (periods, transient_periods) =
+                (int(e, "periods", 6)?, int(e, "transient_periods", 1)?);
+            let total = periods
+                .checked_add(transient_periods)
+                .and_then(|p| p.checked_mul(excitation.signal.len()));
+            within_budget(&name, total, "`period` × (`periods` + `transient_periods`)")?;
             Ok(Parsed::Identification(Identification {
                 controller: k,
                 excitation,
-                periods: int(e, "periods", 6)?,
-                transient_periods: int(e, "transient_periods", 1)?,
-                injection: choice(
-                    e,
-                    &name,
-                    "injection",
-                    "reference",
-                    &[
-                        ("reference", Injection::Reference),
-                        ("input", Injection::Input),
-                    ],
-                )?,
+                periods,
+                transient_periods,
+                injection,
                 role: choice(
                     e,
                     &name,
@@ -277,14 +380,25 @@ fn parse_experiment(
                 fine_steps: None,
             }))
         }
-        "standstill" => Ok(Parsed::Standstill(Standstill {
-            name,
-            controller: k,
-            factor: int(e, "factor", 5)?.max(1),
-            samples: int(e, "samples", 70_000)?,
-            noise,
-            nonideal,
-        })),
+        "standstill" => {
+            let factor = int(e, "factor", 5)?;
+            let samples = int(e, "samples", 70_000)?;
+            within_budget(&name, samples.checked_mul(factor), "`samples` × `factor`")?;
+            if factor == 0 {
+                return Err(err(format!(
+                    "experiment `{name}`: `factor` must be ≥ 1 (the plant is simulated at \
+                     factor × rate_hz)"
+                )));
+            }
+            Ok(Parsed::Standstill(Standstill {
+                name,
+                controller: k,
+                factor,
+                samples,
+                noise,
+                nonideal,
+            }))
+        }
         other => Err(err(format!("experiment `{name}`: unknown kind `{other}`"))),
     }
 }
@@ -307,7 +421,16 @@ fn choice<T: Copy>(
 
 /// An identification experiment's multisine (`period`, `multisine`, `f_min`, `f_max`, `rms`).
 fn parse_excitation(e: &toml::Table, name: &str, rate: f64, seed: u64) -> Result<Multisine> {
-    let period = int(e, "period", (rate as usize).max(16))?;
+    let period = int(
+        e,
+        "period",
+        (rate.min(MAX_SAMPLES as f64 + 1.0) as usize).max(16),
+    )?;
+    within_budget(
+        name,
+        Some(period),
+        "`period` (default: one second at `rate_hz`)",
+    )?;
     let kind = text(e, "multisine", "random")?;
     let lines = match kind {
         "random" | "schroeder" => Lines::Full,
