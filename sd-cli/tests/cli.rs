@@ -337,7 +337,7 @@ fn model_of(o: &Output) -> sd_model::StateSpace {
 
 #[test]
 fn downsample_c2d_nonideal_and_alias_factor() {
-    let dir = tmpdir("issue3");
+    let dir = tmpdir("downsample");
     let ct = write(&dir, "ct.json", CT);
     // c2d at 1 ms, and at 0.2 ms then downsample by 5: the same model (Lemma 5 then Lemma 6)
     let slow = model_of(&sdctl(&["c2d", &ct, "--ts", "0.001"]));
@@ -454,7 +454,7 @@ fn downsample_c2d_nonideal_and_alias_factor() {
 
 #[test]
 fn weight_and_loopshape() {
-    let dir = tmpdir("issue4");
+    let dir = tmpdir("loopshape");
     let ct = write(&dir, "ct.json", CT);
     let p = dir.join("p.json").to_string_lossy().into_owned();
     assert!(sdctl(&["c2d", &ct, "--ts", "0.01", "-o", &p])
@@ -528,7 +528,7 @@ fn weight_and_loopshape() {
 
 #[test]
 fn frf_and_fit() {
-    let dir = tmpdir("issue5");
+    let dir = tmpdir("frf-fit");
     // a 2nd-order resonance at 100 Hz, sampled at 1 kHz, driven by a multisine (4 periods)
     let ct = write(
         &dir,
@@ -599,7 +599,7 @@ fn frf_and_fit() {
 
 #[test]
 fn analyze_and_intersample() {
-    let dir = tmpdir("issue6");
+    let dir = tmpdir("analyze");
     // the paper's stage at 5 kHz and 1 kHz, and a PID-like controller at 1 kHz
     let stage = r#"{"type":"ss","ts":null,"a":[[0,1,0,0],[0,0,0,0],[0,0,0,1],[0,0,-16834268.0,-82.05]],"b":[[0],[0.05],[0],[0.1]],"c":[[1,0,1,0]],"d":[[0]]}"#;
     let ct = write(&dir, "stage.json", stage);
@@ -682,7 +682,7 @@ fn analyze_and_intersample() {
 
 #[test]
 fn testbed() {
-    let dir = tmpdir("issue7");
+    let dir = tmpdir("testbed");
     let out = dir.join("run").to_string_lossy().into_owned();
     let cfg = write(
         &dir,
@@ -734,7 +734,7 @@ fn testbed() {
 
 #[test]
 fn testbed_then_diagnose() {
-    let dir = tmpdir("issue8");
+    let dir = tmpdir("diagnose");
     let cfg = write(
         &dir,
         "stage.toml",
