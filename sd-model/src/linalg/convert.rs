@@ -30,26 +30,44 @@ pub fn eigenvalues(a: &DMatrix<f64>) -> Result<Vec<C>> {
     Ok(ev.into_iter().map(|z| C::new(z.re, z.im)).collect())
 }
 
-/// Generalized eigenvalues `(α, β)` of the pencil `A − λ E` (λ = α/β), by faer's QZ.
+/// Generalized eigenvalues `(α, β)` of the pencil `A − λ E` (λ = α/β), by faer's QZ without
+/// eigenvectors (faer 0.24's eigenvector back-substitution under-sizes its workspace for some
+/// small pencils and panics; the eigenvalues need none of it).
 pub fn generalized_eigenvalues(a: &DMatrix<f64>, e: &DMatrix<f64>) -> Result<Vec<(C, C)>> {
-    if a.nrows() == 0 {
+    let n = a.nrows();
+    if n == 0 {
         return Ok(Vec::new());
     }
-    let fa = to_faer(a);
-    let fe = to_faer(e);
-    let g = fa
-        .generalized_eigen(&fe)
-        .map_err(|e| ModelError::NotConverged {
-            what: format!("the QZ iteration ({e:?})"),
-        })?;
-    let sa = g.S_a();
-    let sb = g.S_b();
-    Ok((0..a.nrows())
-        .map(|i| {
-            let x = sa[i];
-            let y = sb[i];
-            (C::new(x.re, x.im), C::new(y.re, y.im))
-        })
+    let (mut fa, mut fe) = (to_faer(a), to_faer(e));
+    let mut s_re = faer::diag::Diag::<f64>::zeros(n);
+    let mut s_im = faer::diag::Diag::<f64>::zeros(n);
+    let mut s_b = faer::diag::Diag::<f64>::zeros(n);
+    let par = faer::get_global_parallelism();
+    let no = faer::linalg::evd::ComputeEigenvectors::No;
+    let mut mem = faer::dyn_stack::MemBuffer::new(faer::linalg::gevd::gevd_scratch::<f64>(
+        n,
+        no,
+        no,
+        par,
+        Default::default(),
+    ));
+    faer::linalg::gevd::gevd_real(
+        fa.as_mut(),
+        fe.as_mut(),
+        s_re.as_mut(),
+        s_im.as_mut(),
+        s_b.as_mut(),
+        None,
+        None,
+        par,
+        faer::dyn_stack::MemStack::new(&mut mem),
+        Default::default(),
+    )
+    .map_err(|e| ModelError::NotConverged {
+        what: format!("the QZ iteration ({e:?})"),
+    })?;
+    Ok((0..n)
+        .map(|i| (C::new(s_re[i], s_im[i]), C::new(s_b[i], 0.0)))
         .collect())
 }
 
