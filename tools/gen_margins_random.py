@@ -7,13 +7,15 @@ Loops L = P K of five kinds, continuous and discrete (ts = 1 ms): random stable 
 k/(s(s + a)) with a lead; unstable first-order plants with a proportional controller (stabilizing
 or not); static gains (P and K constants); and lightly damped resonances with a PI controller.
 For each: gm, pm, sm and the crossover frequencies (Hz) of control.stability_margins(L)
-(JSON null for inf/nan), and whether the closed loop is stable.
+(JSON null for inf/nan), whether the closed loop is stable, and for stable continuous loops
+control.bandwidth(T) (Hz), the closed-loop -3 dB bandwidth.
 """
 import json
 import numpy as np
 import control
 
 rng = np.random.default_rng(2026)
+np.random.seed(2026)  # control.rss / drss draw from numpy's global generator
 s = control.tf('s')
 
 
@@ -82,9 +84,13 @@ for name, p, k in loops:
     stable = bool(np.all(np.abs(poles) < 1)) if dt else bool(np.all(np.real(poles) < 0))
     fin = lambda x: float(x) if np.isfinite(x) else None
     hz = lambda x: float(x) / (2 * np.pi) if np.isfinite(x) else None
+    # closed-loop -3 dB bandwidth of T = L/(1 + L); python-control evaluates it at s = jw
+    # even for discrete systems, so it is recorded for the continuous loops only
+    bw = hz(control.bandwidth(cl)) if not dt and stable else None
     out.append({"name": name + (" (discrete, 1 ms)" if dt else ""), "plant": ssdict(p),
                 "controller": ssdict(k), "stable": stable, "gm": fin(gm), "pm": fin(pm),
-                "sm": fin(sm), "wpc_hz": hz(wpc), "wgc_hz": hz(wgc), "wms_hz": hz(wms)})
+                "sm": fin(sm), "wpc_hz": hz(wpc), "wgc_hz": hz(wgc), "wms_hz": hz(wms),
+                "bandwidth_hz": bw})
 
 json.dump({"source": f"python-control {control.__version__} stability_margins, tools/gen_margins_random.py",
            "null_means": "inf or nan in python-control", "loops": out},

@@ -91,8 +91,10 @@ pub struct Summary {
     pub stable: bool,
     /// Spectral radius (DT) or abscissa (CT) of the closed loop.
     pub closed_loop_radius: f64,
-    /// Lowest gain crossover (Hz; NaN if none).
+    /// Closed-loop −3 dB bandwidth of T (Hz; NaN if none): [`ClosedLoop::bandwidth_hz`].
     pub bandwidth_hz: f64,
+    /// Lowest gain crossover of |L| (Hz; NaN if none).
+    pub crossover_hz: f64,
     /// `‖S‖∞` in dB.
     pub sensitivity_peak_db: f64,
     /// Its frequency (Hz).
@@ -390,10 +392,58 @@ impl ClosedLoop {
         })
     }
 
-    /// The bandwidth: the lowest gain crossover of |L| (Hz), if any (SISO).
-    pub fn bandwidth_hz(&self) -> Result<Option<f64>> {
+    /// The lowest gain crossover of |L| (Hz), if any (SISO).
+    pub fn crossover_hz(&self) -> Result<Option<f64>> {
         let m = self.margins()?;
         Ok(m.all_gain_crossovers.iter().map(|g| g.0).reduce(f64::min))
+    }
+
+    /// The closed-loop bandwidth as python-control's `bandwidth` and MATLAB's `bandwidth`
+    /// define it: the lowest frequency (Hz) where `|T(f)|`, `T = L/(1 + L)`, drops 3 dB below
+    /// its DC gain `|T(0)|`, i.e. to `10^(−3/20)·|T(0)|` (SISO). `None` when `|T|` never drops that far below the Nyquist
+    /// frequency (or 10³ × the highest pole or zero of a continuous loop), and when the DC gain
+    /// is zero or not finite (python-control: `inf` and `nan`).
+    ///
+    /// The DC gain is evaluated on the closed-loop model at `s = 0` / `z = 1`; the drop is
+    /// bracketed on the margins' grid (log-spaced, dense around lightly damped poles) from P
+    /// and K evaluated factor by factor, then bisected.
+    ///
+    /// # Errors
+    /// A MIMO loop.
+    pub fn bandwidth_hz(&self) -> Result<Option<f64>> {
+        self.require_siso()?;
+        let dc_point = match self.t.time() {
+            SampleTime::Continuous => C::new(0.0, 0.0),
+            SampleTime::Discrete { .. } => C::new(1.0, 0.0),
+        };
+        let dc = match self.t.eval_direct(dc_point) {
+            Ok(m) => m[(0, 0)].norm(),
+            Err(_) => return Ok(None),
+        };
+        if !(dc.is_finite() && dc > 0.0) {
+            return Ok(None);
+        }
+        // exactly −3 dB (10^(−3/20) = 0.70795), as python-control and MATLAB; not 1/√2
+        let level = dc * 10f64.powf(-3.0 / 20.0);
+        let t_at = |f: f64| -> f64 {
+            let l = (self.ev_p.eval_hz(f) * self.ev_k.eval_hz(f))[(0, 0)];
+            (l / (1.0 + l)).norm()
+        };
+        let f = self.grid()?;
+        let mut prev = None;
+        for &x in &f {
+            let v = t_at(x);
+            if v.is_finite() && v < level {
+                return Ok(Some(match prev {
+                    Some(a) => bisect(a, x, |y| t_at(y) - level),
+                    None => x,
+                }));
+            }
+            if v.is_finite() {
+                prev = Some(x);
+            }
+        }
+        Ok(None)
     }
 
     /// Everything `sdctl analyze` reports.
@@ -401,21 +451,23 @@ impl ClosedLoop {
         let (radius, stable) = self.stability()?;
         let (peak, peak_hz) = self.sensitivity_peak()?;
         let siso = self.p.nu() == 1 && self.p.ny() == 1;
-        let (gm_db, pm, bw) = if siso {
+        let (gm_db, pm, cross, bw) = if siso {
             let m = self.margins()?;
-            let bw = m.all_gain_crossovers.iter().map(|g| g.0).reduce(f64::min);
+            let cross = m.all_gain_crossovers.iter().map(|g| g.0).reduce(f64::min);
             (
                 m.gain_margin_db(),
                 m.phase_margin_deg,
-                bw.unwrap_or(f64::NAN),
+                cross.unwrap_or(f64::NAN),
+                self.bandwidth_hz()?.unwrap_or(f64::NAN),
             )
         } else {
-            (f64::NAN, f64::NAN, f64::NAN)
+            (f64::NAN, f64::NAN, f64::NAN, f64::NAN)
         };
         Ok(Summary {
             stable,
             closed_loop_radius: radius,
             bandwidth_hz: bw,
+            crossover_hz: cross,
             sensitivity_peak_db: 20.0 * peak.log10(),
             sensitivity_peak_hz: peak_hz,
             gain_margin_db: gm_db,

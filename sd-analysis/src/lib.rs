@@ -1,7 +1,7 @@
 //! `sd-analysis`: closed-loop analysis of sampled-data motion systems.
 //!
 //! - [`ClosedLoop`]: internal stability, S, T, PS, KS, |S| peak, margins (python-control's
-//!   definitions), bandwidth, the `sdctl analyze` summary.
+//!   definitions), the gain crossover and the closed-loop −3 dB bandwidth, the `sdctl analyze` summary.
 //! - [`spectra`]: Welch and periodogram PSDs with windows, cumulative power spectrum, rms,
 //!   dominant frequency.
 //! - [`standstill()`]: disturbance simulation of a single-rate loop, and of a slow controller on a

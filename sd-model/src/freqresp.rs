@@ -244,6 +244,10 @@ impl StateSpace {
     /// `G(s)` at one point by a dense LU solve of `(sI − A) X = B` — the O(n³) reference.
     pub fn eval_direct(&self, s: C) -> Result<DMatrix<C>> {
         let n = self.n();
+        if n == 0 {
+            // a static gain (nalgebra's LU of a 0×0 matrix panics)
+            return Ok(to_complex(self.d()));
+        }
         let m = DMatrix::<C>::identity(n, n) * s - to_complex(self.a());
         let x = m
             .lu()

@@ -50,7 +50,9 @@ fn paper_controllers_at_1khz() {
     assert!(c2.stable && c1.stable);
     assert!(c2.sensitivity_peak_db >= 10.0 && (c2.sensitivity_peak_hz - 347.0).abs() <= 10.0);
     assert!(s347 <= 3.0);
-    assert!((50.0..=80.0).contains(&c1.bandwidth_hz) && (50.0..=80.0).contains(&c2.bandwidth_hz));
+    assert!((50.0..=80.0).contains(&c1.crossover_hz) && (50.0..=80.0).contains(&c2.crossover_hz));
+    // the closed-loop −3 dB bandwidth lies above the crossover for these phase margins
+    assert!(c1.bandwidth_hz > c1.crossover_hz && c2.bandwidth_hz > c2.crossover_hz);
     let hazard = ClosedLoop::new(&plant(0.005, TS), &controller2()).unwrap();
     let (r, stable) = hazard.stability().unwrap();
     println!("ζ₁ = 0.005 with Controller 2: closed-loop radius {r:.6}");

@@ -390,7 +390,7 @@ fn controllers(
         let clt = ClosedLoop::new(&true_slow, k).map_err(s)?;
         let tsum = clt.summary().map_err(s)?;
         summary.push((name, json!({
-            "bandwidth_hz": sum.bandwidth_hz, "sensitivity_peak_db": sum.sensitivity_peak_db,
+            "bandwidth_hz": sum.bandwidth_hz, "crossover_hz": sum.crossover_hz, "sensitivity_peak_db": sum.sensitivity_peak_db,
             "sensitivity_peak_hz": sum.sensitivity_peak_hz, "sensitivity_at_alias_db": s347,
             "stable": sum.stable && tsum.stable, "closed_loop_radius": sum.closed_loop_radius,
             "true_plant": {"stable": tsum.stable, "closed_loop_radius": tsum.closed_loop_radius,
@@ -875,8 +875,8 @@ fn report_table(md: &mut String, r: &Results<'_>) -> Result<(), String> {
         }
     };
     for (name, v) in &r.c.summary {
-        let _ = writeln!(md, "| {name} with the design model | bandwidth {:.1} Hz, |S| peak {:.1} dB at {:.1} Hz, |S(347 Hz)| {:.1} dB, {} |",
-            num(v, "bandwidth_hz"), num(v, "sensitivity_peak_db"), num(v, "sensitivity_peak_hz"), num(v, "sensitivity_at_alias_db"), stable(v));
+        let _ = writeln!(md, "| {name} with the design model | crossover {:.1} Hz, closed-loop bandwidth {:.1} Hz, |S| peak {:.1} dB at {:.1} Hz, |S(347 Hz)| {:.1} dB, {} |",
+            num(v, "crossover_hz"), num(v, "bandwidth_hz"), num(v, "sensitivity_peak_db"), num(v, "sensitivity_peak_hz"), num(v, "sensitivity_at_alias_db"), stable(v));
         let t = &v["true_plant"];
         let _ = writeln!(md, "| {name} on the true 1 kHz plant | |S| peak {:.1} dB at {:.1} Hz, |S(347 Hz)| {:.1} dB, {} |",
             num(t, "sensitivity_peak_db"), num(t, "sensitivity_peak_hz"), num(t, "sensitivity_at_alias_db"), stable(t));
@@ -1039,8 +1039,8 @@ mod tests {
         assert!(c2["sensitivity_peak_db"].as_f64().expect("peak") >= 10.0);
         assert!((c2["sensitivity_peak_hz"].as_f64().expect("hz") - 347.0).abs() <= 10.0);
         assert!(c1["sensitivity_at_alias_db"].as_f64().expect("s347") <= 3.0);
-        let bw = c1["bandwidth_hz"].as_f64().expect("bw");
-        assert!((50.0..=80.0).contains(&bw), "bandwidth {bw}");
+        let bw = c1["crossover_hz"].as_f64().expect("crossover");
+        assert!((50.0..=80.0).contains(&bw), "crossover {bw}");
         let ss = &report["standstill"];
         assert!(
             ss["controller1"]["rms_fast"].as_f64().expect("rms")

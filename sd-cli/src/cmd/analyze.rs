@@ -31,6 +31,7 @@ impl Args {
                 "stable": s.stable,
                 "closed_loop_radius": s.closed_loop_radius,
                 "bandwidth_hz": s.bandwidth_hz,
+                "crossover_hz": s.crossover_hz,
                 "sensitivity_peak_db": s.sensitivity_peak_db,
                 "sensitivity_peak_hz": s.sensitivity_peak_hz,
                 "gain_margin_db": s.gain_margin_db,
@@ -41,10 +42,11 @@ impl Args {
         } else {
             emit(
             &format!(
-                "closed loop {} (spectral {} {:.6})\nbandwidth {:.3} Hz\n|S| peak {:.2} dB at {:.3} Hz (modulus margin {:.4})\ngain margin {:.2} dB, phase margin {:.2} deg",
+                "closed loop {} (spectral {} {:.6})\ncrossover {:.3} Hz (|L| = 1), closed-loop bandwidth {:.3} Hz (|T| −3 dB)\n|S| peak {:.2} dB at {:.3} Hz (modulus margin {:.4})\ngain margin {:.2} dB, phase margin {:.2} deg",
                 if s.stable { "stable" } else { "UNSTABLE" },
                 if p.time().is_continuous() { "abscissa" } else { "radius" },
                 s.closed_loop_radius,
+                s.crossover_hz,
                 s.bandwidth_hz,
                 s.sensitivity_peak_db,
                 s.sensitivity_peak_hz,
