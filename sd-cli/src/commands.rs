@@ -121,3 +121,29 @@ pub(crate) fn factor_arg(f: i64) -> Result<usize, CliError> {
     }
     Ok(f as usize)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::Cli;
+    use clap::CommandFactory;
+
+    fn missing_help(c: &clap::Command, path: &str, out: &mut Vec<String>) {
+        for a in c.get_arguments() {
+            let id = a.get_id().as_str();
+            if id != "help" && id != "version" && a.get_help().is_none() {
+                out.push(format!("{path} {id}"));
+            }
+        }
+        for s in c.get_subcommands() {
+            missing_help(s, &format!("{path} {}", s.get_name()), out);
+        }
+    }
+
+    /// Every option and argument of every command says what it is in `--help`.
+    #[test]
+    fn every_option_has_a_help_text() {
+        let mut missing = Vec::new();
+        missing_help(&Cli::command(), "sdctl", &mut missing);
+        assert!(missing.is_empty(), "options without help: {missing:?}");
+    }
+}

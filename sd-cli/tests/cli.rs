@@ -629,6 +629,7 @@ fn analyze_and_intersample() {
             "stable",
             "closed_loop_radius",
             "bandwidth_hz",
+            "crossover_hz",
             "sensitivity_peak_db",
             "sensitivity_peak_hz",
             "gain_margin_db",
@@ -637,7 +638,11 @@ fn analyze_and_intersample() {
         ],
     );
     assert_eq!(v["stable"], true);
-    assert!((v["bandwidth_hz"].as_f64().unwrap() - 65.0).abs() < 5.0);
+    // the PID's |L| crossover is near its 65 Hz design bandwidth; the closed-loop −3 dB
+    // bandwidth of T lies above it
+    let cross = v["crossover_hz"].as_f64().unwrap();
+    assert!((cross - 65.0).abs() < 5.0, "crossover {cross}");
+    assert!(v["bandwidth_hz"].as_f64().unwrap() > cross);
     assert!(String::from_utf8_lossy(
         &sdctl(&["analyze", "--plant", &p1k, "--controller", &kf]).stdout
     )

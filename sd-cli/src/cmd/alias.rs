@@ -7,8 +7,10 @@ use serde_json::json;
 /// Arguments of `sdctl alias`.
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
+    /// Continuous frequency (Hz) of the component that is sampled.
     #[arg(long, allow_negative_numbers = true)]
     pub(crate) freq_hz: f64,
+    /// Sample rate (Hz).
     #[arg(long, allow_negative_numbers = true)]
     pub(crate) rate_hz: f64,
     /// Highest folding frequency listed (Hz; default 5 × the rate).
@@ -18,6 +20,7 @@ pub(crate) struct Args {
     /// the slow hold's weights |H_F|/F (Lemma 6).
     #[arg(long, allow_negative_numbers = true)]
     pub(crate) factor: Option<i64>,
+    /// Print JSON (keys in docs/formats.md) instead of text.
     #[arg(long)]
     pub(crate) json: bool,
 }

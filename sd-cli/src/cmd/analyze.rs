@@ -6,10 +6,13 @@ use serde_json::json;
 /// Arguments of `sdctl analyze`.
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
+    /// Plant model JSON (same sample time as the controller).
     #[arg(long)]
     pub(crate) plant: String,
+    /// Controller model JSON (negative feedback u = −K y).
     #[arg(long)]
     pub(crate) controller: String,
+    /// Print JSON (keys in docs/formats.md) instead of text.
     #[arg(long)]
     pub(crate) json: bool,
 }

@@ -19,6 +19,7 @@ pub(crate) struct Args {
     /// Sampling period in seconds.
     #[arg(long, allow_negative_numbers = true)]
     pub(crate) ts: f64,
+    /// Method: zoh (exact zero-order hold, default), foh (triangle hold) or tustin (bilinear).
     #[arg(long, value_enum, default_value = "zoh")]
     pub(crate) method: Method,
     /// Tustin prewarp frequency in Hz.

@@ -13,13 +13,17 @@ pub(crate) enum Conn {
 /// Arguments of `sdctl connect`.
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
+    /// series (A then B), parallel (A + B) or feedback (A with B in negative feedback).
     #[arg(value_enum)]
     pub(crate) kind: Conn,
+    /// First model JSON file (A).
     pub(crate) a: String,
+    /// Second model JSON file (B).
     pub(crate) b: String,
     /// Feedback sign: -1 (negative, default) or +1.
     #[arg(long, default_value_t = -1.0, allow_negative_numbers = true)]
     pub(crate) sign: f64,
+    /// Output file (written atomically; default: stdout).
     #[arg(short, long)]
     pub(crate) output: Option<String>,
 }

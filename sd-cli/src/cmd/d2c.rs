@@ -7,10 +7,12 @@ use sd_model::d2c_with_aliases;
 /// Arguments of `sdctl d2c`.
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
+    /// Discrete model JSON file ("-" reads stdin).
     pub(crate) model: String,
     /// Highest candidate frequency listed per mode (Hz; default 3 × the sample rate).
     #[arg(long, allow_negative_numbers = true)]
     pub(crate) max_hz: Option<f64>,
+    /// Output file (written atomically; default: stdout).
     #[arg(short, long)]
     pub(crate) output: Option<String>,
 }

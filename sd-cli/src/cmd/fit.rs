@@ -15,6 +15,7 @@ pub(crate) enum WeightingArg {
 pub(crate) struct Args {
     /// FRD JSON (discrete).
     pub(crate) frd: String,
+    /// Model order: the number of poles, rigid-body poles included.
     #[arg(long)]
     pub(crate) order: usize,
     /// Poles fixed at z = 1 (0, 1 or 2).
@@ -23,8 +24,10 @@ pub(crate) struct Args {
     /// No feedthrough term.
     #[arg(long)]
     pub(crate) strictly_proper: bool,
+    /// Line weights: variance (1/σ from the FRD's var, relative when it has none; default), relative (1/|G|) or uniform.
     #[arg(long, value_enum, default_value = "variance")]
     pub(crate) weighting: WeightingArg,
+    /// Output file (written atomically; default: stdout).
     #[arg(short, long)]
     pub(crate) output: Option<String>,
 }

@@ -6,9 +6,12 @@ use crate::io::{emit, from_model, read_model, CliError};
 /// Arguments of `sdctl freqresp`.
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
+    /// Model JSON file (docs/formats.md; "-" reads stdin).
     pub(crate) model: String,
+    /// Frequencies FMIN:FMAX:N[:log] in Hz (at most the Nyquist frequency of a discrete model).
     #[arg(long)]
     pub(crate) grid: String,
+    /// Output file (written atomically; default: stdout).
     #[arg(short, long)]
     pub(crate) output: Option<String>,
 }

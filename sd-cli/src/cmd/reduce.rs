@@ -6,9 +6,12 @@ use crate::io::{emit, from_model, read_model, CliError};
 /// Arguments of `sdctl reduce`.
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
+    /// Model JSON file (docs/formats.md; "-" reads stdin).
     pub(crate) model: String,
+    /// Number of states to keep.
     #[arg(long)]
     pub(crate) order: usize,
+    /// Output file (written atomically; default: stdout).
     #[arg(short, long)]
     pub(crate) output: Option<String>,
 }

@@ -39,6 +39,7 @@ pub(crate) struct Args {
     /// 5 kHz and one 1 kHz identification experiment.
     #[arg(long)]
     pub(crate) config: Option<String>,
+    /// Output folder (created): experiments.toml, one CSV per experiment, truth.json.
     #[arg(long)]
     pub(crate) out: String,
 }

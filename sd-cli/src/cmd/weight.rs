@@ -7,46 +7,61 @@ use crate::io::{emit, from_hinf, CliError};
 pub(crate) enum WeightKind {
     /// PID-like: integrator, lead around the bandwidth, optional low-pass; |W/(m s²)| = 1 at the bandwidth.
     Pid {
+        /// Bandwidth (Hz): |W/(m s²)| = 1 there.
         #[arg(long, allow_negative_numbers = true)]
         bandwidth_hz: f64,
         /// The plant's high-frequency mass line 1/(m s²): m in the plant's units.
         #[arg(long, allow_negative_numbers = true)]
         mass: f64,
+        /// Sample period (s): a discrete weight (Tustin, prewarped); absent: continuous.
         #[arg(long, allow_negative_numbers = true)]
         ts: Option<f64>,
+        /// Integrator corner at bandwidth / this ratio (0 removes the integrator).
         #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
         integrator_ratio: f64,
+        /// Lead zero at bandwidth / ratio, pole at bandwidth · ratio (≥ 1; 1 removes the lead).
         #[arg(long, default_value_t = 3.0, allow_negative_numbers = true)]
         lead_ratio: f64,
         /// 0: no low-pass.
         #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
         lowpass_ratio: f64,
+        /// Damping of the optional second-order low-pass.
         #[arg(long, default_value_t = 0.7, allow_negative_numbers = true)]
         lowpass_zeta: f64,
+        /// Output file (written atomically; default: stdout).
         #[arg(short, long)]
         output: Option<String>,
     },
     /// Notch (s² + 2ζz ω s + ω²)/(s² + 2ζp ω s + ω²), prewarped at its frequency.
     Notch {
+        /// Notch frequency (Hz).
         #[arg(long, allow_negative_numbers = true)]
         freq_hz: f64,
+        /// Damping of the zeros (the depth: ζz/ζp at the notch).
         #[arg(long, default_value_t = 0.01, allow_negative_numbers = true)]
         zeta_zero: f64,
+        /// Damping of the poles (the width).
         #[arg(long, default_value_t = 0.2, allow_negative_numbers = true)]
         zeta_pole: f64,
+        /// Sample period (s): a discrete weight (Tustin, prewarped); absent: continuous.
         #[arg(long, allow_negative_numbers = true)]
         ts: Option<f64>,
+        /// Output file (written atomically; default: stdout).
         #[arg(short, long)]
         output: Option<String>,
     },
     /// Second-order low-pass ω²/(s² + 2ζω s + ω²), prewarped at its corner.
     Lowpass {
+        /// Corner frequency (Hz).
         #[arg(long, allow_negative_numbers = true)]
         freq_hz: f64,
+        /// Damping.
         #[arg(long, default_value_t = 0.7, allow_negative_numbers = true)]
         zeta: f64,
+        /// Sample period (s): a discrete weight (Tustin, prewarped); absent: continuous.
         #[arg(long, allow_negative_numbers = true)]
         ts: Option<f64>,
+        /// Output file (written atomically; default: stdout).
         #[arg(short, long)]
         output: Option<String>,
     },
