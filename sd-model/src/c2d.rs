@@ -49,6 +49,11 @@ fn require_continuous(sys: &StateSpace, op: &str) -> Result<()> {
 /// A discrete-time input model, an invalid `ts`, a prewarp frequency not in (0, Nyquist), or a
 /// singular Tustin map (a pole at s = k).
 pub fn c2d(sys: &StateSpace, ts: f64, method: Discretization) -> Result<StateSpace> {
+    Ok(c2d_matrices(sys, ts, method)?.with_labels_of(sys))
+}
+
+/// [`c2d`] without the labels.
+fn c2d_matrices(sys: &StateSpace, ts: f64, method: Discretization) -> Result<StateSpace> {
     require_continuous(sys, "c2d")?;
     let time = SampleTime::discrete(ts)?;
     let (n, nu) = (sys.n(), sys.nu());
@@ -118,4 +123,40 @@ pub fn zoh_blocks(
         e.view((0, 0), (n, n)).into_owned(),
         e.view((0, n), (n, nu)).into_owned(),
     ))
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    /// Every method keeps the model's name and signal names, and d2c keeps them on the way back.
+    #[test]
+    fn labels_survive_c2d_and_d2c() {
+        let a = DMatrix::from_row_slice(2, 2, &[0.0, 1.0, -100.0, -2.0]);
+        let sys = StateSpace::new(
+            a,
+            DMatrix::from_row_slice(2, 1, &[0.0, 1.0]),
+            DMatrix::from_row_slice(1, 2, &[1.0, 0.0]),
+            DMatrix::zeros(1, 1),
+            SampleTime::Continuous,
+        )
+        .unwrap()
+        .with_name("stage")
+        .with_signal_names(Some(vec!["force".into()]), Some(vec!["position".into()]))
+        .unwrap();
+        for m in [
+            Discretization::Zoh,
+            Discretization::Foh,
+            Discretization::Tustin { prewarp_hz: None },
+        ] {
+            let d = c2d(&sys, 1e-3, m).unwrap();
+            assert_eq!(d.name(), Some("stage"));
+            assert_eq!(d.input_names(), Some(&["force".to_string()][..]));
+            assert_eq!(d.output_names(), Some(&["position".to_string()][..]));
+        }
+        let back = crate::d2c::d2c(&c2d(&sys, 1e-3, Discretization::Zoh).unwrap()).unwrap();
+        assert_eq!(back.name(), Some("stage"));
+        assert_eq!(back.output_names(), Some(&["position".to_string()][..]));
+    }
 }

@@ -65,13 +65,14 @@ pub fn d2c(sys: &StateSpace) -> Result<StateSpace> {
     let l = logm(&blk)?;
     let a = l.view((0, 0), (n, n)) / h;
     let b = l.view((0, n), (n, nu)) / h;
-    StateSpace::new(
+    Ok(StateSpace::new(
         a,
         b,
         sys.c().clone(),
         sys.d().clone(),
         SampleTime::Continuous,
-    )
+    )?
+    .with_labels_of(sys))
 }
 
 /// [`d2c`] plus the alias candidates of every mode up to `max_hz`.

@@ -171,6 +171,27 @@ impl StateSpace {
         self.outputs = outputs;
         Ok(self)
     }
+    /// This model with `from`'s name, and its input and output names where the counts match:
+    /// every transform that keeps the signals (c2d, d2c, Lemma 6, non-ideal discretisation)
+    /// keeps the labels.
+    pub fn with_labels_of(self, from: &StateSpace) -> StateSpace {
+        let named = match from.name() {
+            Some(n) => self.with_name(n),
+            None => self,
+        };
+        let inputs = from
+            .input_names()
+            .filter(|i| i.len() == named.nu())
+            .map(<[String]>::to_vec);
+        let outputs = from
+            .output_names()
+            .filter(|o| o.len() == named.ny())
+            .map(<[String]>::to_vec);
+        match named.clone().with_signal_names(inputs, outputs) {
+            Ok(labelled) => labelled,
+            Err(_) => named,
+        }
+    }
     /// Consumes the model and returns `(A, B, C, D, time)`.
     pub fn into_parts(
         self,

@@ -50,26 +50,7 @@ pub fn downsample(p_h: &StateSpace, factor: usize) -> Result<StateSpace> {
         p_h.d().clone(),
         SampleTime::discrete(h * factor as f64)?,
     )?;
-    Ok(copy_names(p_h, sys))
-}
-
-pub(crate) fn copy_names(from: &StateSpace, to: StateSpace) -> StateSpace {
-    let to = match from.name() {
-        Some(n) => to.with_name(n),
-        None => to,
-    };
-    let inputs = from
-        .input_names()
-        .filter(|i| i.len() == to.nu())
-        .map(<[String]>::to_vec);
-    let outputs = from
-        .output_names()
-        .filter(|o| o.len() == to.ny())
-        .map(<[String]>::to_vec);
-    match to.clone().with_signal_names(inputs, outputs) {
-        Ok(named) => named,
-        Err(_) => to,
-    }
+    Ok(sys.with_labels_of(p_h))
 }
 
 /// `(A^F, Σ_{i<F} A^i B)` by binary powering of `[A B; 0 I]` (faer products).

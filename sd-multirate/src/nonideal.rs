@@ -40,7 +40,7 @@
 //! model that is the ZOH of a CT model, the delayed hold is exactly [`c2d_nonideal`] at T; the
 //! discrete average is the rectangle rule of the continuous one.
 
-use crate::downsample::{copy_names, downsample};
+use crate::downsample::downsample;
 use crate::error::{check_factor, require_discrete, MultirateError, Result};
 use crate::tol::WHOLE_SAMPLES_TOL;
 use nalgebra::DMatrix;
@@ -136,7 +136,7 @@ fn with_input_delay(sys: StateSpace, m: usize) -> Result<StateSpace> {
     c.view_mut((0, 0), (ny, n)).copy_from(sys.c());
     c.view_mut((0, last), (ny, nu)).copy_from(sys.d());
     let out = StateSpace::new(a, b, c, DMatrix::zeros(ny, nu), sys.time())?;
-    Ok(copy_names(&sys, out))
+    Ok(out.with_labels_of(&sys))
 }
 
 /// Exact discretisation of a continuous model at period `ts` with a delayed hold and/or an
@@ -246,7 +246,7 @@ pub fn c2d_nonideal(sys: &StateSpace, ts: f64, ni: NonIdeal) -> Result<StateSpac
         }
     }
     let out = StateSpace::new(ad, bd, cd, dd, time)?;
-    Ok(copy_names(sys, out))
+    Ok(out.with_labels_of(sys))
 }
 
 /// Whole number of fast samples `frac·F`, or an error.
@@ -361,7 +361,7 @@ pub fn downsample_nonideal(p_h: &StateSpace, factor: usize, ni: NonIdeal) -> Res
             .copy_from(&(DMatrix::<f64>::identity(ny, ny) * s));
     }
     let out = StateSpace::new(ad, bd, cd, dd, SampleTime::discrete(h * factor as f64)?)?;
-    Ok(copy_names(p_h, out))
+    Ok(out.with_labels_of(p_h))
 }
 
 #[cfg(test)]

@@ -8,7 +8,7 @@ use crate::io::{emit, from_model, read_model, CliError};
 pub(crate) struct Args {
     /// Model JSON file (docs/formats.md; "-" reads stdin).
     pub(crate) model: String,
-    /// Frequencies FMIN:FMAX:N[:log] in Hz (at most the Nyquist frequency of a discrete model).
+    /// Frequencies `FMIN:FMAX:N[:log]` in Hz (at most the Nyquist frequency of a discrete model).
     #[arg(long)]
     pub(crate) grid: String,
     /// Output file (written atomically; default: stdout).
