@@ -33,12 +33,14 @@ pub struct ModeAliases {
     pub z: C,
     /// Principal continuous pole `log(z)/h`.
     pub s: C,
-    /// Principal frequency `|Im s|/2π` in Hz (in [0, Nyquist]).
+    /// Natural frequency `|s|/2π` of the principal pole in Hz: the toolkit's one frequency of
+    /// a pole, as `sdctl poles` prints it and python-control's `damp` gives it (the oscillation
+    /// frequency is `freq_hz·√(1 − ζ²)`).
     pub freq_hz: f64,
     /// Damping ratio of the principal pole `−Re s/|s|` (1 for s = 0).
     pub damping: f64,
-    /// Candidate continuous frequencies `|Im s + 2πk/h|/2π` up to `max_hz`, ascending, each with
-    /// the damping ratio the continuous pole would then have.
+    /// Candidate continuous poles `s_k = Re s + j(Im s + 2πk/h)` as natural frequencies
+    /// `|s_k|/2π` up to `max_hz`, ascending, each with the damping ratio `−Re s_k/|s_k|`.
     pub candidates: Vec<(f64, f64)>,
 }
 
@@ -93,22 +95,16 @@ pub fn d2c_with_aliases(sys: &StateSpace, max_hz: f64) -> Result<(StateSpace, Ve
 /// Alias candidates of a single discrete pole `z` at period `h`.
 pub fn mode_aliases(z: C, h: f64, max_hz: f64) -> ModeAliases {
     let s = z.ln() / h;
-    let damp = |s: C| {
-        if s.norm() == 0.0 {
-            1.0
-        } else {
-            -s.re / s.norm()
-        }
-    };
+    let damp = |s: C| crate::poles::natural_frequency(s, None).1;
     let fs = 1.0 / h;
-    let f0 = s.im.abs() / (2.0 * PI);
+    let f0 = s.norm() / (2.0 * PI);
     let mut cands = Vec::new();
     let kmax = (max_hz / fs).ceil() as i64 + 1;
     for k in -kmax..=kmax {
         let w = s.im + 2.0 * PI * k as f64 * fs;
-        let f = w.abs() / (2.0 * PI);
+        let sk = C::new(s.re, w);
+        let f = sk.norm() / (2.0 * PI);
         if f <= max_hz * (1.0 + 1e-12) {
-            let sk = C::new(s.re, w);
             if !cands
                 .iter()
                 .any(|(g, _): &(f64, f64)| (g - f).abs() <= 1e-9 * fs)

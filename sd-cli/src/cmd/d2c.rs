@@ -30,7 +30,10 @@ impl Args {
         let max_hz = finite_pos(max_hz.unwrap_or(3.0 / ts), "--max-hz")?;
         let (c, modes) = d2c_with_aliases(&sys, max_hz).map_err(|e| from_model(&model, e))?;
         emit(&model_json(&c)?, output.as_deref())?;
-        eprintln!("mode alias candidates (Hz, damping) up to {max_hz} Hz:");
+        eprintln!(
+            "mode alias candidates (natural frequency |s|/2π in Hz, as `sdctl poles`; damping) \
+             up to {max_hz} Hz:"
+        );
         for m in modes {
             let list: Vec<String> = m
                 .candidates
@@ -38,7 +41,7 @@ impl Args {
                 .map(|(f, z)| format!("{f:.4} (ζ={z:.4})"))
                 .collect();
             eprintln!(
-                "  z = {:.6}{:+.6}i  principal {:.4} Hz ζ={:.5}: {}",
+                "  z = {:.6}{:+.6}i  principal branch {:.4} Hz ζ={:.5}: {}",
                 m.z.re,
                 m.z.im,
                 m.freq_hz,

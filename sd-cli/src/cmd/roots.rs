@@ -20,21 +20,6 @@ impl Args {
     }
 }
 
-fn pole_info(p: num_complex::Complex64, ts: Option<f64>) -> (f64, f64) {
-    // (frequency Hz, damping) of the equivalent continuous pole
-    let s = match ts {
-        None => p,
-        Some(h) => p.ln() / h,
-    };
-    let f = s.norm() / (2.0 * std::f64::consts::PI);
-    let z = if s.norm() == 0.0 {
-        1.0
-    } else {
-        -s.re / s.norm()
-    };
-    (f, z)
-}
-
 /// Prints the poles (or zeros) of a model with their frequency and damping.
 fn roots(model: &str, json: bool, poles: bool) -> Result<(), CliError> {
     let sys = read_model(model)?;
@@ -44,7 +29,7 @@ fn roots(model: &str, json: bool, poles: bool) -> Result<(), CliError> {
         let v: Vec<_> = r
             .iter()
             .map(|p| {
-                let (f, z) = pole_info(*p, ts);
+                let (f, z) = sd_model::poles::natural_frequency(*p, ts);
                 json!({"re": p.re, "im": p.im, "freq_hz": f, "damping": z})
             })
             .collect();
@@ -55,7 +40,7 @@ fn roots(model: &str, json: bool, poles: bool) -> Result<(), CliError> {
             "re", "im", "freq_hz", "damping"
         );
         for p in &r {
-            let (f, z) = pole_info(*p, ts);
+            let (f, z) = sd_model::poles::natural_frequency(*p, ts);
             s += &format!(
                 "{:>24.16e} {:>24.16e} {:>14.6} {:>10.6}\n",
                 p.re, p.im, f, z
