@@ -104,13 +104,11 @@ pub fn mode_aliases(z: C, h: f64, max_hz: f64) -> ModeAliases {
         let w = s.im + 2.0 * PI * k as f64 * fs;
         let sk = C::new(s.re, w);
         let f = sk.norm() / (2.0 * PI);
-        if f <= max_hz * (1.0 + 1e-12) {
-            if !cands
-                .iter()
-                .any(|(g, _): &(f64, f64)| (g - f).abs() <= 1e-9 * fs)
-            {
-                cands.push((f, damp(sk)));
-            }
+        let seen = cands
+            .iter()
+            .any(|(g, _): &(f64, f64)| (g - f).abs() <= 1e-9 * fs);
+        if f <= max_hz * (1.0 + 1e-12) && !seen {
+            cands.push((f, damp(sk)));
         }
     }
     cands.sort_by(|a, b| a.0.total_cmp(&b.0));
