@@ -80,7 +80,7 @@ pub struct Loopshape {
     /// Whether P with K (negative feedback) is internally stable.
     pub closed_loop_stable: bool,
     /// Spectral radius (DT) or abscissa (CT) of that closed loop.
-    pub closed_loop_pole: f64,
+    pub closed_loop_radius: f64,
     /// The Riccati equations solved, with residuals.
     pub riccati: Vec<RiccatiReport>,
 }
@@ -371,7 +371,7 @@ pub fn loopshape(
     let achieved = four_block(&gs, &ks)?.hinf_norm()?.value;
     let controller = series(&series(&w2, &ks)?, &w1)?;
     let cl = feedback(plant, &controller, -1.0)?;
-    let (closed_loop_pole, closed_loop_stable) = pole_measure(&cl)?;
+    let (closed_loop_radius, closed_loop_stable) = pole_measure(&cl)?;
     Ok(Loopshape {
         gamma_min: gamma_min_v,
         gamma,
@@ -380,7 +380,7 @@ pub fn loopshape(
         shaped_controller: ks,
         controller,
         closed_loop_stable,
-        closed_loop_pole,
+        closed_loop_radius,
         riccati,
     })
 }

@@ -35,7 +35,7 @@ fn check(name: &str, d: &Loopshape, expected_gamma_min: Option<f64>) {
         d.gamma,
         achieved,
         if d.closed_loop_stable { "stable" } else { "UNSTABLE" },
-        d.closed_loop_pole,
+        d.closed_loop_radius,
         d.riccati.iter().map(|r| format!("{} {:.1e}", r.name, r.residual)).collect::<Vec<_>>()
     );
     if let Some(g) = expected_gamma_min {

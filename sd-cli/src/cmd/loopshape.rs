@@ -61,7 +61,7 @@ impl Args {
                 "gamma": d.gamma,
                 "achieved": d.achieved,
                 "closed_loop_stable": d.closed_loop_stable,
-                "closed_loop_pole": d.closed_loop_pole,
+                "closed_loop_radius": d.closed_loop_radius,
                 "controller": parse(&d.controller)?,
                 "shaped_controller": parse(&d.shaped_controller)?,
                 "riccati": d.riccati.iter().map(|r| json!({"equation": r.name, "residual": r.residual, "condition": r.condition})).collect::<Vec<_>>(),
