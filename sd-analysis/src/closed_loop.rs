@@ -15,8 +15,9 @@
 //!   reported; **modulus margin** `inf_ω |1 + L| = 1/‖S‖∞` from the H∞ norm (python-control's
 //!   `sm` keeps only interior minima of a polynomial, and misses the global one on some
 //!   discrete loops; ours is the global one, including ω → ∞).
-//! - **Bandwidth**: the lowest gain crossover of `|L|` (the usual motion-control definition: the
-//!   frequency up to which the loop gain exceeds one).
+//! - **Crossover**: the lowest gain crossover of `|L|` (the frequency up to which the loop gain
+//!   exceeds one). **Bandwidth**: the closed-loop −3 dB bandwidth of `T` (python-control's and
+//!   MATLAB's `bandwidth`), [`ClosedLoop::bandwidth_hz`].
 //!
 //! Crossings are bracketed on a log grid of [`crate::tol::GRID_POINTS`] points (plus dense
 //! points around every lightly damped pole of L) and refined by bisection to machine precision.
@@ -53,6 +54,14 @@ impl Margins {
     /// Gain margin in dB.
     pub fn gain_margin_db(&self) -> f64 {
         20.0 * self.gain_margin.log10()
+    }
+
+    /// The lowest gain crossover (Hz), if any.
+    pub fn lowest_gain_crossover_hz(&self) -> Option<f64> {
+        self.all_gain_crossovers
+            .iter()
+            .map(|g| g.0)
+            .reduce(f64::min)
     }
 }
 
@@ -394,8 +403,7 @@ impl ClosedLoop {
 
     /// The lowest gain crossover of |L| (Hz), if any (SISO).
     pub fn crossover_hz(&self) -> Result<Option<f64>> {
-        let m = self.margins()?;
-        Ok(m.all_gain_crossovers.iter().map(|g| g.0).reduce(f64::min))
+        Ok(self.margins()?.lowest_gain_crossover_hz())
     }
 
     /// The closed-loop bandwidth as python-control's `bandwidth` and MATLAB's `bandwidth`
@@ -453,7 +461,7 @@ impl ClosedLoop {
         let siso = self.p.nu() == 1 && self.p.ny() == 1;
         let (gm_db, pm, cross, bw) = if siso {
             let m = self.margins()?;
-            let cross = m.all_gain_crossovers.iter().map(|g| g.0).reduce(f64::min);
+            let cross = m.lowest_gain_crossover_hz();
             (
                 m.gain_margin_db(),
                 m.phase_margin_deg,

@@ -4,6 +4,13 @@ use crate::io::{from_model, CliError};
 use clap::{Parser, Subcommand};
 use sd_model::StateSpace;
 
+/// Help of every `-o/--output` option.
+pub(crate) const OUTPUT_HELP: &str = "Output file (written atomically; default: stdout)";
+/// Help of every model-file argument that accepts any model.
+pub(crate) const MODEL_HELP: &str = "Model JSON file (docs/formats.md; \"-\" reads stdin)";
+/// Help of every `--json` switch.
+pub(crate) const JSON_HELP: &str = "Print JSON (keys in docs/formats.md) instead of text";
+
 /// Sampled-data control design on files: models (JSON), FRDs (JSON), experiments (TOML + CSV).
 #[derive(Parser, Debug)]
 #[command(name = "sdctl", version, about, long_about = None)]

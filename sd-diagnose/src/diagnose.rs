@@ -1494,8 +1494,18 @@ pub fn diagnose_with_progress(
     own_fit(&data, &ch, &mut judged.info);
     let outcome = decide(&data, &judged, &mut ch, progress)?;
     progress("reports");
-    let mut experiments = reports(&data, &judged, &ch, (&outcome.extension, &outcome.models))?;
-    let extended_model = extended_continuous(&judged, &outcome.extension)?;
+    let tied = match &outcome.extension {
+        Extension::RateTied(p) => Some((judged.modal.residues(p.nonideal())?, p)),
+        _ => None,
+    };
+    let mut experiments = reports(
+        &data,
+        &judged,
+        &ch,
+        (&outcome.extension, &outcome.models),
+        tied.as_ref(),
+    )?;
+    let extended_model = extended_continuous(&judged, tied.as_ref())?;
     for x in &mut experiments {
         x.held_out = outcome.held.get(&x.name).copied();
     }
@@ -1544,11 +1554,8 @@ fn reports(
     j: &Judged<'_>,
     ch: &Checks,
     (ext, models): (&Extension, &BTreeMap<String, StateSpace>),
+    res: Option<&(Residues, &RateTied)>,
 ) -> Result<Vec<ExperimentReport>> {
-    let res = match ext {
-        Extension::RateTied(p) => Some((j.modal.residues(p.nonideal())?, p)),
-        _ => None,
-    };
     let tied: Vec<&str> = data
         .vals
         .iter()
@@ -1556,7 +1563,7 @@ fn reports(
         .map(|v| v.exp.spec.name.as_str())
         .collect();
     let clock_of = |name: &str| -> f64 {
-        match &res {
+        match res {
             Some((_, p)) => tied
                 .iter()
                 .position(|n| *n == name)
@@ -1576,8 +1583,7 @@ fn reports(
         if let Some(m) = models.get(name) {
             return Ok(Some(m.clone()));
         }
-        res.as_ref()
-            .map(|(r, p)| extended_model(j, r, p, factor, clock_of(name)))
+        res.map(|(r, p)| extended_model(j, r, p, factor, clock_of(name)))
             .transpose()
     };
     out.push(ctx.report(
@@ -1704,13 +1710,15 @@ impl ReportCtx<'_, '_> {
     }
 }
 
-/// The rate-tied extension as a continuous model with its hold delay and averaging window
-/// (`None` for any other extension).
-fn extended_continuous(j: &Judged<'_>, ext: &Extension) -> Result<Option<ExtendedModel>> {
-    let Extension::RateTied(p) = ext else {
+/// The rate-tied extension (its residues and parameters) as a continuous model with its hold
+/// delay and averaging window (`None` for any other extension).
+fn extended_continuous(
+    j: &Judged<'_>,
+    tied: Option<&(Residues, &RateTied)>,
+) -> Result<Option<ExtendedModel>> {
+    let Some((res, p)) = tied else {
         return Ok(None);
     };
-    let res = j.modal.residues(p.nonideal())?;
     Ok(Some(ExtendedModel {
         continuous: j.modal.basis.continuous(&res.r)?,
         hold_delay: p.hold_delay,

@@ -332,10 +332,6 @@ fn parse_experiment(
     let k = controller(e, truth.mass, 1.0 / rate).map_err(ctx)?;
     match text(e, "kind", "identification")? {
         "identification" => {
-            let excitation = parse_excitation(e, &name, rate, noise.seed).map_err(|x| match x {
-                TestbedError::Config(_) => x,
-                other => ctx(other),
-            })?;
             let injection = choice(
                 e,
                 &name,
@@ -346,14 +342,11 @@ fn parse_experiment(
                     ("input", Injection::Input),
                 ],
             )?;
-            let rms = num(e, "rms", 1.0)?;
-            if injection == Injection::Reference && rms > MAX_REFERENCE_RMS_M {
-                return Err(err(format!(
-                    "experiment `{name}`: `rms = {rms}` with injection = \"reference\" is a \
-                     {rms} m rms position reference; give it in metres (a precision stage moves \
-                     µm to mm, e.g. rms = 1e-5) or set injection = \"input\" for a force in N"
-                )));
-            }
+            let excitation =
+                parse_excitation(e, &name, rate, noise.seed, injection).map_err(|x| match x {
+                    TestbedError::Config(_) => x,
+                    other => ctx(other),
+                })?;
             let (periods, transient_periods) =
                 (int(e, "periods", 6)?, int(e, "transient_periods", 1)?);
             let total = periods
@@ -419,8 +412,23 @@ fn choice<T: Copy>(
         .ok_or_else(|| err(format!("experiment `{name}`: unknown {key} `{v}`")))
 }
 
-/// An identification experiment's multisine (`period`, `multisine`, `f_min`, `f_max`, `rms`).
-fn parse_excitation(e: &toml::Table, name: &str, rate: f64, seed: u64) -> Result<Multisine> {
+/// An identification experiment's multisine (`period`, `multisine`, `f_min`, `f_max`, `rms`; a
+/// reference-injection `rms` is a position and is checked against [`MAX_REFERENCE_RMS_M`]).
+fn parse_excitation(
+    e: &toml::Table,
+    name: &str,
+    rate: f64,
+    seed: u64,
+    injection: Injection,
+) -> Result<Multisine> {
+    let rms = num(e, "rms", 1.0)?;
+    if injection == Injection::Reference && rms > MAX_REFERENCE_RMS_M {
+        return Err(err(format!(
+            "experiment `{name}`: `rms = {rms}` with injection = \"reference\" is a {rms} m rms \
+             position reference; give it in metres (a precision stage moves µm to mm, e.g. \
+             rms = 1e-5) or set injection = \"input\" for a force in N"
+        )));
+    }
     let period = int(
         e,
         "period",
@@ -457,7 +465,7 @@ fn parse_excitation(e: &toml::Table, name: &str, rate: f64, seed: u64) -> Result
         f_max: num(e, "f_max", 0.45 * rate)?,
         lines,
         phases,
-        rms: num(e, "rms", 1.0)?,
+        rms,
         fold_rate_hz: None,
     })
     .map_err(Into::into)

@@ -19,6 +19,20 @@ fn rel(a: f64, b: f64) -> f64 {
     }
 }
 
+/// The loop of P with the controller scaled by `gain` (a gain margin's independent check: it
+/// puts a closed-loop pole on the stability boundary).
+fn scaled_loop(p: &StateSpace, k: &StateSpace, gain: f64) -> ClosedLoop {
+    let ks = StateSpace::new(
+        k.a().clone(),
+        k.b().clone(),
+        k.c() * gain,
+        k.d() * gain,
+        k.time(),
+    )
+    .unwrap();
+    ClosedLoop::new(p, &ks).unwrap()
+}
+
 #[test]
 fn margins_and_peaks_match_python_control() {
     let refs = read_json("analysis_reference.json");
@@ -55,16 +69,7 @@ fn margins_and_peaks_match_python_control() {
         // stability boundary
         if m.gain_margin.is_finite() && m.gain_margin > 0.0 {
             let k = model(&case["controller"]);
-            let ks = StateSpace::new(
-                k.a().clone(),
-                k.b().clone(),
-                k.c() * m.gain_margin,
-                k.d() * m.gain_margin,
-                k.time(),
-            )
-            .unwrap();
-            let (r, _) = ClosedLoop::new(&model(&case["plant"]), &ks)
-                .unwrap()
+            let (r, _) = scaled_loop(&model(&case["plant"]), &k, m.gain_margin)
                 .stability()
                 .unwrap();
             let boundary = if k.time().is_continuous() { 0.0 } else { 1.0 };
@@ -158,17 +163,8 @@ fn margins_on_fifty_random_loops() {
         );
         let pc = |key: &str| case[key].as_f64().filter(|v| v.is_finite());
         if m.gain_margin.is_finite() && m.gain_margin < 1e6 && p.n() + k.n() > 0 {
-            let ks = StateSpace::new(
-                k.a().clone(),
-                k.b().clone(),
-                k.c() * m.gain_margin,
-                k.d() * m.gain_margin,
-                k.time(),
-            )
-            .unwrap();
             // some closed-loop pole (not necessarily the outermost one) is on the boundary
-            let poles = ClosedLoop::new(&p, &ks)
-                .unwrap()
+            let poles = scaled_loop(&p, &k, m.gain_margin)
                 .sensitivity()
                 .poles()
                 .unwrap();

@@ -20,8 +20,7 @@ pub(crate) struct Args {
     /// the slow hold's weights |H_F|/F (Lemma 6).
     #[arg(long, allow_negative_numbers = true)]
     pub(crate) factor: Option<i64>,
-    /// Print JSON (keys in docs/formats.md) instead of text.
-    #[arg(long)]
+    #[arg(help = crate::commands::JSON_HELP, long)]
     pub(crate) json: bool,
 }
 

@@ -12,8 +12,7 @@ pub(crate) struct Args {
     /// Controller model JSON (negative feedback u = −K y).
     #[arg(long)]
     pub(crate) controller: String,
-    /// Print JSON (keys in docs/formats.md) instead of text.
-    #[arg(long)]
+    #[arg(help = crate::commands::JSON_HELP, long)]
     pub(crate) json: bool,
 }
 

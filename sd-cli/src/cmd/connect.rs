@@ -23,8 +23,7 @@ pub(crate) struct Args {
     /// Feedback sign: -1 (negative, default) or +1.
     #[arg(long, default_value_t = -1.0, allow_negative_numbers = true)]
     pub(crate) sign: f64,
-    /// Output file (written atomically; default: stdout).
-    #[arg(short, long)]
+    #[arg(help = crate::commands::OUTPUT_HELP, short, long)]
     pub(crate) output: Option<String>,
 }
 

@@ -12,8 +12,7 @@ pub(crate) struct Args {
     /// Highest candidate frequency listed per mode (Hz; default 3 × the sample rate).
     #[arg(long, allow_negative_numbers = true)]
     pub(crate) max_hz: Option<f64>,
-    /// Output file (written atomically; default: stdout).
-    #[arg(short, long)]
+    #[arg(help = crate::commands::OUTPUT_HELP, short, long)]
     pub(crate) output: Option<String>,
 }
 

@@ -17,8 +17,7 @@ pub(crate) struct Args {
     /// Slow sampler returning the mean of the last fraction of fast samples (a multiple of 1/F).
     #[arg(long, allow_negative_numbers = true)]
     pub(crate) averaging: Option<f64>,
-    /// Output file (written atomically; default: stdout).
-    #[arg(short, long)]
+    #[arg(help = crate::commands::OUTPUT_HELP, short, long)]
     pub(crate) output: Option<String>,
 }
 

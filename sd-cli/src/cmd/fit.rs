@@ -27,8 +27,7 @@ pub(crate) struct Args {
     /// Line weights: variance (1/σ from the FRD's var, relative when it has none; default), relative (1/|G|) or uniform.
     #[arg(long, value_enum, default_value = "variance")]
     pub(crate) weighting: WeightingArg,
-    /// Output file (written atomically; default: stdout).
-    #[arg(short, long)]
+    #[arg(help = crate::commands::OUTPUT_HELP, short, long)]
     pub(crate) output: Option<String>,
 }
 

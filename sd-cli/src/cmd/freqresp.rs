@@ -6,13 +6,12 @@ use crate::io::{emit, from_model, read_model, CliError};
 /// Arguments of `sdctl freqresp`.
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
-    /// Model JSON file (docs/formats.md; "-" reads stdin).
+    #[arg(help = crate::commands::MODEL_HELP)]
     pub(crate) model: String,
     /// Frequencies `FMIN:FMAX:N[:log]` in Hz (at most the Nyquist frequency of a discrete model).
     #[arg(long)]
     pub(crate) grid: String,
-    /// Output file (written atomically; default: stdout).
-    #[arg(short, long)]
+    #[arg(help = crate::commands::OUTPUT_HELP, short, long)]
     pub(crate) output: Option<String>,
 }
 

@@ -13,8 +13,7 @@ pub(crate) struct Args {
     /// Excited-line threshold relative to the strongest line (periodic data).
     #[arg(long, allow_negative_numbers = true)]
     pub(crate) excited_fraction: Option<f64>,
-    /// Output file (written atomically; default: stdout).
-    #[arg(short, long)]
+    #[arg(help = crate::commands::OUTPUT_HELP, short, long)]
     pub(crate) output: Option<String>,
 }
 

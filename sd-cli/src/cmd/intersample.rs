@@ -21,8 +21,7 @@ pub(crate) struct Args {
     /// Frequency points per band.
     #[arg(long, default_value_t = 2000)]
     pub(crate) points: usize,
-    /// Print JSON (keys in docs/formats.md) instead of text.
-    #[arg(long)]
+    #[arg(help = crate::commands::JSON_HELP, long)]
     pub(crate) json: bool,
 }
 

@@ -25,8 +25,7 @@ pub(crate) struct Args {
     /// Print gamma_min, gamma, the controllers, stability and Riccati residuals as JSON.
     #[arg(long)]
     pub(crate) json: bool,
-    /// Output file (written atomically; default: stdout).
-    #[arg(short, long)]
+    #[arg(help = crate::commands::OUTPUT_HELP, short, long)]
     pub(crate) output: Option<String>,
 }
 

@@ -6,10 +6,9 @@ use serde_json::json;
 /// Arguments of `sdctl poles` and `sdctl zeros`.
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
-    /// Model JSON file (docs/formats.md; "-" reads stdin).
+    #[arg(help = crate::commands::MODEL_HELP)]
     pub(crate) model: String,
-    /// Print JSON (keys in docs/formats.md) instead of text.
-    #[arg(long)]
+    #[arg(help = crate::commands::JSON_HELP, long)]
     pub(crate) json: bool,
 }
 

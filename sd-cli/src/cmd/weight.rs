@@ -28,8 +28,7 @@ pub(crate) enum WeightKind {
         /// Damping of the optional second-order low-pass.
         #[arg(long, default_value_t = 0.7, allow_negative_numbers = true)]
         lowpass_zeta: f64,
-        /// Output file (written atomically; default: stdout).
-        #[arg(short, long)]
+        #[arg(help = crate::commands::OUTPUT_HELP, short, long)]
         output: Option<String>,
     },
     /// Notch (s² + 2ζz ω s + ω²)/(s² + 2ζp ω s + ω²), prewarped at its frequency.
@@ -46,8 +45,7 @@ pub(crate) enum WeightKind {
         /// Sample period (s): a discrete weight (Tustin, prewarped); absent: continuous.
         #[arg(long, allow_negative_numbers = true)]
         ts: Option<f64>,
-        /// Output file (written atomically; default: stdout).
-        #[arg(short, long)]
+        #[arg(help = crate::commands::OUTPUT_HELP, short, long)]
         output: Option<String>,
     },
     /// Second-order low-pass ω²/(s² + 2ζω s + ω²), prewarped at its corner.
@@ -61,8 +59,7 @@ pub(crate) enum WeightKind {
         /// Sample period (s): a discrete weight (Tustin, prewarped); absent: continuous.
         #[arg(long, allow_negative_numbers = true)]
         ts: Option<f64>,
-        /// Output file (written atomically; default: stdout).
-        #[arg(short, long)]
+        #[arg(help = crate::commands::OUTPUT_HELP, short, long)]
         output: Option<String>,
     },
 }
