@@ -25,8 +25,13 @@ fn write(dir: &std::path::Path, name: &str, text: &str) -> String {
 }
 
 /// Exit code 2, exactly one line on stderr, no panic trace.
+///
+/// Every case is printed as `bad input case: <message>`, so the tally of bad-input cases is
+/// `cargo test --release -p sd-cli --test cli -- --nocapture 2>&1 | grep '^bad input case:' | sort -u | wc -l`
+/// (one output checked for two needles counts once).
 fn assert_input_error(o: &Output, needle: &str) {
     let err = String::from_utf8_lossy(&o.stderr);
+    println!("bad input case: {}", err.trim_end());
     assert_eq!(o.status.code(), Some(2), "stderr: {err}");
     assert_eq!(
         err.trim_end().lines().count(),
@@ -177,6 +182,44 @@ fn bad_inputs_exit_2_with_one_line() {
             .count(),
         0
     );
+}
+
+/// Transforms asked for what they cannot do say what to run instead.
+#[test]
+fn transforms_say_what_to_do_instead() {
+    let d = tmpdir("transforms");
+    let ct = write(&d, "ct.json", CT);
+    let o = sdctl(&["downsample", &ct, "--factor", "5"]);
+    assert_input_error(&o, "is continuous-time");
+    assert_input_error(&o, "sdctl c2d");
+    assert!(
+        !String::from_utf8_lossy(&o.stderr).contains("delayed hold"),
+        "no options the user did not give"
+    );
+    // A 653 Hz mode sampled at 1 kHz reads 347 Hz; --near-hz puts it back.
+    let stage = r#"{"type":"ss","ts":null,"a":[[0,1],[-16833952.6,-41.03]],"b":[[0],[1]],"c":[[1,0]],"d":[[0]]}"#;
+    let st = write(&d, "stage.json", stage);
+    let slow = d.join("slow.json").to_string_lossy().into_owned();
+    assert!(sdctl(&["c2d", &st, "--ts", "0.001", "-o", &slow])
+        .status
+        .success());
+    let o = sdctl(&["d2c", &slow, "--near-hz", "650"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let back = model_of(&o);
+    let f = sd_model::poles::natural_frequency(
+        sd_model::linalg::convert::eigenvalues(back.a()).unwrap()[0],
+        None,
+    )
+    .0;
+    assert!((f - 653.0).abs() < 0.01, "{f} Hz");
+    assert!(String::from_utf8_lossy(&o.stderr).contains("branch k = "));
+    assert_input_error(&sdctl(&["d2c", &slow, "--near-hz", "nan"]), "finite and positive");
+    assert_input_error(
+        &sdctl(&["d2c", &slow, "--near-hz", "653", "--near-hz", "347"]),
+        "a mode has one branch",
+    );
+    let dt = write(&d, "dt.json", DT);
+    assert_input_error(&sdctl(&["d2c", &dt, "--near-hz", "600"]), "no oscillatory mode");
 }
 
 /// A typo, a missing `ts` or a non-finite number is never read silently: exit 2 with one line

@@ -39,7 +39,7 @@ pub mod time;
 pub use alias::{alias, fold, folding_frequencies, Alias};
 pub use c2d::{c2d, Discretization};
 pub use connect::{append, feedback, parallel, series};
-pub use d2c::{d2c, d2c_with_aliases, ModeAliases};
+pub use d2c::{d2c, d2c_near, d2c_with_aliases, BranchPick, ModeAliases};
 pub use error::{ModelError, Result};
 pub use frd::Frd;
 pub use freqresp::{grid, FreqRespEvaluator};

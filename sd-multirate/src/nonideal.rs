@@ -277,7 +277,12 @@ fn whole_samples(what: &'static str, frac: f64, factor: usize) -> Result<usize> 
 /// # Errors
 /// A continuous model, an invalid factor, fractions outside [0, 1] or not multiples of 1/F.
 pub fn downsample_nonideal(p_h: &StateSpace, factor: usize, ni: NonIdeal) -> Result<StateSpace> {
-    let h = require_discrete(p_h, "downsample with a delayed hold or averaging sampler")?;
+    let op = if ni.hold_delay == 0.0 && ni.averaging == 0.0 {
+        "downsample"
+    } else {
+        "downsample with a delayed hold or averaging sampler"
+    };
+    let h = require_discrete(p_h, op)?;
     check_factor(factor)?;
     ni.validate()?;
     if ni.hold_delay > 1.0 {

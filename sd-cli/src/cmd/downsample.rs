@@ -32,6 +32,17 @@ impl Args {
             output,
         } = self;
         let sys = read_model(&model)?;
+        if sys.ts().is_none() {
+            return Err(CliError {
+                code: 2,
+                message: format!(
+                    "{model}: downsample takes a discrete model at the fast rate (Lemma 6), and \
+                     this one is continuous-time (\"ts\": null); for the slow model use \
+                     `sdctl c2d {model} --ts <slow period>` directly (exact ZOH; --hold-delay and \
+                     --averaging are there too), or c2d to the fast rate first"
+                ),
+            });
+        }
         let f = factor_arg(factor)?;
         let ni = sd_multirate::NonIdeal {
             hold_delay: hold_delay.unwrap_or(0.0),
