@@ -164,3 +164,76 @@ pub fn emit(text: &str, out: Option<&str>) -> Result<(), CliError> {
             .map_err(|e| CliError::input(e.to_string())),
     }
 }
+
+/// Writes a folder of outputs so that nothing is half-written: `fill` writes every file into a
+/// staging folder; a new `out` is that folder renamed into place in one step, and into an
+/// existing `out` (whose other files are not touched) the finished files are renamed one by
+/// one, so an interrupted run leaves the previous file or the new one, never a partial one. On
+/// an error the staging folder is removed. The path is checked before `fill` runs: an `out`
+/// (or an ancestor) that is a file is refused at once, not after the work.
+pub fn write_folder<T>(
+    out: &str,
+    fill: impl FnOnce(&std::path::Path) -> Result<T, CliError>,
+) -> Result<T, CliError> {
+    check_out_dir(out)?;
+    let dir = std::path::Path::new(out);
+    let io = |what: &std::path::Path, e: std::io::Error| {
+        CliError::input(format!("cannot write {}: {e}", what.display()))
+    };
+    let exists = dir.is_dir();
+    let pid = std::process::id();
+    let staging = if exists {
+        dir.join(format!(".sdctl.partial{pid}"))
+    } else {
+        let name = dir
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "out".into());
+        let parent = dir.parent().unwrap_or_else(|| std::path::Path::new(""));
+        if !parent.as_os_str().is_empty() {
+            std::fs::create_dir_all(parent).map_err(|e| io(parent, e))?;
+        }
+        parent.join(format!(".{name}.partial{pid}"))
+    };
+    let _ = std::fs::remove_dir_all(&staging);
+    std::fs::create_dir_all(&staging).map_err(|e| io(&staging, e))?;
+    let done = fill(&staging).and_then(|v| {
+        if exists {
+            let entries = std::fs::read_dir(&staging).map_err(|e| io(&staging, e))?;
+            for entry in entries {
+                let from = entry.map_err(|e| io(&staging, e))?.path();
+                let to = dir.join(from.file_name().unwrap_or_default());
+                std::fs::rename(&from, &to).map_err(|e| io(&to, e))?;
+            }
+            std::fs::remove_dir(&staging).map_err(|e| io(&staging, e))?;
+        } else {
+            std::fs::rename(&staging, dir).map_err(|e| io(dir, e))?;
+        }
+        Ok(v)
+    });
+    if done.is_err() {
+        let _ = std::fs::remove_dir_all(&staging);
+    }
+    done
+}
+
+/// Refuses an output folder that cannot be created before any work is done: the path or its
+/// nearest existing ancestor is a file.
+pub fn check_out_dir(out: &str) -> Result<(), CliError> {
+    let mut p = std::path::Path::new(out);
+    loop {
+        if p.exists() {
+            if p.is_dir() {
+                return Ok(());
+            }
+            return Err(CliError::input(format!(
+                "cannot write {out}: {} is a file, not a folder; choose another --out",
+                p.display()
+            )));
+        }
+        match p.parent() {
+            Some(q) if !q.as_os_str().is_empty() => p = q,
+            _ => return Ok(()),
+        }
+    }
+}

@@ -213,13 +213,19 @@ fn transforms_say_what_to_do_instead() {
     .0;
     assert!((f - 653.0).abs() < 0.01, "{f} Hz");
     assert!(String::from_utf8_lossy(&o.stderr).contains("branch k = "));
-    assert_input_error(&sdctl(&["d2c", &slow, "--near-hz", "nan"]), "finite and positive");
+    assert_input_error(
+        &sdctl(&["d2c", &slow, "--near-hz", "nan"]),
+        "finite and positive",
+    );
     assert_input_error(
         &sdctl(&["d2c", &slow, "--near-hz", "653", "--near-hz", "347"]),
         "a mode has one branch",
     );
     let dt = write(&d, "dt.json", DT);
-    assert_input_error(&sdctl(&["d2c", &dt, "--near-hz", "600"]), "no oscillatory mode");
+    assert_input_error(
+        &sdctl(&["d2c", &dt, "--near-hz", "600"]),
+        "no oscillatory mode",
+    );
 }
 
 /// A typo, a missing `ts` or a non-finite number is never read silently: exit 2 with one line
@@ -778,6 +784,11 @@ fn testbed() {
         &sdctl(&["testbed", "--config", &bad, "--out", &out]),
         "configuration",
     );
+    // an output folder that is a file is refused before the simulation runs
+    assert_input_error(
+        &sdctl(&["testbed", "--out", &bad]),
+        "is a file, not a folder",
+    );
 }
 
 #[test]
@@ -871,9 +882,42 @@ fn testbed_then_diagnose() {
         .join("truth.json")
         .to_string_lossy()
         .into_owned();
+    // into an existing folder holding a file of the user's: the file stays, nothing staged
+    // is left behind
     let out2 = dir.join("diag_given").to_string_lossy().into_owned();
+    std::fs::create_dir_all(&out2).unwrap();
+    write(std::path::Path::new(&out2), "keep.txt", "mine");
     let o = sdctl(&["diagnose", &manifest, "--model", &truth, "--out", &out2]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let staged = |d: &std::path::Path| {
+        std::fs::read_dir(d)
+            .unwrap()
+            .filter(|e| {
+                let n = e.as_ref().unwrap().file_name();
+                let n = n.to_string_lossy();
+                n.contains(".partial") || n.contains(".tmp")
+            })
+            .count()
+    };
+    assert_eq!(
+        std::fs::read_to_string(dir.join("diag_given").join("keep.txt")).unwrap(),
+        "mine"
+    );
+    assert_eq!(
+        staged(&dir) + staged(&dir.join("diag_given")) + staged(&diag),
+        0
+    );
+    // a folder that cannot be made (its parent is a file): exit 2 naming it, nothing left
+    let under_file = dir
+        .join("stage.toml")
+        .join("diag")
+        .to_string_lossy()
+        .into_owned();
+    assert_input_error(
+        &sdctl(&["diagnose", &manifest, "--out", &under_file]),
+        "cannot write",
+    );
+    assert_eq!(staged(&dir), 0);
     let g: serde_json::Value = serde_json::from_str(
         &std::fs::read_to_string(dir.join("diag_given").join("diagnosis.json")).unwrap(),
     )

@@ -135,7 +135,10 @@ pub fn d2c_near(sys: &StateSpace, near_hz: &[f64]) -> Result<(StateSpace, Vec<Br
     let mut picks: Vec<BranchPick> = Vec::new();
     for &f in near_hz {
         let pick = nearest_branch(&poles, h, f)?;
-        if let Some(prev) = picks.iter().find(|p| (p.z - pick.z).norm() <= 1e-12 * pick.z.norm()) {
+        if let Some(prev) = picks
+            .iter()
+            .find(|p| (p.z - pick.z).norm() <= 1e-12 * pick.z.norm())
+        {
             if prev.branch != pick.branch {
                 return Err(ModelError::InvalidArgument(format!(
                     "{} Hz and {} Hz both pick the mode z = {:.6}{:+.6}i; a mode has one branch, \
@@ -183,7 +186,9 @@ fn nearest_branch(poles: &[C], h: f64, f: f64) -> Result<BranchPick> {
             let d = (fk - f).abs();
             let better = match &best {
                 None => true,
-                Some((bd, bp)) => d < bd - 1e-12 * f || (d <= bd + 1e-12 * f && k.abs() < bp.branch.abs()),
+                Some((bd, bp)) => {
+                    d < bd - 1e-12 * f || (d <= bd + 1e-12 * f && k.abs() < bp.branch.abs())
+                }
             };
             if better {
                 let principal_hz = crate::poles::natural_frequency(s, None).0;
@@ -212,7 +217,10 @@ fn nearest_branch(poles: &[C], h: f64, f: f64) -> Result<BranchPick> {
 fn spectral_projector(m: &DMatrix<f64>, z: C, poles: &[C]) -> Result<DMatrix<C>> {
     let n = m.nrows();
     let scale = norm1(m).max(1.0);
-    let close = poles.iter().filter(|p| (*p - z).norm() <= 1e-6 * scale).count();
+    let close = poles
+        .iter()
+        .filter(|p| (*p - z).norm() <= 1e-6 * scale)
+        .count();
     if close > 1 {
         return Err(ModelError::InvalidArgument(format!(
             "the pole z = {:.6}{:+.6}i is repeated; its alias branch cannot be chosen alone",

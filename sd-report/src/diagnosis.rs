@@ -408,9 +408,10 @@ pub fn write(dir: &Path, d: &Diagnosis, title: &str) -> Result<Vec<String>> {
 }
 
 /// Everything a diagnosis writes, for `sdctl diagnose` and `cargo xtask paper` alike:
-/// `diagnosis.json` (its fields in docs/diagnosis.md), `report.md` and the figures, into `dir`
-/// (created when missing); returns the figure file names. The two texts are written
-/// atomically (a temporary file in `dir`, then a rename).
+/// `diagnosis.json` (its fields in docs/diagnosis.md), the model files, `report.md` and the
+/// figures, into `dir` (created when missing); returns the figure file names. Each file is
+/// written atomically; `sdctl diagnose` stages the whole folder so that a run is published as
+/// a whole.
 ///
 /// # Errors
 /// The folder, a figure or a file cannot be written.

@@ -34,6 +34,7 @@ impl Args {
             alpha,
             max_order,
         } = self;
+        crate::io::check_out_dir(&out)?;
         let exps = crate::io::load_experiments(&manifest, |_| true)?;
         let opt = sd_diagnose::DiagnoseOptions {
             model: model.as_deref().map(read_model).transpose()?,
@@ -54,11 +55,12 @@ impl Args {
             }
             _ => CliError::input(format!("{manifest}: {e}")),
         })?;
-        let figs = sd_report::diagnosis::write_all(std::path::Path::new(&out), &d, &manifest)
-            .map_err(|e| match e {
+        let figs = crate::io::write_folder(&out, |dir| {
+            sd_report::diagnosis::write_all(dir, &d, &manifest).map_err(|e| match e {
                 sd_report::ReportError::Json(_) => CliError::numerical(e.to_string()),
                 _ => CliError::input(e.to_string()),
-            })?;
+            })
+        })?;
         let gain = match d.gain_ratio() {
             Some(r) => format!("held-out gain ×{r:.1}"),
             None => "no held-out gain".into(),

@@ -48,6 +48,7 @@ impl Args {
     /// Runs the command.
     pub(crate) fn run(self) -> Result<(), CliError> {
         let Args { config, out } = self;
+        crate::io::check_out_dir(&out)?;
         let text = match &config {
             Some(path) => crate::io::read_text(path)?,
             None => DEFAULT_TESTBED.to_string(),
@@ -55,22 +56,21 @@ impl Args {
         let label = config.as_deref().unwrap_or("default configuration");
         let cfg = sd_testbed::parse_config(&text).map_err(|e| from_testbed(label, e))?;
         let data = sd_testbed::run_config(&cfg).map_err(|e| from_testbed(label, e))?;
-        std::fs::create_dir_all(&out)
-            .map_err(|e| CliError::input(format!("cannot create {out}: {e}")))?;
-        let dir = std::path::Path::new(&out);
-        for d in &data {
-            let p = dir.join(format!("{}.csv", d.name));
-            emit(&d.csv(), Some(&p.to_string_lossy()))?;
-        }
-        emit(
-            &sd_testbed::manifest(&data),
-            Some(&dir.join("experiments.toml").to_string_lossy()),
-        )?;
         let truth = sd_testbed::truth_model(&cfg.truth).map_err(|e| from_testbed(label, e))?;
-        emit(
-            &model_json(&truth)?,
-            Some(&dir.join("truth.json").to_string_lossy()),
-        )?;
+        crate::io::write_folder(&out, |dir| {
+            for d in &data {
+                let p = dir.join(format!("{}.csv", d.name));
+                emit(&d.csv(), Some(&p.to_string_lossy()))?;
+            }
+            emit(
+                &sd_testbed::manifest(&data),
+                Some(&dir.join("experiments.toml").to_string_lossy()),
+            )?;
+            emit(
+                &model_json(&truth)?,
+                Some(&dir.join("truth.json").to_string_lossy()),
+            )
+        })?;
         eprintln!(
             "[testbed] {} experiments written to {out} (experiments.toml, truth.json)",
             data.len()
