@@ -12,8 +12,9 @@ use crate::modal::{ModalBasis, Residues};
 use crate::stats::{normal_quantile, statistic, Line, Statistic};
 use crate::{
     joined, merged_parameters, Cause, CornerTrend, Curves, DampingTrend, DiagnoseError,
-    DiagnoseOptions, Diagnosis, DriftCheck, DriftSign, Evidence, ExperimentReport, ExtendedModel,
-    Extension, FreqTrend, Gain, HeldOut, ModelInfo, OwnFit, Ranked, RateTied, Result, Verdict,
+    DiagnoseOptions, Diagnosis, DriftCheck, DriftSign, Evidence, EvidenceKind, ExperimentReport,
+    ExtendedModel, Extension, FreqTrend, Gain, HeldOut, ModelInfo, OwnFit, Ranked, RateTied,
+    Result, Verdict,
 };
 use num_complex::Complex64 as C;
 use sd_ident::{DistortionReport, Experiment, Role};
@@ -254,6 +255,7 @@ fn checks(data: &Data<'_>, j: &Judged<'_>, alpha: f64) -> Result<Checks> {
     let alpha_test = alpha / (2 + level_tests) as f64;
     let fast_model = j.lines(&j.model, 1, &data.fast)?;
     let mut evidence = vec![Evidence::of(
+        EvidenceKind::OwnData,
         format!(
             "model ({}) against its own data `{}`",
             j.info.source, data.model_exp.spec.name
@@ -270,6 +272,7 @@ fn checks(data: &Data<'_>, j: &Judged<'_>, alpha: f64) -> Result<Checks> {
     for (i, v) in data.vals.iter().enumerate() {
         let c = v.whole.inflation.max(data.fast.inflation);
         evidence.push(Evidence::of(
+            EvidenceKind::ModelFree,
             format!(
                 "Lemma 6 prediction of `{}` from `{}` (model-free)",
                 v.exp.spec.name, data.model_exp.spec.name
@@ -277,6 +280,7 @@ fn checks(data: &Data<'_>, j: &Judged<'_>, alpha: f64) -> Result<Checks> {
             &statistic([(free[i].as_slice(), c)], alpha_test),
         ));
         evidence.push(Evidence::of(
+            EvidenceKind::ModelSimulation,
             format!("the model's simulation of `{}`", v.exp.spec.name),
             &statistic([(model[i].as_slice(), c)], alpha_test),
         ));
@@ -285,6 +289,7 @@ fn checks(data: &Data<'_>, j: &Judged<'_>, alpha: f64) -> Result<Checks> {
         }
         if v.factor == 1 {
             evidence.push(Evidence::check(
+                EvidenceKind::SameLevel,
                 format!(
                     "`{}` at {:.3}× the model experiment's excitation level (|ratio − 1| within \
                      20 %: the same level)",
@@ -317,6 +322,7 @@ fn distortion_evidence(name: &str, d: &DistortionReport, alpha: f64) -> Vec<Evid
     .filter(|x| x.2 > 0)
     .map(|(kind, score, lines)| {
         Evidence::check(
+            EvidenceKind::Distortion,
             format!(
                 "power at the {lines} non-excited {kind} lines of `{name}` over each line's \
                  noise (nonlinear distortion; Fisher's score, 1 without)"
@@ -378,6 +384,7 @@ fn decide(
     let s_free = pooled(&ch.free, &|v| v.comparable());
     let s_model = pooled(&ch.model, &|_| true);
     ch.evidence.push(Evidence::of(
+        EvidenceKind::AllValidation,
         "the model's simulation of every validation experiment",
         &s_model,
     ));
@@ -416,6 +423,7 @@ fn decide(
         return Ok(Outcome::plain(v.0, v.1, Gain::none("nothing to extend")));
     }
     ch.evidence.push(Evidence::of(
+        EvidenceKind::ModelFree,
         "Lemma 6 prediction of the same-level experiments (model-free, pooled)",
         &s_free,
     ));
@@ -440,6 +448,7 @@ fn decide(
     }
     if !data.vals.iter().any(Val::rate_tied) {
         ch.evidence.push(Evidence::of(
+            EvidenceKind::NotRepeatable,
             "same rate and excitation level, yet different FRFs: not repeatable",
             &s_free,
         ));
@@ -635,6 +644,7 @@ fn repeat_drifts(data: &Data<'_>, ch: &mut Checks) -> Option<Outcome> {
             !s.passes() && !pair.iter().any(|e| distorted(e, alpha) == Some(true))
         })?;
     ch.evidence.push(Evidence::of(
+        EvidenceKind::Drift,
         format!(
             "`{}` repeats the model experiment's level and rate yet disagrees: the plant \
              changed with time, not with amplitude",

@@ -77,6 +77,7 @@ pub use diagnose::{diagnose, diagnose_with_progress};
 pub use hypotheses::RateTied;
 pub use lemma6::predict;
 pub use pieces::Piece;
+pub use sd_ident::Role;
 pub use stats::Statistic;
 pub use timedomain::AveragedPeriod;
 
@@ -241,9 +242,34 @@ impl Cause {
     }
 }
 
+/// What an evidence row tests; the report explains a failed row from its kind.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EvidenceKind {
+    /// The model against the experiment it was fitted on (or judged at).
+    OwnData,
+    /// Exact downsampling (Lemma 6) of the measured fast FRF against a slower experiment: no
+    /// model involved.
+    ModelFree,
+    /// The model's simulation of one validation experiment.
+    ModelSimulation,
+    /// The model's simulation of all validation experiments, pooled.
+    AllValidation,
+    /// Nonlinear distortion at the non-excited lines of one experiment.
+    Distortion,
+    /// Whether an experiment at the model's rate ran at the model experiment's level.
+    SameLevel,
+    /// Two experiments at one rate and level that disagree.
+    NotRepeatable,
+    /// A repeat of the model experiment that disagrees without distortion (a change in time).
+    Drift,
+}
+
 /// One test of the evidence list.
 #[derive(Debug, Clone, Serialize)]
 pub struct Evidence {
+    /// What the test is, for the report's explanation of a failed row.
+    pub kind: EvidenceKind,
     /// What was tested.
     pub test: String,
     /// Its statistic.
@@ -256,8 +282,14 @@ pub struct Evidence {
 
 impl Evidence {
     /// A test that passes when `statistic ≤ threshold`.
-    pub(crate) fn check(test: impl Into<String>, statistic: f64, threshold: f64) -> Self {
+    pub(crate) fn check(
+        kind: EvidenceKind,
+        test: impl Into<String>,
+        statistic: f64,
+        threshold: f64,
+    ) -> Self {
         Evidence {
+            kind,
             test: test.into(),
             statistic,
             threshold,
@@ -266,8 +298,8 @@ impl Evidence {
     }
 
     /// A calibrated statistic as evidence.
-    pub(crate) fn of(test: impl Into<String>, s: &Statistic) -> Self {
-        Self::check(test, s.value, s.threshold)
+    pub(crate) fn of(kind: EvidenceKind, test: impl Into<String>, s: &Statistic) -> Self {
+        Self::check(kind, test, s.value, s.threshold)
     }
 }
 

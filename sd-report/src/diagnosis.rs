@@ -6,7 +6,7 @@
 //! `time_<name>.svg` (one averaged steady period: the measured output and the errors of both
 //! simulations).
 
-use crate::plot::{line_plot, magnitude_plot, Curve, Line};
+use crate::plot::{bode_plot, line_plot, magnitude_plot, Curve, Line};
 use crate::{ReportError, Result};
 use num_complex::Complex64 as C;
 use plotters::style::RGBColor;
@@ -111,6 +111,7 @@ fn magnitude_figure<'a>(
     noise: (&'a [f64], &'a [f64]),
     (fmin, fmax): (f64, f64),
     marks: &[(f64, &str)],
+    mut phases: Vec<Option<&'a [f64]>>,
 ) -> Result<String> {
     if let Some((label, db)) = ext {
         curves.push(Curve {
@@ -126,15 +127,27 @@ fn magnitude_figure<'a>(
         db: noise.1,
         color: NOISE,
     });
-    magnitude_plot(
-        &dir.join(&name).to_string_lossy(),
-        title,
-        &curves,
-        fmin,
-        fmax,
-        marks,
-    )?;
+    let path = dir.join(&name).to_string_lossy().into_owned();
+    if phases.iter().any(Option::is_some) {
+        phases.resize(curves.len(), None);
+        bode_plot(&path, title, &curves, &phases, fmin, fmax, marks)?;
+    } else {
+        magnitude_plot(&path, title, &curves, fmin, fmax, marks)?;
+    }
     Ok(name)
+}
+
+/// Phase in degrees of each value.
+fn deg(x: &[C]) -> Vec<f64> {
+    x.iter().map(|v| v.arg().to_degrees()).collect()
+}
+
+/// Phase in degrees of `a/b`, line by line.
+fn deg_ratio(a: &[C], b: &[C]) -> Vec<f64> {
+    a.iter()
+        .zip(b)
+        .map(|(a, b)| (a / b).arg().to_degrees())
+        .collect()
 }
 
 /// Writes the figures of one experiment into `dir`; returns their file names.
@@ -166,14 +179,19 @@ fn figures(dir: &Path, x: &ExperimentReport, ext_label: &str) -> Result<Vec<Stri
     let mut figure = |name: String,
                       title: String,
                       curves: Vec<Curve<'_>>,
-                      ext: Option<(&str, &[f64])>|
+                      ext: Option<(&str, &[f64])>,
+                      phases: Vec<Option<&[f64]>>|
      -> Result<()> {
         let noise = (c.freq_hz.as_slice(), sigma.as_slice());
         out.push(magnitude_figure(
-            dir, name, &title, curves, ext, noise, range, &marks_ref,
+            dir, name, &title, curves, ext, noise, range, &marks_ref, phases,
         )?);
         Ok(())
     };
+    let (ph_meas, ph_model) = (deg(&c.measured), deg(&c.model));
+    let ph_ext = c.extended.as_deref().map(deg);
+    let err_model = deg_ratio(&c.measured, &c.model);
+    let err_ext = c.extended.as_deref().map(|e| deg_ratio(&c.measured, e));
     figure(
         format!("frf_{s}.svg"),
         format!("{} ({} Hz): measured and simulated FRF", x.name, x.rate_hz),
@@ -192,8 +210,13 @@ fn figures(dir: &Path, x: &ExperimentReport, ext_label: &str) -> Result<Vec<Stri
             },
         ],
         ext.as_deref().map(|e| (ext_label, e)),
+        vec![
+            Some(ph_meas.as_slice()),
+            Some(ph_model.as_slice()),
+            ph_ext.as_deref(),
+        ],
     )?;
-    // residuals against the noise level
+    // residuals against the noise level, and the phase error ∠(measured/simulated)
     let res = |p: &[C]| -> Vec<f64> {
         c.measured
             .iter()
@@ -206,7 +229,10 @@ fn figures(dir: &Path, x: &ExperimentReport, ext_label: &str) -> Result<Vec<Stri
     let ext_res_label = format!("|measured − {ext_label}|");
     figure(
         format!("residual_{s}.svg"),
-        format!("{}: residual against the noise level", x.name),
+        format!(
+            "{}: residual against the noise level; phase of measured/simulated",
+            x.name
+        ),
         vec![Curve {
             label: "|measured − model|",
             freq_hz: &c.freq_hz,
@@ -214,6 +240,7 @@ fn figures(dir: &Path, x: &ExperimentReport, ext_label: &str) -> Result<Vec<Stri
             color: MODEL,
         }],
         re.as_deref().map(|r| (ext_res_label.as_str(), r)),
+        vec![Some(err_model.as_slice()), err_ext.as_deref()],
     )?;
     if let Some(td) = &x.time_domain {
         out.push(time_figure(dir, x, td, ext_label)?);
@@ -594,6 +621,17 @@ fn hypotheses_section(md: &mut String, d: &Diagnosis) {
             if e.passed { "yes" } else { "**no**" }
         );
     }
+    let failed: Vec<&sd_diagnose::Evidence> = d.evidence.iter().filter(|e| !e.passed).collect();
+    if !failed.is_empty() {
+        let _ = writeln!(
+            md,
+            "\nWhy the failed rows failed, beside the verdict `{}`:\n",
+            d.verdict
+        );
+        for e in failed {
+            let _ = writeln!(md, "- *{}*: {}.", e.test, explain_failed(d, e));
+        }
+    }
     let g = &d.gain;
     let _ = match (g.before, g.after, g.ratio) {
         (Some(b), Some(a), Some(r)) => writeln!(
@@ -613,14 +651,35 @@ fn hypotheses_section(md: &mut String, d: &Diagnosis) {
 /// `x ± s` with the standard error when there is one.
 fn pm(x: f64, s: Option<f64>, scale: f64, digits: usize) -> String {
     match s {
-        Some(s) => format!("{:.digits$} ± {:.digits$}", x * scale, s * scale),
-        None => format!("{:.digits$}", x * scale),
+        Some(s) if s.is_finite() && s > 0.0 => {
+            // the standard error to two significant digits, the value to the same place
+            let s = s * scale;
+            let d = (1 - s.log10().floor() as i64).clamp(0, 12) as usize;
+            format!("{} ± {}", fixed(x * scale, d), fixed(s, d))
+        }
+        Some(s) => format!(
+            "{} ± {}",
+            fixed(x * scale, digits),
+            fixed(s * scale, digits)
+        ),
+        None => fixed(x * scale, digits),
+    }
+}
+
+/// `v` with `d` decimals, without the sign of a value that rounds to zero ("0.000", not
+/// "-0.000").
+fn fixed(v: f64, d: usize) -> String {
+    let t = format!("{v:.d$}");
+    if t.starts_with('-') && t[1..].chars().all(|c| c == '0' || c == '.') {
+        t[1..].to_string()
+    } else {
+        t
     }
 }
 
 /// A named cause's parameters in words, with their standard errors (`None` for causes
-/// without parameters).
-fn cause_text(c: &Cause) -> Option<String> {
+/// without parameters): the report's sentence, and `sdctl diagnose`'s summary line.
+pub fn cause_text(c: &Cause) -> Option<String> {
     Some(match c {
         Cause::HoldDelay {
             delay_frac,
@@ -898,25 +957,103 @@ A non-periodic record whose \
 
 /// How far the model is from its own experiment, and what the excess is.
 fn own_fit_sentence(md: &mut String, d: &Diagnosis) {
-    if let (Some(s), Some(f)) = (&d.model_info.own_data, d.model_info.own_fit) {
-        let what = match f {
-            sd_diagnose::OwnFit::Noise => "at the noise level".to_string(),
-            sd_diagnose::OwnFit::Distortion => {
-                "above the noise, and the non-excited lines show nonlinear distortion: the \
-                 excess is the system's, not the fit's"
-                    .to_string()
-            }
-            sd_diagnose::OwnFit::FitError => format!(
+    if let (Some(s), Some(_)) = (&d.model_info.own_data, d.model_info.own_fit) {
+        let _ = writeln!(
+            md,
+            "On its own experiment the model's statistic is {:.3} (threshold {:.3}): {}.\n",
+            s.value,
+            s.threshold,
+            own_excess(d)
+        );
+    }
+}
+
+/// What the model's excess on its own experiment is: noise, distortion, the named cause acting
+/// at that rate too, a given model that does not describe its data, or a fit too coarse.
+fn own_excess(d: &Diagnosis) -> String {
+    let extended_own = d
+        .experiments
+        .iter()
+        .find(|x| x.role == sd_diagnose::Role::Model)
+        .and_then(|x| x.extended_stat);
+    match d.model_info.own_fit {
+        None | Some(sd_diagnose::OwnFit::Noise) => "at the noise level".into(),
+        Some(sd_diagnose::OwnFit::Distortion) => "above the noise, and the non-excited lines \
+             show nonlinear distortion: the excess is the system's, not the fit's"
+            .into(),
+        Some(sd_diagnose::OwnFit::FitError) => match extended_own {
+            Some(x) if x.passes() && d.verdict == sd_diagnose::Verdict::Discrepancy => format!(
+                "above the noise, but the named cause ({}) acts at this rate too: with it the \
+                 statistic is {:.3}, within its threshold {:.3}; the model is right apart from \
+                 that effect",
+                d.cause, x.value, x.threshold
+            ),
+            _ if d.model_info.source == "given" => "above the noise without distortion: the \
+                 given model does not describe the data it is judged at (leave out `--model` \
+                 to fit one, or correct the model)"
+                .into(),
+            _ => format!(
                 "above the noise without distortion: a fit error (raise `--max-order`, now \
                  order {}, or give a model)",
                 d.model.n()
             ),
-        };
-        let _ = writeln!(
-            md,
-            "On its own experiment the model's statistic is {:.3} (threshold {:.3}): {what}.\n",
-            s.value, s.threshold
-        );
+        },
+    }
+}
+
+/// Why an evidence row failed, and what the failure means beside the verdict.
+fn explain_failed(d: &Diagnosis, e: &sd_diagnose::Evidence) -> String {
+    use sd_diagnose::EvidenceKind as K;
+    let consistent = d.verdict == sd_diagnose::Verdict::Consistent;
+    let chance = "a single test fails by chance with its false-alarm probability (the verdict's α \
+                  shared among its tests), and the pooled test the verdict rests on passes";
+    let named = !matches!(
+        d.causes.first(),
+        None | Some(sd_diagnose::Cause::None) | Some(sd_diagnose::Cause::Unexplained)
+    );
+    match e.kind {
+        K::OwnData => format!("the model against its own experiment: {}", own_excess(d)),
+        K::ModelFree if consistent => format!(
+            "the exact downsampling of the measured fast FRF \
+             misses this slower experiment, yet the verdict is consistent: {chance}"
+        ),
+        K::ModelFree if named => format!(
+            "the measured slower FRF is not what exact downsampling (Lemma 6) of the measured \
+             fast FRF predicts, whatever the model: something acts between the rates, named \
+             here as `{}`",
+            d.cause
+        ),
+        K::ModelFree => "the measured slower FRF is not what exact downsampling (Lemma 6) of \
+             the measured fast FRF predicts, and no cataloged cause (hold delay, averaging \
+             sampler, clock error, level) explains it: check the hold and sensor timing and the \
+             clocks of the two experiments"
+            .into(),
+        K::ModelSimulation | K::AllValidation if consistent => {
+            format!("the model's simulation misses here, yet the verdict is consistent: {chance}")
+        }
+        K::ModelSimulation | K::AllValidation if named => format!(
+            "the plain model's simulation misses; the extension `{}` is what brings it to the \
+             noise level (column \"extended\" above)",
+            d.cause
+        ),
+        K::ModelSimulation | K::AllValidation => {
+            "the model's simulation misses and no cataloged cause explains it: see the bands \
+             above for where, and the next steps below"
+                .into()
+        }
+        K::Distortion if consistent => "power at lines that were not excited: the system is \
+             nonlinear at this level (or the excitation leaks); the FRF at the excited lines is \
+             its best linear approximation, which the model predicts within the noise, so the \
+             verdict stays consistent"
+            .into(),
+        K::Distortion => "power at lines that were not excited: the system is nonlinear at this \
+             level (or the excitation leaks); the FRFs are best linear approximations at their \
+             levels"
+            .into(),
+        K::SameLevel => "this experiment ran at another excitation level than the model \
+             experiment: it is compared as a level (a test for nonlinearity), not as a repeat"
+            .into(),
+        K::NotRepeatable | K::Drift => "this is the verdict's reason (the test says it)".into(),
     }
 }
 
@@ -1035,4 +1172,21 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> String {
         }
     }
     md
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parameters_read_with_their_uncertainty() {
+        // the standard error sets the digits: two significant ones
+        assert_eq!(pm(0.80071, Some(1.2e-4), 1.0, 3), "0.80071 ± 0.00012");
+        assert_eq!(pm(0.3, Some(0.04), 1.0, 3), "0.300 ± 0.040");
+        assert_eq!(pm(-0.002, Some(0.0005), 100.0, 3), "-0.200 ± 0.050");
+        // no sign on a value that rounds to zero
+        assert_eq!(pm(-1e-9, None, 1.0, 3), "0.000");
+        assert_eq!(fixed(-0.0, 2), "0.00");
+        assert_eq!(fixed(-0.5, 1), "-0.5");
+    }
 }

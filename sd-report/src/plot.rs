@@ -1,4 +1,5 @@
-//! SVG figures with plotters: magnitude plots in dB against frequency in Hz.
+//! SVG figures with plotters: magnitude and Bode plots (dB and degrees against frequency in
+//! Hz), line plots and error-bar panels.
 
 use plotters::prelude::*;
 /// The colour of a curve (plotters' RGB colour, re-exported so a user needs no plotters dependency).
@@ -73,6 +74,85 @@ pub fn magnitude_plot(
     }
     let root = SVGBackend::new(path, (900, 560)).into_drawing_area();
     root.fill(&WHITE).map_err(crate::plot_err)?;
+    draw_magnitude(&root, title, curves, fmin, fmax, marks)?;
+    root.present().map_err(crate::plot_err)?;
+    Ok(())
+}
+
+/// Bode plot: magnitude (dB) above, phase (degrees, wrapped to ±180°) below, on one logarithmic
+/// frequency axis; `phase_deg[i]` is curve `i`'s phase (`None` for curves without one, such as
+/// a noise level). A band narrower than a factor 3 falls back to [`magnitude_plot`] (a log axis
+/// has no ticks there).
+///
+/// # Errors
+/// Nothing finite to plot; the file cannot be written.
+pub fn bode_plot(
+    path: &str,
+    title: &str,
+    curves: &[Curve<'_>],
+    phase_deg: &[Option<&[f64]>],
+    fmin: f64,
+    fmax: f64,
+    marks: &[(f64, &str)],
+) -> crate::Result<()> {
+    if fmax / fmin < 3.0 {
+        return magnitude_plot(path, title, curves, fmin, fmax, marks);
+    }
+    let root = SVGBackend::new(path, (900, 780)).into_drawing_area();
+    root.fill(&WHITE).map_err(crate::plot_err)?;
+    let (top, bottom) = root.split_vertically(520);
+    draw_magnitude(&top, title, curves, fmin, fmax, marks)?;
+    let mut chart = ChartBuilder::on(&bottom)
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(60)
+        .build_cartesian_2d((fmin..fmax).log_scale(), -180.0..180.0)
+        .map_err(crate::plot_err)?;
+    chart
+        .configure_mesh()
+        .x_desc("frequency [Hz]")
+        .y_desc("phase [°]")
+        .y_labels(9)
+        .x_label_formatter(&|v| format!("{v:.0}"))
+        .draw()
+        .map_err(crate::plot_err)?;
+    for (c, ph) in curves.iter().zip(phase_deg) {
+        let Some(ph) = ph else { continue };
+        // a wrap from +180° to −180° starts a new segment instead of a vertical stroke
+        let mut segments: Vec<Vec<(f64, f64)>> = vec![Vec::new()];
+        let mut last: Option<f64> = None;
+        for (f, p) in c.freq_hz.iter().zip(ph.iter()) {
+            if !(*f >= fmin && *f <= fmax && p.is_finite()) {
+                continue;
+            }
+            let p = (p + 180.0).rem_euclid(360.0) - 180.0;
+            if last.is_some_and(|q| (p - q).abs() > 180.0) {
+                segments.push(Vec::new());
+            }
+            if let Some(seg) = segments.last_mut() {
+                seg.push((*f, p));
+            }
+            last = Some(p);
+        }
+        for seg in segments.into_iter().filter(|s| s.len() > 1) {
+            chart
+                .draw_series(LineSeries::new(seg, c.color.stroke_width(2)))
+                .map_err(crate::plot_err)?;
+        }
+    }
+    root.present().map_err(crate::plot_err)?;
+    Ok(())
+}
+
+/// The magnitude panel of [`magnitude_plot`] and [`bode_plot`].
+fn draw_magnitude<DB: DrawingBackend>(
+    root: &DrawingArea<DB, plotters::coord::Shift>,
+    title: &str,
+    curves: &[Curve<'_>],
+    fmin: f64,
+    fmax: f64,
+    marks: &[(f64, &str)],
+) -> crate::Result<()> {
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     for c in curves {
         for (f, d) in c.freq_hz.iter().zip(c.db) {
@@ -91,7 +171,7 @@ pub fn magnitude_plot(
         (lo / 10.0).floor() * 10.0 - 5.0,
         (hi / 10.0).ceil() * 10.0 + 5.0,
     );
-    let mut chart = ChartBuilder::on(&root)
+    let mut chart = ChartBuilder::on(root)
         .caption(title, ("sans-serif", 22))
         .margin(12)
         .x_label_area_size(45)
@@ -134,9 +214,7 @@ pub fn magnitude_plot(
             )))
             .map_err(crate::plot_err)?;
     }
-    legend(&mut chart, SeriesLabelPosition::LowerLeft)?;
-    root.present().map_err(crate::plot_err)?;
-    Ok(())
+    legend(&mut chart, SeriesLabelPosition::LowerLeft)
 }
 
 /// One curve of a generic line plot.

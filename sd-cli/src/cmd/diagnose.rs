@@ -65,11 +65,20 @@ impl Args {
             Some(r) => format!("held-out gain ×{r:.1}"),
             None => "no held-out gain".into(),
         };
+        let said: Vec<String> = d
+            .causes
+            .iter()
+            .filter_map(sd_report::diagnosis::cause_text)
+            .collect();
+        let said = if said.is_empty() {
+            String::new()
+        } else {
+            format!(": {}", said.join("; "))
+        };
         eprintln!(
-            "[diagnose] {} / {} {} ({gain}); report.md and {} figures in {out}",
+            "[diagnose] {} / {}{said} ({gain}); report.md and {} figures in {out}",
             d.verdict,
             d.cause,
-            d.parameters,
             figs.len()
         );
         Ok(())
