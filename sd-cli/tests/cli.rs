@@ -184,6 +184,69 @@ fn bad_inputs_exit_2_with_one_line() {
     );
 }
 
+/// `frf` says when the data cannot be trusted: a record without excitation is refused by
+/// default (kept with a warning when asked), and low-SNR lines are left out with a warning
+/// that also travels in the FRD JSON.
+#[test]
+fn frf_warns_about_data_it_cannot_trust() {
+    let d = tmpdir("frfwarn");
+    let cfg = write(
+        &d,
+        "c.toml",
+        "[[experiment]]\nkind = \"standstill\"\nname = \"s\"\nrate_hz = 1000.0\nsamples = 40000\n\
+         [[experiment]]\nname = \"a\"\nrate_hz = 1000.0\nperiod = 1000\nperiods = 4\n",
+    );
+    let data = d.join("data");
+    assert!(sdctl(&[
+        "testbed",
+        "--config",
+        &cfg,
+        "--out",
+        &data.to_string_lossy()
+    ])
+    .status
+    .success());
+    // the standstill record read as periodic (a user's wrong period): no excitation
+    let still = write(
+        &data,
+        "still.toml",
+        "[[experiment]]\nname = \"still\"\nfile = \"s_slow.csv\"\nsample_rate_hz = 1000.0\n\
+         period_samples = 1000\ninput = \"u\"\noutput = \"y\"\n",
+    );
+    assert_input_error(
+        &sdctl(&["frf", &still, "--experiment", "still"]),
+        "not excited",
+    );
+    let o = sdctl(&["frf", &still, "--experiment", "still", "--keep-low-snr"]);
+    assert!(o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("warning: still: no excitation"), "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["warnings"][0]["kind"], "no_excitation");
+    assert!(v["warnings"][0]["median_input_snr"].as_f64().unwrap() < 10.0);
+    // the closed-loop experiment: its lowest lines are left out, and the JSON reads back
+    let manifest = data.join("experiments.toml").to_string_lossy().into_owned();
+    let out = d.join("a.json").to_string_lossy().into_owned();
+    let o = sdctl(&["frf", &manifest, "--experiment", "a", "-o", &out]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    let n_default = v["freq_hz"].as_array().unwrap().len();
+    let o = sdctl(&["frf", &manifest, "--experiment", "a", "--keep-low-snr"]);
+    let all: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let n_all = all["freq_hz"].as_array().unwrap().len();
+    match v.get("warnings") {
+        Some(w) => {
+            assert_eq!(w[0]["kind"], "low_input_snr");
+            assert_eq!(w[0]["excluded"], true);
+            assert_eq!(n_all - n_default, w[0]["lines"].as_u64().unwrap() as usize);
+        }
+        None => assert_eq!(n_all, n_default),
+    }
+    let o = sdctl(&["fit", &out, "--order", "2"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
 /// Transforms asked for what they cannot do say what to run instead.
 #[test]
 fn transforms_say_what_to_do_instead() {

@@ -7,9 +7,7 @@ use crate::stats::{lpm_inflation, satterthwaite, threshold};
 /// False-alarm probability of the per-line distortion gate.
 const NL_ALPHA: f64 = 0.01;
 use crate::{DiagnoseError, Result};
-use sd_ident::{
-    frf_periodic, DistortionReport, Experiment, LpmOptions, PeriodicOptions, MIN_INPUT_SNR,
-};
+use sd_ident::{frf_periodic, DistortionReport, Experiment, LpmOptions, PeriodicOptions};
 use sd_model::Frd;
 
 /// Which part of an experiment's steady data.
@@ -112,7 +110,7 @@ pub(crate) fn estimate(e: &Experiment, part: Part) -> Result<Estimate> {
     let (frd, dof) = with_distortion(est.frd.clone(), est.nl_variance.as_deref(), noise_dof)?;
     // lines whose input is hardly measured (in closed loop: where the loop cancels the
     // excitation) have a biased ratio and no valid variance: left out
-    let frd = frd.select(|i| est.input_snr.get(i).is_none_or(|s| *s >= MIN_INPUT_SNR))?;
+    let frd = sd_ident::trusted(&frd, &est.input_snr)?;
     Ok(Estimate {
         frd,
         dof,
@@ -192,7 +190,7 @@ fn estimate_lpm(e: &Experiment, part: Part) -> Result<Estimate> {
         Some(r) => {
             let (frd, snr) =
                 sd_ident::lpm_closed_loop_snr(fs, &r[lo..hi], &e.u[lo..hi], &e.y[lo..hi], &opt)?;
-            frd.select(|i| snr.get(i).is_none_or(|s| *s >= MIN_INPUT_SNR))?
+            sd_ident::trusted(&frd, &snr)?
         }
         None => {
             let x = nalgebra::DMatrix::from_column_slice(hi - lo, 1, &e.u[lo..hi]);

@@ -26,7 +26,8 @@ pub use fit::{
     FitProgress, FitResult, Weighting,
 };
 pub use frf::{
-    frf_periodic, DistortionReport, FrfEstimate, PeriodicOptions, MIN_INPUT_SNR, NL_NEIGHBOURS,
+    frf_periodic, snr_warnings, trusted, DataWarning, DistortionReport, FrfEstimate,
+    PeriodicOptions, MIN_INPUT_SNR, NL_NEIGHBOURS, NO_EXCITATION_SNR,
 };
 pub use lpm::{lpm, lpm_closed_loop, lpm_closed_loop_snr, LpmEstimate, LpmOptions};
 pub use multisine::{crest_factor, design, write_csv, Lines, Multisine, MultisineSpec, Phases};

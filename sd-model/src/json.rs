@@ -98,7 +98,8 @@ const SS_KEYS: &[&str] = &[
     "type", "ts", "a", "b", "c", "d", "name", "inputs", "outputs",
 ];
 const TF_KEYS: &[&str] = &["type", "ts", "num", "den", "name"];
-const FRD_KEYS: &[&str] = &["type", "ts", "freq_hz", "re", "im", "var"];
+/// `warnings` is what `sdctl frf` found in the data (informational; ignored on reading).
+const FRD_KEYS: &[&str] = &["type", "ts", "freq_hz", "re", "im", "var", "warnings"];
 /// Names other tools use for the sampling period.
 const TS_ALIASES: &[(&str, &str)] = &[("dt", "ts"), ("Ts", "ts"), ("sample_time", "ts")];
 

@@ -50,7 +50,7 @@ pub use json::{
 pub use norms::HinfNorm;
 pub use num_complex::Complex64;
 pub use reduce::BalancedTruncation;
-pub use sim::{rms, rms_of, Simulation};
+pub use sim::{median, rms, rms_of, Simulation};
 pub use ss::StateSpace;
 pub use tf::TransferFunction;
 pub use time::SampleTime;

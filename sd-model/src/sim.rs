@@ -74,6 +74,14 @@ pub fn rms(x: &[f64]) -> f64 {
     rms_of(x.iter().copied())
 }
 
+/// Median of the non-NaN values: the upper middle one, `v[⌊N/2⌋]` of the sorted values (NaN
+/// when there is none). The one `median` of the workspace.
+pub fn median(x: &[f64]) -> f64 {
+    let mut v: Vec<f64> = x.iter().copied().filter(|v| !v.is_nan()).collect();
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
 /// [`rms`] of the values of an iterator.
 pub fn rms_of(x: impl IntoIterator<Item = f64>) -> f64 {
     let (s, n) = x

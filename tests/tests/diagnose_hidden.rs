@@ -9,6 +9,7 @@
 //! `5000..5100`:
 //! `cargo test --release -p sd-tests --test diagnose_hidden -- --ignored --nocapture`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+use sd_model::median;
 
 use sd_diagnose::{diagnose, Cause, DiagnoseOptions, Diagnosis, Verdict};
 use sd_ident::{Experiment, Lines, MultisineSpec, Phases, Role};
@@ -404,12 +405,6 @@ fn summarize(out: &[Outcome]) -> (usize, usize, usize) {
 /// The cases of `seeds`, on every core (in seed order).
 fn run_cases(seeds: std::ops::Range<u64>) -> Vec<Outcome> {
     per_seed(seeds, run_case)
-}
-
-fn median(x: &[f64]) -> f64 {
-    let mut v = x.to_vec();
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
 }
 
 /// The default subset: 32 seeds (4 of every effect kind). Never a wrong named cause, named

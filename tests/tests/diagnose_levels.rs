@@ -11,6 +11,7 @@
 //! (periodic) and `850..866` (non-periodic):
 //! `cargo test --release -p sd-tests --test diagnose_levels -- --ignored --nocapture`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+use sd_model::median;
 
 use sd_diagnose::{Cause, CornerTrend, DampingTrend, DriftCheck, FreqTrend};
 use sd_tests::diagcases::{
@@ -261,12 +262,6 @@ fn cases(seeds: std::ops::Range<u64>, form: Form) -> Vec<Outcome> {
     .into_iter()
     .flatten()
     .collect()
-}
-
-fn median(x: &[f64]) -> f64 {
-    let mut v = x.to_vec();
-    v.sort_by(f64::total_cmp);
-    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
 }
 
 /// Gains (before/after) of the visible held-out levels of `out`: (interpolated, extrapolated).

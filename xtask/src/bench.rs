@@ -6,11 +6,6 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
 fn time_it<T>(repeats: usize, mut f: impl FnMut() -> T) -> (f64, T) {
     let t0 = Instant::now();
     let mut out = f();
@@ -20,7 +15,7 @@ fn time_it<T>(repeats: usize, mut f: impl FnMut() -> T) -> (f64, T) {
         out = f();
         ts.push(t0.elapsed().as_secs_f64());
     }
-    (median(ts), out)
+    (sd_model::median(&ts), out)
 }
 
 fn workspace_root() -> PathBuf {

@@ -13,6 +13,10 @@ pub(crate) struct Args {
     /// Excited-line threshold relative to the strongest line (periodic data).
     #[arg(long, allow_negative_numbers = true)]
     pub(crate) excited_fraction: Option<f64>,
+    /// Keep the lines whose input SNR |Ū|²/σ²_Ū is below 100 (biased ratio, no valid
+    /// variance; left out by default, with a warning).
+    #[arg(long)]
+    pub(crate) keep_low_snr: bool,
     #[arg(help = crate::commands::OUTPUT_HELP, short, long)]
     pub(crate) output: Option<String>,
 }
@@ -24,6 +28,7 @@ impl Args {
             manifest,
             experiment,
             excited_fraction,
+            keep_low_snr,
             output,
         } = self;
         let exp = crate::io::load_experiments(&manifest, |n| n == experiment)?
@@ -32,7 +37,8 @@ impl Args {
                 CliError::input(format!("{manifest}: no experiment named `{experiment}`"))
             })?;
         let fs = exp.spec.sample_rate_hz;
-        let frd = match exp.spec.period_samples {
+        let ident = |e| from_ident(&experiment, e);
+        let (frd, warnings) = match exp.spec.period_samples {
             Some(p) => {
                 let mut opt = sd_ident::PeriodicOptions::new(p, exp.spec.skip_periods);
                 if let Some(f) = excited_fraction {
@@ -43,25 +49,68 @@ impl Args {
                     }
                     opt.excited_fraction = f;
                 }
-                sd_ident::frf_periodic(fs, exp.r.as_deref(), &exp.u, &exp.y, &opt)
-                    .map_err(|e| from_ident(&experiment, e))?
-                    .frd
+                let est = sd_ident::frf_periodic(fs, exp.r.as_deref(), &exp.u, &exp.y, &opt)
+                    .map_err(ident)?;
+                let warnings = est.warnings(!keep_low_snr);
+                let frd = if keep_low_snr {
+                    est.frd
+                } else {
+                    est.trusted_frd().map_err(ident)?
+                };
+                (frd, warnings)
             }
             None => {
                 let lo = sd_ident::LpmOptions::default();
                 match &exp.r {
-                    Some(r) => sd_ident::lpm_closed_loop(fs, r, &exp.u, &exp.y, &lo),
+                    Some(r) => {
+                        let (frd, snr) = sd_ident::lpm_closed_loop_snr(fs, r, &exp.u, &exp.y, &lo)
+                            .map_err(ident)?;
+                        let warnings = sd_ident::snr_warnings(&frd, &snr, true, !keep_low_snr);
+                        let frd = if keep_low_snr {
+                            frd
+                        } else {
+                            sd_ident::trusted(&frd, &snr).map_err(ident)?
+                        };
+                        (frd, warnings)
+                    }
                     None => {
                         let n = exp.u.len();
                         let x = nalgebra::DMatrix::from_column_slice(n, 1, &exp.u);
                         let z = nalgebra::DMatrix::from_column_slice(n, 1, &exp.y);
-                        sd_ident::lpm(fs, &x, &z, &lo).map(|e| e.frd)
+                        let frd = sd_ident::lpm(fs, &x, &z, &lo).map_err(ident)?.frd;
+                        (frd, Vec::new())
                     }
                 }
-                .map_err(|e| from_ident(&experiment, e))?
             }
         };
-        let json = sd_model::frd_to_json_string(&frd).map_err(|e| from_model("output", e))?;
+        for w in &warnings {
+            eprintln!("sdctl: warning: {experiment}: {w}");
+        }
+        let mut json = sd_model::frd_to_json_string(&frd).map_err(|e| from_model("output", e))?;
+        if !warnings.is_empty() {
+            json = with_warnings(&json, &warnings)?;
+        }
         emit(&json, output.as_deref())
     }
+}
+
+/// The FRD JSON text with a `"warnings"` array (each `{"kind", "message", …}`), which readers
+/// accept and ignore.
+fn with_warnings(json: &str, warnings: &[sd_ident::DataWarning]) -> Result<String, CliError> {
+    let bad = |e: serde_json::Error| CliError::numerical(format!("FRD JSON: {e}"));
+    let mut v: serde_json::Value = serde_json::from_str(json).map_err(bad)?;
+    let list: Vec<serde_json::Value> = warnings
+        .iter()
+        .map(|w| {
+            let mut o = serde_json::to_value(w).unwrap_or(serde_json::Value::Null);
+            if let Some(m) = o.as_object_mut() {
+                m.insert("message".into(), w.to_string().into());
+            }
+            o
+        })
+        .collect();
+    if let Some(m) = v.as_object_mut() {
+        m.insert("warnings".into(), list.into());
+    }
+    serde_json::to_string(&v).map_err(bad)
 }
