@@ -237,3 +237,17 @@ pub fn check_out_dir(out: &str) -> Result<(), CliError> {
         }
     }
 }
+
+/// Warnings as JSON: each one's serialised fields plus its one-line `message`.
+pub fn warnings_json<W: serde::Serialize + std::fmt::Display>(ws: &[W]) -> serde_json::Value {
+    ws.iter()
+        .map(|w| {
+            let mut v = serde_json::to_value(w).unwrap_or(serde_json::Value::Null);
+            if let Some(m) = v.as_object_mut() {
+                m.insert("message".into(), w.to_string().into());
+            }
+            v
+        })
+        .collect::<Vec<_>>()
+        .into()
+}

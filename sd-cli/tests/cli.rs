@@ -245,6 +245,22 @@ fn frf_warns_about_data_it_cannot_trust() {
     }
     let o = sdctl(&["fit", &out, "--order", "2"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // fit --json: the model, the cost per line (summing to the cost) and the warnings
+    let o = sdctl(&["fit", &out, "--order", "4", "--rigid-body", "2", "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let f: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let lines = f["lines"].as_array().unwrap();
+    assert_eq!(lines.len(), n_default);
+    let sum: f64 = lines.iter().map(|l| l["cost"].as_f64().unwrap()).sum();
+    let cost = f["cost"].as_f64().unwrap();
+    assert!((sum - cost).abs() <= 1e-9 * cost, "{sum} vs {cost}");
+    assert!(f["warnings"].is_array());
+    assert_eq!(f["model"]["type"], "ss");
+    assert!(String::from_utf8_lossy(&o.stderr).contains("largest line terms"));
+    assert_input_error(
+        &sdctl(&["fit", &out, "--order", "4", "--min-damping", "1.5"]),
+        "min_damping",
+    );
 }
 
 /// Transforms asked for what they cannot do say what to run instead.

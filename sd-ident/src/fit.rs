@@ -57,6 +57,10 @@ pub struct FitOptions {
     pub sk_iterations: usize,
     /// Levenberg–Marquardt iterations (0: SK only).
     pub lm_iterations: usize,
+    /// Lowest damping ratio a free complex pole may take (0: no floor). A pole pair whose
+    /// continuous equivalent `s = ln(p)/T` has `−Re s/|s|` below it is moved, at the same
+    /// natural frequency `|s|`, onto the floor, in every SK and LM step.
+    pub min_damping: f64,
 }
 
 impl Default for FitOptions {
@@ -68,6 +72,7 @@ impl Default for FitOptions {
             weighting: Weighting::Variance,
             sk_iterations: tol::SK_ITERATIONS,
             lm_iterations: tol::LM_ITERATIONS,
+            min_damping: 0.0,
         }
     }
 }
@@ -96,6 +101,128 @@ pub struct FitResult {
     pub poles: Vec<C>,
     /// Median of `|G_k − Ĝ_k| / |G_k|` over the data.
     pub median_rel_error: f64,
+    /// Each line's term `w_k²|G_k − Ĝ(z_k)|²` of the cost (they sum to `cost`).
+    pub line_cost: Vec<f64>,
+    /// What the data do not support in this fit ([`FitWarning`]).
+    pub warnings: Vec<FitWarning>,
+}
+
+/// Something a fit's data do not support.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum FitWarning {
+    /// A pole pair so close to the unit circle that its half-power bandwidth `2ζf` is below
+    /// the spacing of the data lines there (`1 − |p| < π·Δf·T`): the lines do not resolve its
+    /// peak, so its damping is not measured (a false undamped mode, typically, at high order).
+    UnresolvedMode {
+        /// Natural frequency `|s|/2π` (Hz).
+        freq_hz: f64,
+        /// Damping ratio.
+        damping: f64,
+        /// `1 − |p|`.
+        distance_to_unit_circle: f64,
+        /// Half-power bandwidth `2ζf` (Hz).
+        bandwidth_hz: f64,
+        /// Spacing of the data lines around `freq_hz` (Hz).
+        line_spacing_hz: f64,
+    },
+    /// One line carries a large share of the cost: a badly excited or disturbed line steers
+    /// the fit.
+    DominantLine {
+        /// The line (Hz).
+        freq_hz: f64,
+        /// Its share of the cost.
+        share: f64,
+        /// `w|G − Ĝ|` there (standard deviations with variance weighting).
+        weighted_error: f64,
+    },
+}
+
+impl std::fmt::Display for FitWarning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            FitWarning::UnresolvedMode {
+                freq_hz,
+                damping,
+                distance_to_unit_circle,
+                bandwidth_hz,
+                line_spacing_hz,
+            } => write!(
+                f,
+                "pole pair at {freq_hz:.3} Hz with damping {damping:.2e} (|p| = 1 − \
+                 {distance_to_unit_circle:.1e}): its half-power bandwidth {bandwidth_hz:.3e} Hz \
+                 is below the line spacing {line_spacing_hz:.3} Hz there, so the data do not \
+                 measure its damping; lower the order or set --min-damping"
+            ),
+            FitWarning::DominantLine {
+                freq_hz,
+                share,
+                weighted_error,
+            } => write!(
+                f,
+                "the line at {freq_hz:.3} Hz carries {:.0} % of the cost (weighted error \
+                 {weighted_error:.1}): check its excitation and noise, or leave it out",
+                100.0 * share
+            ),
+        }
+    }
+}
+
+/// A single line's share of the cost above which it is flagged, when it is also this many
+/// times the median line's term.
+const DOMINANT_SHARE: f64 = 0.1;
+const DOMINANT_OVER_MEDIAN: f64 = 25.0;
+
+/// The warnings of a fit: unresolved modes from the poles and the data lines, dominant lines
+/// from the cost terms (a line is flagged only when its weighted error reaches `significant`:
+/// 5 with `1/σ` weights, 0.1 % of the median weighted response otherwise, so that a fit at
+/// rounding level flags nothing).
+fn fit_warnings(
+    freq_hz: &[f64],
+    pf: &Pf,
+    ts: f64,
+    line_cost: &[f64],
+    significant: f64,
+) -> Vec<FitWarning> {
+    let mut out = Vec::new();
+    for (p, _) in &pf.pairs {
+        let s = p.ln() / ts;
+        let (fn_hz, zeta) = sd_model::poles::natural_frequency(s, None);
+        let i = freq_hz.partition_point(|f| *f < fn_hz);
+        let gap = |a: usize, b: usize| freq_hz[b] - freq_hz[a];
+        let spacing = match (i, freq_hz.len()) {
+            (_, n) if n < 2 => f64::INFINITY,
+            (0, _) => gap(0, 1),
+            (i, n) if i >= n => gap(n - 2, n - 1),
+            (i, _) => gap(i - 1, i),
+        };
+        let bandwidth = 2.0 * zeta * fn_hz;
+        if bandwidth < spacing {
+            out.push(FitWarning::UnresolvedMode {
+                freq_hz: fn_hz,
+                damping: zeta,
+                distance_to_unit_circle: 1.0 - p.norm(),
+                bandwidth_hz: bandwidth,
+                line_spacing_hz: spacing,
+            });
+        }
+    }
+    let total: f64 = line_cost.iter().sum();
+    let med = sd_model::median(line_cost);
+    for (f, c) in freq_hz.iter().zip(line_cost) {
+        if total > 0.0
+            && *c > DOMINANT_SHARE * total
+            && *c > DOMINANT_OVER_MEDIAN * med
+            && c.sqrt() >= significant
+        {
+            out.push(FitWarning::DominantLine {
+                freq_hz: *f,
+                share: c / total,
+                weighted_error: c.sqrt(),
+            });
+        }
+    }
+    out
 }
 
 /// The model in partial fractions.
@@ -141,6 +268,27 @@ struct Data {
     z: Vec<C>,
     g: Vec<C>,
     w: Vec<f64>,
+    ts: f64,
+    min_damping: f64,
+}
+
+impl Data {
+    /// A free pole made admissible: reflected into the unit disc ([`reflect`]) and, for a
+    /// complex pole below the damping floor, moved onto it at the same natural frequency.
+    fn constrain(&self, p: C) -> C {
+        let p = reflect(p);
+        if self.min_damping <= 0.0 || p.im.abs() <= 1e-12 * p.norm() || p.norm() == 0.0 {
+            return p;
+        }
+        let s = p.ln() / self.ts;
+        let wn = s.norm();
+        if -s.re >= self.min_damping * wn {
+            return p;
+        }
+        let z = self.min_damping;
+        let s2 = C::new(-z * wn, s.im.signum() * wn * (1.0 - z * z).sqrt());
+        (s2 * self.ts).exp()
+    }
 }
 
 fn reflect(p: C) -> C {
@@ -155,12 +303,17 @@ fn reflect(p: C) -> C {
 }
 
 fn cost(data: &Data, pf: &Pf) -> f64 {
+    line_costs(data, pf).iter().sum()
+}
+
+/// The terms `w_k²|G_k − Ĝ(z_k)|²` of the cost.
+fn line_costs(data: &Data, pf: &Pf) -> Vec<f64> {
     data.z
         .iter()
         .zip(&data.g)
         .zip(&data.w)
         .map(|((&z, &g), &w)| (w * (pf.eval(z) - g).norm()).powi(2))
-        .sum()
+        .collect()
 }
 
 /// Weighted least squares `min ‖A x − b‖` (b one column) by the toolkit's one solver,
@@ -296,15 +449,15 @@ fn relocate(
         }
     }
     let ev = eigenvalues(&am)?;
-    split_poles(&ev)
+    split_poles(&ev, data)
 }
 
 /// Sorts eigenvalues into reflected real poles and upper-half-plane pair representatives.
-fn split_poles(ev: &[C]) -> Result<(Vec<f64>, Vec<C>)> {
+fn split_poles(ev: &[C], data: &Data) -> Result<(Vec<f64>, Vec<C>)> {
     let mut real = Vec::new();
     let mut pairs = Vec::new();
     for &e in ev {
-        let e = reflect(e);
+        let e = data.constrain(e);
         if e.im.abs() <= 1e-12 * e.norm().max(1e-300) {
             real.push(e.re);
         } else if e.im > 0.0 {
@@ -366,7 +519,7 @@ fn to_params(pf: &Pf) -> Vec<f64> {
     v
 }
 
-fn from_params(template: &Pf, v: &[f64]) -> Pf {
+fn from_params(template: &Pf, v: &[f64], data: &Data) -> Pf {
     let mut i = 0;
     let real = template
         .real
@@ -381,7 +534,7 @@ fn from_params(template: &Pf, v: &[f64]) -> Pf {
         .pairs
         .iter()
         .map(|_| {
-            let a = reflect(C::new(v[i], v[i + 1]));
+            let a = data.constrain(C::new(v[i], v[i + 1]));
             let r = C::new(v[i + 2], v[i + 3]);
             i += 4;
             (a, r)
@@ -479,7 +632,7 @@ fn lm(
                     *last = 0.0;
                 }
             }
-            let cand = from_params(&pf, &trial);
+            let cand = from_params(&pf, &trial, data);
             let vc = cost(data, &cand);
             if vc.is_finite() && vc < v {
                 let rel = (v - vc) / v;
@@ -566,6 +719,12 @@ pub fn fit_with_progress(
             frd.shape().1
         )));
     }
+    if !(opt.min_damping.is_finite() && (0.0..1.0).contains(&opt.min_damping)) {
+        return Err(IdentError::InvalidArgument(format!(
+            "min_damping {} must be in [0, 1)",
+            opt.min_damping
+        )));
+    }
     if opt.rigid_body > 2 || opt.order < opt.rigid_body || opt.order == 0 {
         return Err(IdentError::InvalidArgument(format!(
             "order {} with {} rigid-body poles: need 1 ≤ order, rigid_body ≤ 2 and rigid_body ≤ order",
@@ -589,6 +748,8 @@ pub fn fit_with_progress(
             .collect(),
         g: frd.response().iter().map(|m| m[(0, 0)]).collect(),
         w: weights(frd, opt.weighting)?,
+        ts,
+        min_damping: opt.min_damping,
     };
     if data.g.iter().any(|v| !v.is_finite()) {
         return Err(IdentError::Data(
@@ -620,7 +781,19 @@ pub fn fit_with_progress(
         None => residues(&data, &real, &pairs, opt.rigid_body, opt.feedthrough)?,
     };
     let pf = lm(&data, pf, opt, &mut history, progress)?;
-    let v = cost(&data, &pf);
+    let line_cost = line_costs(&data, &pf);
+    let significant = if opt.weighting == Weighting::Variance && frd.variance().is_some() {
+        5.0
+    } else {
+        let wg: Vec<f64> = data
+            .g
+            .iter()
+            .zip(&data.w)
+            .map(|(g, w)| w * g.norm())
+            .collect();
+        1e-3 * sd_model::median(&wg)
+    };
+    let v: f64 = line_cost.iter().sum();
     let mut rel: Vec<f64> = data
         .z
         .iter()
@@ -635,6 +808,8 @@ pub fn fit_with_progress(
         history,
         poles: pf.poles(),
         median_rel_error: median,
+        warnings: fit_warnings(frd.freq_hz(), &pf, ts, &line_cost, significant),
+        line_cost,
     })
 }
 
@@ -818,5 +993,141 @@ mod tests {
                 a.cost
             );
         }
+    }
+
+    /// The two-mode stage's FRD at 5 kHz on `n` lines, with a variance of (1 % of |G|)².
+    fn stage_frd(n: usize) -> (StateSpace, Frd) {
+        let p = sd_model::stage::paper_stage_two_modes().unwrap();
+        let pd = sd_model::c2d(&p, 2e-4, sd_model::Discretization::Zoh).unwrap();
+        let f = sd_model::grid(1.0, 2400.0, n, false).unwrap();
+        let frd = pd.freqresp(&f).unwrap();
+        let var = frd
+            .response()
+            .iter()
+            .map(|g| g.map(|v| C::new((0.01 * v.norm()).powi(2), 0.0).re))
+            .collect();
+        let frd = Frd::new(f, frd.response().to_vec(), Some(var), frd.time()).unwrap();
+        (pd, frd)
+    }
+
+    #[test]
+    fn a_line_that_steers_the_fit_is_named() {
+        let (pd, frd) = stage_frd(300);
+        let opt = FitOptions {
+            order: pd.n(),
+            rigid_body: 2,
+            feedthrough: false,
+            ..Default::default()
+        };
+        let clean = fit(&frd, &opt).unwrap();
+        assert!(clean.warnings.is_empty(), "{:?}", clean.warnings);
+        assert_eq!(clean.line_cost.len(), frd.len());
+        let sum: f64 = clean.line_cost.iter().sum();
+        assert!((sum - clean.cost).abs() <= 1e-12 * clean.cost.max(1e-300));
+        // one line 40 dB off: 100× its value, ~10⁴ σ
+        let mut resp = frd.response().to_vec();
+        resp[150] *= C::new(100.0, 0.0);
+        let bad = Frd::new(
+            frd.freq_hz().to_vec(),
+            resp,
+            frd.variance().map(|v| v.to_vec()),
+            frd.time(),
+        )
+        .unwrap();
+        let f_bad = frd.freq_hz()[150];
+        let spacing = frd.freq_hz()[151] - f_bad;
+        // the free fit spends a pole pair on the outlier: an undamped spike at that line, which
+        // the lines cannot resolve, and is flagged as such
+        let r = fit(&bad, &opt).unwrap();
+        assert!(
+            r.warnings.iter().any(|w| matches!(w,
+                FitWarning::UnresolvedMode { freq_hz, .. } if (freq_hz - f_bad).abs() < spacing)),
+            "{:?}",
+            r.warnings
+        );
+        // with a damping floor (ζ ≥ 0.005, the stage's lightest mode: 12 Hz wide at 1.2 kHz,
+        // wider than the 8 Hz line spacing) it cannot, and the line itself is named as
+        // dominating the cost
+        let floored = fit(
+            &bad,
+            &FitOptions {
+                min_damping: 0.005,
+                ..opt.clone()
+            },
+        )
+        .unwrap();
+        let named: Vec<f64> = floored
+            .warnings
+            .iter()
+            .filter_map(|w| match w {
+                FitWarning::DominantLine { freq_hz, share, .. } if *share > 0.5 => Some(*freq_hz),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(named, vec![f_bad], "{:?}", floored.warnings);
+    }
+
+    #[test]
+    fn unresolved_modes_are_flagged_and_the_damping_floor_holds() {
+        let (_, frd) = stage_frd(300);
+        let ts = 2e-4;
+        let data_of = |min_damping| Data {
+            z: vec![],
+            g: vec![],
+            w: vec![],
+            ts,
+            min_damping,
+        };
+        // a pair at 500 Hz with ζ = 1e-6: 1 mHz wide on 8 Hz lines
+        let at = |zeta: f64| {
+            let wn = 2.0 * PI * 500.0;
+            (C::new(-zeta * wn, wn * (1.0 - zeta * zeta).sqrt()) * ts).exp()
+        };
+        let pf = |p: C| Pf {
+            real: vec![],
+            pairs: vec![(p, C::new(1.0, 0.0))],
+            rigid: vec![],
+            d: 0.0,
+        };
+        let costs = vec![1.0; frd.len()];
+        let w = fit_warnings(frd.freq_hz(), &pf(at(1e-6)), ts, &costs, 5.0);
+        match w.as_slice() {
+            [FitWarning::UnresolvedMode {
+                freq_hz,
+                damping,
+                line_spacing_hz,
+                ..
+            }] => {
+                assert!((freq_hz - 500.0).abs() < 1e-6);
+                assert!((damping - 1e-6).abs() < 1e-9);
+                assert!((line_spacing_hz - 2399.0 / 299.0).abs() < 1e-9);
+            }
+            other => panic!("{other:?}"),
+        }
+        assert!(fit_warnings(frd.freq_hz(), &pf(at(0.02)), ts, &costs, 5.0).is_empty());
+        // the floor moves a pole onto ζ = 0.01 at the same natural frequency
+        let moved = data_of(0.01).constrain(at(1e-6));
+        let s = moved.ln() / ts;
+        assert!((s.norm() / (2.0 * PI) - 500.0).abs() < 1e-9);
+        assert!((-s.re / s.norm() - 0.01).abs() < 1e-12);
+        assert_eq!(data_of(0.0).constrain(at(1e-6)), at(1e-6));
+        // and a fit with a floor keeps every pair on or above it
+        let opt = FitOptions {
+            order: 8,
+            rigid_body: 2,
+            feedthrough: false,
+            min_damping: 0.05,
+            ..Default::default()
+        };
+        let r = fit(&frd, &opt).unwrap();
+        for p in r.poles.iter().filter(|p| p.im > 1e-9) {
+            let s = p.ln() / ts;
+            assert!(-s.re / s.norm() >= 0.05 - 1e-9, "{p}");
+        }
+        let bad = FitOptions {
+            min_damping: 1.0,
+            ..opt
+        };
+        assert!(fit(&frd, &bad).is_err());
     }
 }

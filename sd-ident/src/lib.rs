@@ -23,7 +23,7 @@ pub use error::{IdentError, Result};
 pub use experiment::{parse_manifest, read_columns, Experiment, ExperimentSpec, Role};
 pub use fit::{
     final_prediction_error, fit, fit_with_progress, model_cost, select_order, FitOptions,
-    FitProgress, FitResult, Weighting,
+    FitProgress, FitResult, FitWarning, Weighting,
 };
 pub use frf::{
     frf_periodic, snr_warnings, trusted, DataWarning, DistortionReport, FrfEstimate,

@@ -27,6 +27,14 @@ pub(crate) struct Args {
     /// Line weights: variance (1/σ from the FRD's var, relative when it has none; default), relative (1/|G|) or uniform.
     #[arg(long, value_enum, default_value = "variance")]
     pub(crate) weighting: WeightingArg,
+    /// Lowest damping ratio a fitted pole pair may take (0 = none): pairs below it are moved
+    /// onto it at the same natural frequency during the fit.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub(crate) min_damping: f64,
+    /// Write a JSON object instead of the model: `model` (model JSON), `cost`,
+    /// `median_rel_error`, `lines` (each line's `freq_hz` and `cost` term) and `warnings`.
+    #[arg(long)]
+    pub(crate) json: bool,
     #[arg(help = crate::commands::OUTPUT_HELP, short, long)]
     pub(crate) output: Option<String>,
 }
@@ -40,6 +48,8 @@ impl Args {
             rigid_body,
             strictly_proper,
             weighting,
+            min_damping,
+            json,
             output,
         } = self;
         let text = crate::io::read_text(&frd)?;
@@ -53,6 +63,7 @@ impl Args {
                 WeightingArg::Relative => sd_ident::Weighting::Relative,
                 WeightingArg::Uniform => sd_ident::Weighting::Uniform,
             },
+            min_damping,
             ..Default::default()
         };
         let r = sd_ident::fit_with_progress(&data, &opt, &mut |p| {
@@ -63,11 +74,53 @@ impl Args {
         })
         .map_err(|e| from_ident(&frd, e))?;
         eprintln!(
-            "[fit] order {}: cost {:.6e}, median relative error {:.3} %",
+            "[fit] order {}: cost {:.6e}, median relative error {:.3} %; largest line terms: {}",
             r.model.n(),
             r.cost,
-            100.0 * r.median_rel_error
+            100.0 * r.median_rel_error,
+            largest_terms(data.freq_hz(), &r.line_cost, r.cost)
         );
-        emit(&model_json(&r.model)?, output.as_deref())
+        for w in &r.warnings {
+            eprintln!("sdctl: warning: {frd}: {w}");
+        }
+        if !json {
+            return emit(&model_json(&r.model)?, output.as_deref());
+        }
+        let bad = |e: serde_json::Error| CliError::numerical(format!("fit JSON: {e}"));
+        let model: serde_json::Value = serde_json::from_str(&model_json(&r.model)?).map_err(bad)?;
+        let lines: Vec<serde_json::Value> = data
+            .freq_hz()
+            .iter()
+            .zip(&r.line_cost)
+            .map(|(f, c)| serde_json::json!({"freq_hz": f, "cost": c}))
+            .collect();
+        let out = serde_json::json!({
+            "model": model,
+            "cost": r.cost,
+            "median_rel_error": r.median_rel_error,
+            "lines": lines,
+            "warnings": crate::io::warnings_json(&r.warnings),
+        });
+        emit(
+            &serde_json::to_string_pretty(&out).map_err(bad)?,
+            output.as_deref(),
+        )
     }
+}
+
+/// The three lines with the largest cost terms, as "f Hz (share %)".
+fn largest_terms(freq_hz: &[f64], line_cost: &[f64], total: f64) -> String {
+    let mut idx: Vec<usize> = (0..line_cost.len()).collect();
+    idx.sort_by(|a, b| line_cost[*b].total_cmp(&line_cost[*a]));
+    idx.iter()
+        .take(3)
+        .map(|&i| {
+            format!(
+                "{:.2} Hz ({:.1} %)",
+                freq_hz[i],
+                100.0 * line_cost[i] / total.max(f64::MIN_POSITIVE)
+            )
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
 }

@@ -99,18 +99,8 @@ impl Args {
 fn with_warnings(json: &str, warnings: &[sd_ident::DataWarning]) -> Result<String, CliError> {
     let bad = |e: serde_json::Error| CliError::numerical(format!("FRD JSON: {e}"));
     let mut v: serde_json::Value = serde_json::from_str(json).map_err(bad)?;
-    let list: Vec<serde_json::Value> = warnings
-        .iter()
-        .map(|w| {
-            let mut o = serde_json::to_value(w).unwrap_or(serde_json::Value::Null);
-            if let Some(m) = o.as_object_mut() {
-                m.insert("message".into(), w.to_string().into());
-            }
-            o
-        })
-        .collect();
     if let Some(m) = v.as_object_mut() {
-        m.insert("warnings".into(), list.into());
+        m.insert("warnings".into(), crate::io::warnings_json(warnings));
     }
     serde_json::to_string(&v).map_err(bad)
 }
