@@ -677,6 +677,28 @@ fn fixed(v: f64, d: usize) -> String {
     }
 }
 
+/// The named causes of a diagnosis in words (see [`cause_text`]), the averaging window also in
+/// µs at each experiment's rate.
+pub fn causes_text(d: &Diagnosis) -> Vec<String> {
+    d.causes
+        .iter()
+        .filter_map(|c| {
+            let mut t = cause_text(c)?;
+            if let Cause::AveragingSampler { window_frac, .. } = c {
+                let per: Vec<String> = d
+                    .experiments
+                    .iter()
+                    .map(|x| format!("{:.1} µs at `{}`", 1e6 * window_frac / x.rate_hz, x.name))
+                    .collect();
+                if !per.is_empty() {
+                    t = format!("{t} ({})", per.join(", "));
+                }
+            }
+            Some(t)
+        })
+        .collect()
+}
+
 /// A named cause's parameters in words, with their standard errors (`None` for causes
 /// without parameters): the report's sentence, and `sdctl diagnose`'s summary line.
 pub fn cause_text(c: &Cause) -> Option<String> {
@@ -1061,7 +1083,7 @@ fn explain_failed(d: &Diagnosis, e: &sd_diagnose::Evidence) -> String {
 pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> String {
     let mut md = String::new();
     let _ = writeln!(md, "# Diagnosis of {title}\n");
-    let named: Vec<String> = d.causes.iter().filter_map(cause_text).collect();
+    let named = causes_text(d);
     let _ = writeln!(
         md,
         "**Verdict: {}. Cause: {}.**{}\n",

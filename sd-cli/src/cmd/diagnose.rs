@@ -65,11 +65,7 @@ impl Args {
             Some(r) => format!("held-out gain ×{r:.1}"),
             None => "no held-out gain".into(),
         };
-        let said: Vec<String> = d
-            .causes
-            .iter()
-            .filter_map(sd_report::diagnosis::cause_text)
-            .collect();
+        let said = sd_report::diagnosis::causes_text(&d);
         let said = if said.is_empty() {
             String::new()
         } else {
