@@ -206,6 +206,32 @@ fn frf_warns_about_data_it_cannot_trust() {
     ])
     .status
     .success());
+    // the standstill record as it is (no period, no reference): the input is the controller's
+    // reaction to the output, at the slow rate and held at the fast one
+    let manifest0 = data.join("experiments.toml").to_string_lossy().into_owned();
+    for e in ["s_slow", "s_fast"] {
+        assert_input_error(
+            &sdctl(&["frf", &manifest0, "--experiment", e]),
+            "the input is the controller's reaction to the measured output",
+        );
+    }
+    let o = sdctl(&["frf", &manifest0, "--experiment", "s_slow", "--keep-low-snr"]);
+    assert!(o.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["warnings"][0]["kind"], "feedback_only");
+    let both = write(
+        &data,
+        "still2.toml",
+        "[[experiment]]\nname = \"f\"\nfile = \"s_fast.csv\"\nsample_rate_hz = 5000.0\n\
+         input = \"u\"\noutput = \"y\"\nrole = \"model\"\n\
+         [[experiment]]\nname = \"s\"\nfile = \"s_slow.csv\"\nsample_rate_hz = 1000.0\n\
+         input = \"u\"\noutput = \"y\"\n",
+    );
+    let out_dir = d.join("diag").to_string_lossy().into_owned();
+    assert_input_error(
+        &sdctl(&["diagnose", &both, "--out", &out_dir]),
+        "experiment `f`: no excitation",
+    );
     // the standstill record read as periodic (a user's wrong period): no excitation
     let still = write(
         &data,
@@ -222,8 +248,14 @@ fn frf_warns_about_data_it_cannot_trust() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("warning: still: no excitation"), "{err}");
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    assert_eq!(v["warnings"][0]["kind"], "no_excitation");
-    assert!(v["warnings"][0]["median_input_snr"].as_f64().unwrap() < 10.0);
+    let kinds: Vec<&str> = v["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w["kind"].as_str().unwrap())
+        .collect();
+    assert_eq!(kinds, ["feedback_only", "no_excitation", "low_input_snr"]);
+    assert!(v["warnings"][1]["median_input_snr"].as_f64().unwrap() < 10.0);
     // the closed-loop experiment: its lowest lines are left out, and the JSON reads back
     let manifest = data.join("experiments.toml").to_string_lossy().into_owned();
     let out = d.join("a.json").to_string_lossy().into_owned();

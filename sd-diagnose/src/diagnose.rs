@@ -1473,6 +1473,14 @@ pub fn diagnose_with_progress(
             opt.alpha
         )));
     }
+    for e in experiments {
+        if let Some(w) = sd_ident::feedback_only(&e.u, &e.y)? {
+            return Err(DiagnoseError::Setup(format!(
+                "experiment `{}`: {w}; leave it out of the manifest",
+                e.spec.name
+            )));
+        }
+    }
     let cut = crate::pieces::cut_records(experiments);
     let (experiments, pieces) = match &cut {
         Some((exps, pieces)) => {

@@ -26,10 +26,11 @@
 //! the variance is absent), and `var Ĝ = σ²_Y/|Ū|²` (input noise neglected).
 
 use crate::error::{IdentError, Result};
+use crate::quality::{snr_warnings, trusted, DataWarning};
 use crate::tol;
 use num_complex::Complex64 as C;
 use rustfft::FftPlanner;
-use sd_model::{median, Frd, SampleTime};
+use sd_model::{Frd, SampleTime};
 
 /// Periodic estimation settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -118,75 +119,6 @@ pub struct FrfEstimate {
     pub input_snr: Vec<f64>,
 }
 
-/// Median input SNR below which a record counts as not excited at all: a line without
-/// excitation has `|Ū|²/σ²_Ū` of order 1 (the mean of M noisy periods over its own variance), a
-/// multisine line hundreds to millions.
-pub const NO_EXCITATION_SNR: f64 = 10.0;
-
-/// A warning about the data behind an FRF estimate: the estimate exists, but all or part of it
-/// should not be read as the plant's.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
-#[serde(tag = "kind", rename_all = "snake_case")]
-pub enum DataWarning {
-    /// The input at the "excited" lines is at its own noise level: the record carries no
-    /// periodic excitation, and `Ȳ/Ū` is whatever relation noise and feedback impose (`−1/K`
-    /// in a loop with controller K), not the plant.
-    NoExcitation {
-        /// Median `|Ū|²/σ²_Ū` over the lines.
-        median_input_snr: f64,
-        /// Lines estimated.
-        lines: usize,
-    },
-    /// Lines whose input SNR is below [`MIN_INPUT_SNR`]: their ratio is biased and their
-    /// variance formula does not hold.
-    LowInputSnr {
-        /// How many.
-        lines: usize,
-        /// Of how many lines.
-        of: usize,
-        /// The first few of them (Hz).
-        freq_hz: Vec<f64>,
-        /// Whether they were left out of the written estimate.
-        excluded: bool,
-    },
-}
-
-impl std::fmt::Display for DataWarning {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            DataWarning::NoExcitation {
-                median_input_snr,
-                lines,
-            } => write!(
-                f,
-                "no excitation: at the {lines} strongest input lines the input is at its own \
-                 noise level (median |Ū|²/σ²_Ū = {median_input_snr:.2}, an excited line reads \
-                 ≫ {MIN_INPUT_SNR}); the ratio Y/U is not the plant (in a loop it is −1/controller): \
-                 excite the plant, or check the period and the columns"
-            ),
-            DataWarning::LowInputSnr {
-                lines,
-                of,
-                freq_hz,
-                excluded,
-            } => {
-                let list: Vec<String> = freq_hz.iter().map(|f| format!("{f:.2}")).collect();
-                write!(
-                    f,
-                    "{lines} of {of} lines have an input SNR below {MIN_INPUT_SNR} (biased ratio, \
-                     no valid variance), e.g. {} Hz: {}",
-                    list.join(", "),
-                    if *excluded {
-                        "left out (--keep-low-snr keeps them)"
-                    } else {
-                        "kept as asked"
-                    }
-                )
-            }
-        }
-    }
-}
-
 impl FrfEstimate {
     /// Whether each line's input SNR reaches [`MIN_INPUT_SNR`].
     pub fn trusted_lines(&self) -> Vec<bool> {
@@ -206,56 +138,6 @@ impl FrfEstimate {
     pub fn warnings(&self, excluded: bool) -> Vec<DataWarning> {
         snr_warnings(&self.frd, &self.input_snr, self.periods >= 2, excluded)
     }
-}
-
-/// `frd` at the lines whose input SNR `snr[i]` reaches [`MIN_INPUT_SNR`] (periodic
-/// [`FrfEstimate::input_snr`], or [`crate::lpm_closed_loop_snr`]'s).
-///
-/// # Errors
-/// No line is trusted (the error says what the record lacks).
-pub fn trusted(frd: &Frd, snr: &[f64]) -> Result<Frd> {
-    if !snr.iter().any(|s| *s >= MIN_INPUT_SNR) {
-        return Err(IdentError::Data(format!(
-            "no line has an input SNR of {MIN_INPUT_SNR} or more (median {:.2}): the record is \
-             not excited at the lines found",
-            median(snr)
-        )));
-    }
-    Ok(frd.select(|i| snr.get(i).is_none_or(|s| *s >= MIN_INPUT_SNR))?)
-}
-
-/// The data-quality warnings of an estimate from its per-line input SNR: no excitation (median
-/// SNR below [`NO_EXCITATION_SNR`], checked when `excitation_check`), and lines below
-/// [`MIN_INPUT_SNR`] (`excluded`: whether they are left out of what the caller writes).
-pub fn snr_warnings(
-    frd: &Frd,
-    snr: &[f64],
-    excitation_check: bool,
-    excluded: bool,
-) -> Vec<DataWarning> {
-    let mut out = Vec::new();
-    let med = median(snr);
-    if excitation_check && med < NO_EXCITATION_SNR {
-        out.push(DataWarning::NoExcitation {
-            median_input_snr: med,
-            lines: snr.len(),
-        });
-    }
-    let low: Vec<f64> = snr
-        .iter()
-        .zip(frd.freq_hz())
-        .filter(|(s, _)| **s < MIN_INPUT_SNR)
-        .map(|(_, f)| *f)
-        .collect();
-    if !low.is_empty() {
-        out.push(DataWarning::LowInputSnr {
-            lines: low.len(),
-            of: snr.len(),
-            freq_hz: low.iter().take(5).copied().collect(),
-            excluded,
-        });
-    }
-    out
 }
 
 /// Detection lines averaged for each excited line's distortion level (real degrees of

@@ -16,6 +16,7 @@ pub mod fit;
 pub mod frf;
 pub mod lpm;
 pub mod multisine;
+pub mod quality;
 pub mod rng;
 pub mod tol;
 
@@ -26,11 +27,14 @@ pub use fit::{
     FitProgress, FitResult, FitWarning, Weighting,
 };
 pub use frf::{
-    frf_periodic, snr_warnings, trusted, DataWarning, DistortionReport, FrfEstimate,
-    PeriodicOptions, MIN_INPUT_SNR, NL_NEIGHBOURS, NO_EXCITATION_SNR,
+    frf_periodic, DistortionReport, FrfEstimate, PeriodicOptions, MIN_INPUT_SNR, NL_NEIGHBOURS,
 };
 pub use lpm::{lpm, lpm_closed_loop, lpm_closed_loop_snr, LpmEstimate, LpmOptions};
 pub use multisine::{crest_factor, design, write_csv, Lines, Multisine, MultisineSpec, Phases};
+pub use quality::{
+    feedback_only, input_unexplained_by_output, snr_warnings, trusted, DataWarning,
+    FEEDBACK_ONLY_RESIDUAL, NO_EXCITATION_SNR,
+};
 
 /// The crate README's example, compiled and run as a doctest.
 #[cfg(doctest)]

@@ -14,7 +14,8 @@ pub(crate) struct Args {
     #[arg(long, allow_negative_numbers = true)]
     pub(crate) excited_fraction: Option<f64>,
     /// Keep the lines whose input SNR |Ū|²/σ²_Ū is below 100 (biased ratio, no valid
-    /// variance; left out by default, with a warning).
+    /// variance; left out by default, with a warning), and write an estimate of a record
+    /// without excitation (refused by default) with a warning.
     #[arg(long)]
     pub(crate) keep_low_snr: bool,
     #[arg(help = crate::commands::OUTPUT_HELP, short, long)]
@@ -83,6 +84,15 @@ impl Args {
                 }
             }
         };
+        let mut warnings = warnings;
+        if let Some(w) = sd_ident::feedback_only(&exp.u, &exp.y).map_err(ident)? {
+            if !keep_low_snr {
+                return Err(CliError::input(format!(
+                    "{experiment}: {w} (--keep-low-snr writes the estimate anyway)"
+                )));
+            }
+            warnings.insert(0, w);
+        }
         for w in &warnings {
             eprintln!("sdctl: warning: {experiment}: {w}");
         }
