@@ -285,10 +285,10 @@ fn diagnosis(
     )
     .map_err(s)?;
     eprintln!(
-        "  diagnosis: {} / {} {} (held-out gain {})",
+        "  diagnosis: {} / {}: {} (held-out gain {})",
         diag.verdict,
         diag.cause,
-        diag.parameters,
+        sd_report::diagnosis::causes_text(&diag).join("; "),
         diag.gain_ratio()
             .map_or("not measured".into(), |r| format!("×{r:.1}"))
     );
