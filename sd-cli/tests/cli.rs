@@ -215,7 +215,13 @@ fn frf_warns_about_data_it_cannot_trust() {
             "the input is the controller's reaction to the measured output",
         );
     }
-    let o = sdctl(&["frf", &manifest0, "--experiment", "s_slow", "--keep-low-snr"]);
+    let o = sdctl(&[
+        "frf",
+        &manifest0,
+        "--experiment",
+        "s_slow",
+        "--keep-low-snr",
+    ]);
     assert!(o.status.success());
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(v["warnings"][0]["kind"], "feedback_only");

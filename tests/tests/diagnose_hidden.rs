@@ -39,6 +39,7 @@ fn identify(
     seed: u64,
     role: Role,
     lines: Lines,
+    periods: usize,
 ) -> Option<Experiment> {
     let ts = 1.0 / rate;
     let opt = sd_hinf::weights::PidOptions {
@@ -63,7 +64,7 @@ fn identify(
             name: name.into(),
             controller: k,
             excitation,
-            periods: 7,
+            periods,
             transient_periods: 1,
             injection: Injection::Input,
             noise: Noise {
@@ -105,6 +106,7 @@ fn experiment(
         seed,
         role,
         Lines::Full,
+        7,
     )
     .unwrap()
 }
@@ -595,6 +597,7 @@ fn distortion_at_non_excited_lines() {
                 s,
                 role,
                 odd,
+                7,
             )
             .unwrap()
         };
@@ -666,4 +669,55 @@ fn two_slow_experiments_are_left_out_in_turn() {
         ]
     );
     assert!(d.gain.ratio.unwrap() >= 3.0);
+}
+
+/// Speed of a three-experiment diagnosis, 3 × 70 000 samples: the 5 kHz model experiment
+/// (7 periods of 2 s) and two 1 kHz validation experiments (35 periods of 2 s each), with a
+/// hold delay. At most 5 s on this 2-core machine:
+/// `cargo test --release -p sd-tests --test diagnose_hidden three_experiments_speed -- --ignored
+/// --nocapture`.
+#[test]
+#[ignore]
+fn three_experiments_speed() {
+    let truth = Truth::default();
+    let ni = NonIdealities {
+        hold_delay: 0.3,
+        ..Default::default()
+    };
+    let mk = |name: &str, rate: f64, periods: usize, seed: u64, role: Role| {
+        let fast = rate > 2000.0;
+        let scale = (rate / 5000.0).sqrt();
+        identify(
+            &truth,
+            name,
+            rate,
+            if fast { 30.0 } else { 20.0 },
+            if fast { Some(1000.0) } else { None },
+            2.0,
+            (0.05 * scale, 0.3e-9 * scale),
+            1000.0,
+            ni,
+            seed,
+            role,
+            Lines::Full,
+            periods,
+        )
+        .unwrap()
+    };
+    let exps = [
+        mk("fast", 5000.0, 7, 70, Role::Model),
+        mk("slow_a", 1000.0, 35, 71, Role::Validation),
+        mk("slow_b", 1000.0, 35, 72, Role::Validation),
+    ];
+    let n: Vec<usize> = exps.iter().map(|e| e.y.len()).collect();
+    assert_eq!(n, [70_000, 70_000, 70_000]);
+    let t = std::time::Instant::now();
+    let d = diagnose(&exps, &Default::default()).unwrap();
+    let secs = t.elapsed().as_secs_f64();
+    println!(
+        "3 × 70 000 samples: {} / {} in {secs:.2} s (gain {:?}, held out {:?})",
+        d.verdict, d.cause, d.gain.ratio, d.gain.held_out
+    );
+    assert_eq!(d.cause, "hold_delay");
+    assert!(secs <= 5.0, "{secs:.2} s");
 }
