@@ -1058,7 +1058,7 @@ fn target<'v>(v: &'v Val<'_>, part: Part) -> Target<'v> {
 /// The pick among `fitted` (ranked by criterion): the best, unless it is a pair whose second
 /// parameter does not pay for itself on the held-out data (`judge`), then its best nested
 /// single cause.
-fn pick(fitted: &[Fitted], judge: &dyn Fn(usize) -> Statistic) -> usize {
+fn pick(fitted: &[Fitted], judge: &dyn Fn(usize) -> Statistic, held: bool) -> usize {
     let nested = fitted[0].family.nested();
     if nested.is_empty() {
         return 0;
@@ -1093,9 +1093,27 @@ fn pick(fitted: &[Fitted], judge: &dyn Fn(usize) -> Statistic) -> usize {
         .filter(|&i| nested.contains(&fitted[i].family))
         .min_by(|x, y| sum(judge(*x)).total_cmp(&sum(judge(*y))));
     match better {
+        // without held-out data the pair must win the likelihood-ratio test outright
+        Some(i) if !held && !decisive(&fitted[0], &fitted[i]) => i,
         Some(i) if sum(me) + pen >= sum(judge(i)) && !decisive(&fitted[0], &fitted[i]) => i,
         _ => 0,
     }
+}
+
+/// Whether another hypothesis, sharing no cause with the chosen one (`k`), explains the data as
+/// well: it passes the naming threshold too (`judge`) and the chosen one's training score sum is
+/// not lower by [`PAIR_DECISIVE`]. Then the data do not tell the causes apart (a small hold
+/// delay and a short averaging window lag the phase alike), and naming either would be a guess.
+fn ambiguous(fitted: &[Fitted], k: usize, judge: &dyn Fn(usize) -> Statistic, alpha: f64) -> bool {
+    let chosen = fitted[k].family;
+    let related =
+        |f: Family| f == chosen || chosen.nested().contains(&f) || f.nested().contains(&chosen);
+    fitted.iter().enumerate().any(|(i, f)| {
+        f.family != Family::None
+            && !related(f.family)
+            && explains(&judge(i), alpha)
+            && !decisive(f, &fitted[k])
+    })
 }
 
 /// Score-sum advantage on the training data beyond which a pair is kept against its nested
@@ -1200,7 +1218,8 @@ fn halves(j: &Judged<'_>, tied: &[&Val<'_>], progress: &mut dyn FnMut(&str)) -> 
         .map(|(f, h)| ranked(f, h.map(|s| s.value)))
         .collect();
     let judge = |i: usize| held_stats[i].unwrap_or(fitted[i].stat);
-    let k = pick(&fitted, &judge);
+    let k = pick(&fitted, &judge, held.is_some());
+    let unsure = ambiguous(&fitted, k, &judge, j.modal.alpha);
     let chosen = &fitted[k];
     let Some(held) = held else {
         return Ok(Settled {
@@ -1209,6 +1228,7 @@ fn halves(j: &Judged<'_>, tied: &[&Val<'_>], progress: &mut dyn FnMut(&str)) -> 
             // without held-out data the discrepancy must stand at the naming level itself,
             // on the naming yardstick (residue and pole covariance)
             named: chosen.family != Family::None
+                && !unsure
                 && explains(&j.modal.stat_full(&chosen.params, &train)?, j.modal.alpha)
                 && !explains(
                     &j.modal.stat_full(&RateTied::default(), &train)?,
@@ -1242,7 +1262,10 @@ fn halves(j: &Judged<'_>, tied: &[&Val<'_>], progress: &mut dyn FnMut(&str)) -> 
         family: chosen.family,
         params: chosen.params.clone(),
         // the discrepancy must replicate on the held-out data, and the extension explain it
-        named: chosen.family != Family::None && !before.passes() && explains(&after, alpha),
+        named: chosen.family != Family::None
+            && !unsure
+            && !before.passes()
+            && explains(&after, alpha),
         partial: ranked(chosen, Some(after.value)),
         ranking,
         gain: Gain::measured(before.value, after.value, labels),
@@ -1287,22 +1310,40 @@ fn leave_one_out(
     let (mut before, mut after) = (Vec::new(), Vec::new());
     let mut ranking = Vec::new();
     let mut first: Option<Fitted> = None;
-    for (k, v) in tied.iter().enumerate() {
-        progress(&format!("leaving `{}` out", v.exp.spec.name));
-        let train: Vec<Target<'_>> = tied
-            .iter()
-            .enumerate()
-            .filter(|(i, _)| *i != k)
-            .map(|(_, w)| target(w, Part::Whole))
-            .collect();
-        let fitted = j.modal.search(&train, progress)?;
+    // the folds are independent: their hypothesis searches run side by side
+    progress(&format!(
+        "leaving each of {} out in turn (the folds in parallel)",
+        tied.iter()
+            .map(|v| format!("`{}`", v.exp.spec.name))
+            .collect::<Vec<_>>()
+            .join(", ")
+    ));
+    let trains: Vec<Vec<Target<'_>>> = (0..tied.len())
+        .map(|k| {
+            tied.iter()
+                .enumerate()
+                .filter(|(i, _)| *i != k)
+                .map(|(_, w)| target(w, Part::Whole))
+                .collect()
+        })
+        .collect();
+    let modal = &j.modal;
+    let searched: Vec<Result<Vec<Fitted>>> = {
+        use rayon::prelude::*;
+        trains
+            .par_iter()
+            .map(|train| modal.search(train, &mut |_| {}))
+            .collect()
+    };
+    for ((k, v), fitted) in tied.iter().enumerate().zip(searched) {
+        let fitted = fitted?;
         let held = fitted
             .iter()
             .map(|f| held_out_lines(j, f, v, false))
             .collect::<Result<Vec<_>>>()?;
         let c = v.whole.inflation;
         let stat_of = |i: usize| statistic([(held[i].as_slice(), c)], j.modal.alpha);
-        let p = pick(&fitted, &stat_of);
+        let p = pick(&fitted, &stat_of, true);
         if k == 0 {
             ranking = fitted
                 .iter()

@@ -712,7 +712,10 @@ fn three_experiments_speed() {
     let n: Vec<usize> = exps.iter().map(|e| e.y.len()).collect();
     assert_eq!(n, [70_000, 70_000, 70_000]);
     let t = std::time::Instant::now();
-    let d = diagnose(&exps, &Default::default()).unwrap();
+    let d = sd_diagnose::diagnose_with_progress(&exps, &Default::default(), &mut |m| {
+        println!("  [{:6.2} s] {m}", t.elapsed().as_secs_f64())
+    })
+    .unwrap();
     let secs = t.elapsed().as_secs_f64();
     println!(
         "3 × 70 000 samples: {} / {} in {secs:.2} s (gain {:?}, held out {:?})",

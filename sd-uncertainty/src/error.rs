@@ -1,0 +1,23 @@
+//! The crate's one error type.
+
+use thiserror::Error;
+
+/// What can go wrong.
+#[derive(Debug, Error)]
+pub enum UncertaintyError {
+    /// A model operation failed.
+    #[error(transparent)]
+    Model(#[from] sd_model::ModelError),
+    /// A multirate operation failed.
+    #[error(transparent)]
+    Multirate(#[from] sd_multirate::MultirateError),
+    /// The weight's fit failed.
+    #[error(transparent)]
+    Ident(#[from] sd_ident::IdentError),
+    /// An argument or a data set that cannot be used, and what to change.
+    #[error("{0}")]
+    Input(String),
+}
+
+/// Result with [`UncertaintyError`].
+pub type Result<T> = std::result::Result<T, UncertaintyError>;

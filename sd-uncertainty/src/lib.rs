@@ -1,0 +1,33 @@
+//! Model uncertainty from measured data, as a first-class object that travels between rates.
+//!
+//! The reference paper (Oomen, van de Wal, Bosgra, ACC 2007) leaves open how model uncertainty
+//! behaves under downsampling. This crate answers it for the frequency-domain bound:
+//!
+//! - [`from_data`]: the pointwise bound on a model's error from a measured FRF with variances,
+//!   `|P − P̂| ≤ |G − P̂| + κσ` at a stated per-line confidence, additive or multiplicative
+//!   ([`bound`] has the math).
+//! - [`overbound`]: a low-order stable weight `W(z)` with `|W| ≥ b` on every line (checked),
+//!   and how conservative it is ([`weight`]).
+//! - [`downsample`]: the slow-rate bound the fast one implies through Lemma 6: each slow line
+//!   collects its `F` fold frequencies weighted by the slow hold,
+//!   `|Δ_T(f)| ≤ Σ_k |H_F(f_k)/F|·|Δ_h(f_k)|` ([`mod@downsample`] has the structure and when it
+//!   is tight).
+//! - [`coverage`]: the fraction of a measurement's lines inside nominal ± bound, the check of a
+//!   bound on data it was not made from.
+//!
+//! SISO; a bound lives on the lines of the data it came from.
+
+pub mod bound;
+pub mod downsample;
+pub mod error;
+pub mod weight;
+
+pub use bound::{coverage, from_data, sigma_factor, Bound, Coverage, Form};
+pub use downsample::{downsample, Downsampled};
+pub use error::{Result, UncertaintyError};
+pub use weight::{overbound, Weight};
+
+/// The crate README's example, compiled and run as a doctest.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctest;
