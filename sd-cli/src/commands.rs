@@ -58,6 +58,11 @@ enum Cmd {
     Diagnose(crate::cmd::diagnose::Args),
     /// Loopshaping weights as model JSON (continuous unless --ts is given).
     Weight(crate::cmd::weight::Args),
+    /// Bound on a model's error from a measured FRF at a stated confidence (uncertainty JSON),
+    /// optionally with an overbounding weight W(z).
+    Uncertainty(crate::cmd::uncertainty::Args),
+    /// Fraction of a measured FRF's lines inside nominal ± an uncertainty bound.
+    Coverage(crate::cmd::uncertainty::CoverageArgs),
 }
 
 pub(crate) fn finite_pos(v: f64, what: &str) -> Result<f64, CliError> {
@@ -116,6 +121,8 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Cmd::Testbed(a) => a.run(),
         Cmd::Diagnose(a) => a.run(),
         Cmd::Weight(a) => a.run(),
+        Cmd::Uncertainty(a) => a.run(),
+        Cmd::Coverage(a) => a.run(),
     }
 }
 

@@ -1059,3 +1059,131 @@ fn testbed_then_diagnose() {
     let one = write(&dir, "one.toml", "[[experiment]]\nname = \"fast\"\nfile = \"data/fast.csv\"\nsample_rate_hz = 5000.0\nperiod_samples = 10000\ninput = \"u\"\noutput = \"y\"\n");
     assert_input_error(&sdctl(&["diagnose", &one, "--out", &out]), "validation");
 }
+
+/// `uncertainty`, `downsample --uncertainty` and `coverage`: a bound from the fast data, taken
+/// to the slow rate, covers the slow measurement; a bound is refused for another model, and
+/// bad arguments exit 2 with one line.
+#[test]
+fn uncertainty_travels_to_the_slow_rate() {
+    let d = tmpdir("uncertainty");
+    let data = d.join("data").to_string_lossy().into_owned();
+    assert!(sdctl(&["testbed", "--out", &data]).status.success());
+    let manifest = d
+        .join("data")
+        .join("experiments.toml")
+        .to_string_lossy()
+        .into_owned();
+    let p = |n: &str| d.join(n).to_string_lossy().into_owned();
+    for e in ["fast", "slow"] {
+        let o = sdctl(&[
+            "frf",
+            &manifest,
+            "--experiment",
+            e,
+            "-o",
+            &p(&format!("{e}.json")),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let o = sdctl(&[
+        "fit",
+        &p("fast.json"),
+        "--order",
+        "4",
+        "--rigid-body",
+        "2",
+        "--strictly-proper",
+        "-o",
+        &p("m.json"),
+    ]);
+    assert!(o.status.success());
+    let o = sdctl(&[
+        "uncertainty",
+        &p("m.json"),
+        &p("fast.json"),
+        "--weight-order",
+        "6",
+        "-o",
+        &p("u.json"),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let u: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(p("u.json")).unwrap()).unwrap();
+    assert_eq!(u["type"], "uncertainty");
+    assert!(u["weight"]["median_ratio"].as_f64().unwrap() >= 1.0);
+    let o = sdctl(&[
+        "downsample",
+        &p("m.json"),
+        "--factor",
+        "5",
+        "--uncertainty",
+        &p("u.json"),
+        "--uncertainty-out",
+        &p("us.json"),
+        "-o",
+        &p("ms.json"),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = sdctl(&["coverage", &p("us.json"), &p("slow.json"), "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let c: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(c["lines"].as_u64().unwrap() > 200);
+    assert!(c["fraction"].as_f64().unwrap() >= 0.93, "{c}");
+    // another model's bound, a confidence that is not a probability, a missing partner option
+    let o = sdctl(&[
+        "fit",
+        &p("fast.json"),
+        "--order",
+        "6",
+        "--rigid-body",
+        "2",
+        "--strictly-proper",
+        "-o",
+        &p("m6.json"),
+    ]);
+    assert!(o.status.success());
+    assert_input_error(
+        &sdctl(&[
+            "downsample",
+            &p("m6.json"),
+            "--factor",
+            "5",
+            "--uncertainty",
+            &p("u.json"),
+            "--uncertainty-out",
+            &p("x.json"),
+        ]),
+        "belongs to another model",
+    );
+    assert_input_error(
+        &sdctl(&[
+            "uncertainty",
+            &p("m.json"),
+            &p("fast.json"),
+            "--confidence",
+            "1.5",
+        ]),
+        "must be a probability",
+    );
+    assert_input_error(
+        &sdctl(&["uncertainty", &p("m.json"), &p("slow.json")]),
+        "differ",
+    );
+    let o = sdctl(&[
+        "downsample",
+        &p("m.json"),
+        "--factor",
+        "5",
+        "--uncertainty",
+        &p("u.json"),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    let typo = std::fs::read_to_string(p("us.json"))
+        .unwrap()
+        .replace("\"confidence\"", "\"confidance\"");
+    let t = write(&d, "typo.json", &typo);
+    assert_input_error(
+        &sdctl(&["coverage", &t, &p("slow.json")]),
+        "did you mean `confidence`",
+    );
+}

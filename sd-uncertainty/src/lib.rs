@@ -20,11 +20,13 @@
 pub mod bound;
 pub mod downsample;
 pub mod error;
+pub mod json;
 pub mod weight;
 
 pub use bound::{coverage, from_data, sigma_factor, Bound, Coverage, Form};
 pub use downsample::{downsample, Downsampled};
 pub use error::{Result, UncertaintyError};
+pub use json::{from_json_str, to_json_string};
 pub use weight::{overbound, Weight};
 
 /// The crate README's example, compiled and run as a doctest.

@@ -17,6 +17,15 @@ pub(crate) struct Args {
     /// Slow sampler returning the mean of the last fraction of fast samples (a multiple of 1/F).
     #[arg(long, allow_negative_numbers = true)]
     pub(crate) averaging: Option<f64>,
+    /// Uncertainty JSON of the fast model (`sdctl uncertainty`): its bound is downsampled too
+    /// (Lemma 6 in the frequency domain: each slow line sums its F fold components weighted by
+    /// the slow hold) and written to --uncertainty-out.
+    #[arg(long, requires = "uncertainty_out")]
+    pub(crate) uncertainty: Option<String>,
+    /// Where the slow-rate uncertainty JSON goes (its lines: the fast bound's lines below the
+    /// slow Nyquist frequency).
+    #[arg(long, requires = "uncertainty")]
+    pub(crate) uncertainty_out: Option<String>,
     #[arg(help = crate::commands::OUTPUT_HELP, short, long)]
     pub(crate) output: Option<String>,
 }
@@ -29,6 +38,8 @@ impl Args {
             factor,
             hold_delay,
             averaging,
+            uncertainty,
+            uncertainty_out,
             output,
         } = self;
         let sys = read_model(&model)?;
@@ -50,6 +61,47 @@ impl Args {
         };
         let d = sd_multirate::downsample_nonideal(&sys, f, ni)
             .map_err(|e| from_multirate(&model, e))?;
+        if let (Some(u), Some(out)) = (uncertainty, uncertainty_out) {
+            if ni.hold_delay != 0.0 || ni.averaging != 0.0 {
+                return Err(CliError::input(
+                    "--uncertainty downsamples through the ideal hold and sampler (Lemma 6); \
+                     leave out --hold-delay and --averaging",
+                ));
+            }
+            slow_bound(&sys, f, &u, &out)?;
+        }
         emit(&model_json(&d)?, output.as_deref())
     }
+}
+
+/// The fast bound `u` of `sys` downsampled by `f` and written to `out`.
+fn slow_bound(sys: &sd_model::StateSpace, f: usize, u: &str, out: &str) -> Result<(), CliError> {
+    use crate::cmd::uncertainty::{from_unc, read_bound};
+    let b = read_bound(u)?;
+    // the bound must belong to this model: its nominal is the model's response
+    let p = sys
+        .freqresp(&b.freq_hz)
+        .map_err(|e| crate::io::from_model(u, e))?;
+    let off = p
+        .response()
+        .iter()
+        .zip(&b.nominal)
+        .map(|(m, n)| (m[(0, 0)] - n).norm() / n.norm().max(f64::MIN_POSITIVE))
+        .fold(0.0, f64::max);
+    if off > 1e-6 {
+        return Err(CliError::input(format!(
+            "{u}: its nominal response differs from the model's by {off:.1e} (relative): the \
+             bound belongs to another model"
+        )));
+    }
+    let nyquist = 0.5 / (b.ts * f as f64);
+    let lines: Vec<f64> = b.freq_hz.iter().copied().filter(|x| *x < nyquist).collect();
+    let d = sd_uncertainty::downsample(&b, f, &lines).map_err(|e| from_unc(u, e))?;
+    eprintln!(
+        "[downsample] uncertainty: {} slow lines ({} without all their folds on the fast grid)",
+        d.bound.freq_hz.len(),
+        d.missing_hz.len()
+    );
+    let text = sd_uncertainty::to_json_string(&d.bound, None).map_err(|e| from_unc(out, e))?;
+    emit(&text, Some(out))
 }

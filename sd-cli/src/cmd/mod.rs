@@ -16,4 +16,5 @@ pub(crate) mod norm;
 pub(crate) mod reduce;
 pub(crate) mod roots;
 pub(crate) mod testbed;
+pub(crate) mod uncertainty;
 pub(crate) mod weight;

@@ -1,0 +1,127 @@
+//! `sdctl uncertainty` and `sdctl coverage`.
+
+use crate::io::{emit, from_model, read_model, read_text, CliError};
+
+/// Form of the bound.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub(crate) enum FormArg {
+    Additive,
+    Multiplicative,
+}
+
+/// Arguments of `sdctl uncertainty`.
+#[derive(clap::Args, Debug)]
+pub(crate) struct Args {
+    #[arg(help = crate::commands::MODEL_HELP)]
+    pub(crate) model: String,
+    /// Measured FRD JSON with variances (`var`), at the model's sample time.
+    pub(crate) frd: String,
+    /// Probability per line that the bound holds.
+    #[arg(long, default_value_t = 0.95, allow_negative_numbers = true)]
+    pub(crate) confidence: f64,
+    /// Additive (plant units) or multiplicative (relative) bound.
+    #[arg(long, value_enum, default_value = "additive")]
+    pub(crate) form: FormArg,
+    /// Also fit an overbounding weight W(z) of this order (|W| ≥ bound on every line).
+    #[arg(long)]
+    pub(crate) weight_order: Option<usize>,
+    #[arg(help = crate::commands::OUTPUT_HELP, short, long)]
+    pub(crate) output: Option<String>,
+}
+
+/// Maps an `sd-uncertainty` error: bad input exits 2, numerical failures 1.
+pub(crate) fn from_unc(context: &str, e: sd_uncertainty::UncertaintyError) -> CliError {
+    match e {
+        sd_uncertainty::UncertaintyError::Model(m) => from_model(context, m),
+        sd_uncertainty::UncertaintyError::Input(_) => CliError::input(format!("{context}: {e}")),
+        other => CliError::numerical(format!("{context}: {other}")),
+    }
+}
+
+/// Reads an uncertainty JSON file.
+pub(crate) fn read_bound(path: &str) -> Result<sd_uncertainty::Bound, CliError> {
+    sd_uncertainty::from_json_str(&read_text(path)?).map_err(|e| from_unc(path, e))
+}
+
+impl Args {
+    /// Runs the command.
+    pub(crate) fn run(self) -> Result<(), CliError> {
+        let model = read_model(&self.model)?;
+        let frd = sd_model::frd_from_json_str(&read_text(&self.frd)?)
+            .map_err(|e| from_model(&self.frd, e))?;
+        let form = match self.form {
+            FormArg::Additive => sd_uncertainty::Form::Additive,
+            FormArg::Multiplicative => sd_uncertainty::Form::Multiplicative,
+        };
+        let b = sd_uncertainty::from_data(&model, &frd, form, self.confidence)
+            .map_err(|e| from_unc(&self.frd, e))?;
+        let w = self
+            .weight_order
+            .map(|n| sd_uncertainty::overbound(&b, n))
+            .transpose()
+            .map_err(|e| from_unc("--weight-order", e))?;
+        let v = b.values();
+        eprintln!(
+            "[uncertainty] {} lines, {} bound at {:.1} % per line: median {:.3e}, largest {:.3e} \
+             at {:.2} Hz{}",
+            v.len(),
+            match form {
+                sd_uncertainty::Form::Additive => "additive",
+                sd_uncertainty::Form::Multiplicative => "multiplicative",
+            },
+            100.0 * self.confidence,
+            sd_model::median(&v),
+            v.iter().cloned().fold(0.0, f64::max),
+            b.freq_hz[v
+                .iter()
+                .enumerate()
+                .fold(0, |k, (i, x)| if *x > v[k] { i } else { k })],
+            match &w {
+                Some(w) => format!(
+                    "; weight of order {}: |W|/bound median {:.2}, largest {:.1}",
+                    w.model.n(),
+                    w.median_ratio,
+                    w.max_ratio
+                ),
+                None => String::new(),
+            }
+        );
+        let text =
+            sd_uncertainty::to_json_string(&b, w.as_ref()).map_err(|e| from_unc("output", e))?;
+        emit(&text, self.output.as_deref())
+    }
+}
+
+/// Arguments of `sdctl coverage`.
+#[derive(clap::Args, Debug)]
+pub(crate) struct CoverageArgs {
+    /// Uncertainty JSON (from `sdctl uncertainty` or `sdctl downsample --uncertainty`).
+    pub(crate) bound: String,
+    /// Measured FRD JSON to check (its variance, if any, widens the bound by its own noise).
+    pub(crate) frd: String,
+    #[arg(long, help = crate::commands::JSON_HELP)]
+    pub(crate) json: bool,
+}
+
+impl CoverageArgs {
+    /// Runs the command.
+    pub(crate) fn run(self) -> Result<(), CliError> {
+        let b = read_bound(&self.bound)?;
+        let frd = sd_model::frd_from_json_str(&read_text(&self.frd)?)
+            .map_err(|e| from_model(&self.frd, e))?;
+        let c = sd_uncertainty::coverage(&b, &frd).map_err(|e| from_unc(&self.frd, e))?;
+        if self.json {
+            let s = serde_json::to_string(&c).map_err(|e| CliError::numerical(e.to_string()))?;
+            println!("{s}");
+        } else {
+            println!(
+                "{} of {} lines inside nominal ± bound: {:.1} % (the bound's confidence: {:.1} % per line)",
+                c.covered,
+                c.lines,
+                100.0 * c.fraction,
+                100.0 * b.confidence
+            );
+        }
+        Ok(())
+    }
+}
