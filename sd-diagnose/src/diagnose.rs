@@ -1101,18 +1101,22 @@ fn pick(fitted: &[Fitted], judge: &dyn Fn(usize) -> Statistic, held: bool) -> us
 }
 
 /// Whether another hypothesis, sharing no cause with the chosen one (`k`), explains the data as
-/// well: it passes the naming threshold too (`judge`) and the chosen one's training score sum is
-/// not lower by [`PAIR_DECISIVE`]. Then the data do not tell the causes apart (a small hold
-/// delay and a short averaging window lag the phase alike), and naming either would be a guess.
+/// well: it passes the naming threshold too (`judge`), and neither the training data nor the
+/// judged (held-out) data put the chosen one's score sum lower by [`PAIR_DECISIVE`]. Then the
+/// data do not tell the causes apart (a small hold delay and a short averaging window lag the
+/// phase alike), and naming either would be a guess.
 fn ambiguous(fitted: &[Fitted], k: usize, judge: &dyn Fn(usize) -> Statistic, alpha: f64) -> bool {
     let chosen = fitted[k].family;
     let related =
         |f: Family| f == chosen || chosen.nested().contains(&f) || f.nested().contains(&chosen);
+    let sum = |s: Statistic| s.value * s.effective_lines.max(1.0);
+    let mine = sum(judge(k));
     fitted.iter().enumerate().any(|(i, f)| {
         f.family != Family::None
             && !related(f.family)
             && explains(&judge(i), alpha)
             && !decisive(f, &fitted[k])
+            && sum(judge(i)) - mine < PAIR_DECISIVE
     })
 }
 
