@@ -439,8 +439,8 @@ fn decide(
         // effect may show in the model's simulation only, so it is tried before the model
         // is blamed
         if data.vals.iter().any(Val::rate_tied) {
-            let o = rate_tied(data, j, progress)?;
-            if !matches!(o.causes.first(), Some(Cause::Unexplained) | None) {
+            let (o, ambiguous) = rate_tied(data, j, progress)?;
+            if ambiguous || !matches!(o.causes.first(), Some(Cause::Unexplained) | None) {
                 return Ok(o);
             }
         }
@@ -454,7 +454,7 @@ fn decide(
         ));
         return Ok(not_repeatable(data, ch));
     }
-    let o = rate_tied(data, j, progress)?;
+    let (o, _) = rate_tied(data, j, progress)?;
     let seen = std::iter::once(&data.fast)
         .chain(data.vals.iter().map(|v| &v.whole))
         .any(|e| distorted(e, a) == Some(true));
@@ -1152,6 +1152,9 @@ struct Settled {
     /// Parameters from the training data (the start of the final refit).
     params: RateTied,
     named: bool,
+    /// Not named because two unrelated causes explain the data alike ([`ambiguous`]): a
+    /// rate-tied effect is there, so the model is not to blame.
+    ambiguous: bool,
     ranking: Vec<Ranked>,
     partial: Ranked,
     gain: Gain,
@@ -1159,8 +1162,13 @@ struct Settled {
 
 /// The rate-tied search and its validation (leave one experiment out with two or more
 /// same-level slower experiments, else earlier/later periods), then the named extension
-/// refitted on all data.
-fn rate_tied(data: &Data<'_>, j: &Judged<'_>, progress: &mut dyn FnMut(&str)) -> Result<Outcome> {
+/// refitted on all data. The flag says the answer is `unexplained` only because two rate-tied
+/// causes explain the data alike.
+fn rate_tied(
+    data: &Data<'_>,
+    j: &Judged<'_>,
+    progress: &mut dyn FnMut(&str),
+) -> Result<(Outcome, bool)> {
     let tied: Vec<&Val<'_>> = data.vals.iter().filter(|v| v.rate_tied()).collect();
     let s = if tied.len() >= 2 {
         leave_one_out(j, &tied, progress)?
@@ -1168,32 +1176,46 @@ fn rate_tied(data: &Data<'_>, j: &Judged<'_>, progress: &mut dyn FnMut(&str)) ->
         halves(j, &tied, progress)?
     };
     if !s.named {
-        return Ok(Outcome {
-            verdict: Verdict::Discrepancy,
-            causes: vec![Cause::Unexplained],
-            extension: Extension::None,
-            partial: Some(s.partial),
-            ranking: s.ranking,
-            gain: s.gain,
-            models: BTreeMap::new(),
-            held: BTreeMap::new(),
-        });
+        let gain = if s.ambiguous {
+            Gain::none(
+                "two unrelated rate-tied causes explain the data alike (see `partial` and the \
+                 ranking): none is named, so no extension is measured",
+            )
+        } else {
+            s.gain
+        };
+        return Ok((
+            Outcome {
+                verdict: Verdict::Discrepancy,
+                causes: vec![Cause::Unexplained],
+                extension: Extension::None,
+                partial: Some(s.partial),
+                ranking: s.ranking,
+                gain,
+                models: BTreeMap::new(),
+                held: BTreeMap::new(),
+            },
+            s.ambiguous,
+        ));
     }
     progress("refitting the chosen extension on all data");
     let all: Vec<Target<'_>> = tied.iter().map(|v| target(v, Part::Whole)).collect();
     let params = j.modal.refine(s.family, &all, &s.params)?;
     let std = j.modal.std_errors(s.family, &all, &params)?;
     let names: Vec<String> = tied.iter().map(|v| v.exp.spec.name.clone()).collect();
-    Ok(Outcome {
-        verdict: Verdict::Discrepancy,
-        causes: causes_of(s.family, (&params, &std), &names, data),
-        extension: Extension::RateTied(params),
-        ranking: s.ranking,
-        partial: None,
-        gain: s.gain,
-        models: BTreeMap::new(),
-        held: BTreeMap::new(),
-    })
+    Ok((
+        Outcome {
+            verdict: Verdict::Discrepancy,
+            causes: causes_of(s.family, (&params, &std), &names, data),
+            extension: Extension::RateTied(params),
+            ranking: s.ranking,
+            partial: None,
+            gain: s.gain,
+            models: BTreeMap::new(),
+            held: BTreeMap::new(),
+        },
+        false,
+    ))
 }
 
 /// One same-level slower experiment: family and parameters on its earlier periods, judged on
@@ -1226,18 +1248,19 @@ fn halves(j: &Judged<'_>, tied: &[&Val<'_>], progress: &mut dyn FnMut(&str)) -> 
     let unsure = ambiguous(&fitted, k, &judge, j.modal.alpha);
     let chosen = &fitted[k];
     let Some(held) = held else {
+        // without held-out data the discrepancy must stand at the naming level itself, on the
+        // naming yardstick (residue and pole covariance)
+        let would = chosen.family != Family::None
+            && explains(&j.modal.stat_full(&chosen.params, &train)?, j.modal.alpha)
+            && !explains(
+                &j.modal.stat_full(&RateTied::default(), &train)?,
+                j.modal.alpha,
+            );
         return Ok(Settled {
             family: chosen.family,
             params: chosen.params.clone(),
-            // without held-out data the discrepancy must stand at the naming level itself,
-            // on the naming yardstick (residue and pole covariance)
-            named: chosen.family != Family::None
-                && !unsure
-                && explains(&j.modal.stat_full(&chosen.params, &train)?, j.modal.alpha)
-                && !explains(
-                    &j.modal.stat_full(&RateTied::default(), &train)?,
-                    j.modal.alpha,
-                ),
+            named: would && !unsure,
+            ambiguous: would && unsure,
             partial: ranked(chosen, None),
             ranking,
             gain: Gain::none(
@@ -1262,14 +1285,13 @@ fn halves(j: &Judged<'_>, tied: &[&Val<'_>], progress: &mut dyn FnMut(&str)) -> 
         .pool(&j.modal.stat_full(&none, &train)?, alpha);
     let mut labels: Vec<String> = tied.iter().map(|v| held_out_label(v.exp)).collect();
     labels.extend(tied.iter().map(|v| earlier_label(v.exp)));
+    // the discrepancy must replicate on the held-out data, and the extension explain it
+    let would = chosen.family != Family::None && !before.passes() && explains(&after, alpha);
     Ok(Settled {
         family: chosen.family,
         params: chosen.params.clone(),
-        // the discrepancy must replicate on the held-out data, and the extension explain it
-        named: chosen.family != Family::None
-            && !unsure
-            && !before.passes()
-            && explains(&after, alpha),
+        named: would && !unsure,
+        ambiguous: would && unsure,
         partial: ranked(chosen, Some(after.value)),
         ranking,
         gain: Gain::measured(before.value, after.value, labels),
@@ -1374,6 +1396,7 @@ fn leave_one_out(
         family: first.family,
         params: first.params.clone(),
         named: same && first.family != Family::None && !b.passes() && explains(&a, j.modal.alpha),
+        ambiguous: false,
         partial: ranked(&first, Some(a.value)),
         ranking,
         gain: Gain::measured(
