@@ -1,10 +1,11 @@
-//! Fuzzing of every file reader (model JSON, FRD JSON, manifest, testbed configuration, CSV):
+//! Fuzzing of every file reader (model JSON, FRD JSON, manifest, testbed configuration, CSV,
+//! uncertainty JSON):
 //! whatever the bytes, a reader returns `Ok` or an error, never panics, and never hangs.
 //!
 //! Inputs are valid files mutated byte-wise (insert, delete, replace with a character from a
 //! dictionary of JSON/TOML/CSV tokens such as `NaN`, `1e999`, `[`, `"`, `=`, `\n`, and the
 //! keys of each format), plus arbitrary byte strings. The default run tries a bounded number
-//! of cases per reader (proptest, 4 readers × 400 cases + the CSV reader); the long run,
+//! of cases per reader (proptest, 5 readers × 400 cases + the CSV reader); the long run,
 //!
 //! ```text
 //! FUZZ_SECONDS=600 cargo test --release -p sd-tests --test readers_fuzz long_fuzz -- --ignored --nocapture
@@ -24,6 +25,7 @@ const FRD: &str = r#"{"type":"frd","ts":0.001,"freq_hz":[1,2,3],"re":[[[1]],[[0.
 const MANIFEST: &str = "[[experiment]]\nname = \"fast\"\nfile = \"fast.csv\"\nsample_rate_hz = 5000.0\nperiod_samples = 5000\nskip_periods = 1\nreference = \"r\"\ninput = \"u\"\noutput = \"y\"\nrole = \"model\"\n";
 const CONFIG: &str = "seed = 2\n[truth]\nmass = 20.0\n[[truth.mode]]\nfreq_hz = 653.0\nzeta = 0.01\nresidue = 2.0\n[nonideal]\nhold_delay = 0.2\n[[experiment]]\nname = \"id\"\nrate_hz = 1000.0\npid_bandwidth_hz = 15.0\nperiod = 1000\nperiods = 3\nrole = \"model\"\n[[experiment]]\nkind = \"standstill\"\nname = \"ss\"\nrate_hz = 1000.0\nfactor = 5\nsamples = 5000\n";
 const CSV: &str = "t,r,u,y\n0,1,2,3\n0.001,\"4\",5.5,-6e-3\n0.002,7,8,9,\n";
+const UNCERTAINTY: &str = r#"{"type":"uncertainty","form":"additive","confidence":0.95,"ts":0.001,"freq_hz":[1,2,3],"nominal_re":[1,0.5,0.2],"nominal_im":[0,-0.1,-0.2],"bound":[0.1,0.2,0.3],"residual":[0.05,0.1,0.2],"sigma":[0.01,0.02,0.03]}"#;
 
 /// Tokens the mutations insert: numbers that are not numbers, structure, and the formats' keys.
 const TOKENS: &[&str] = &[
@@ -72,6 +74,7 @@ fn read(which: usize, text: &str) {
         1 => drop(sd_model::frd_from_json_str(text)),
         2 => drop(sd_ident::parse_manifest(text)),
         3 => drop(sd_testbed::parse_config(text)),
+        5 => drop(sd_uncertainty::from_json_str(text)),
         _ => drop(sd_ident::read_columns(
             text.as_bytes(),
             "x.csv",
@@ -86,7 +89,7 @@ fn read(which: usize, text: &str) {
 }
 
 fn seed_text(which: usize) -> &'static str {
-    [MODEL, FRD, MANIFEST, CONFIG, CSV][which]
+    [MODEL, FRD, MANIFEST, CONFIG, CSV, UNCERTAINTY][which]
 }
 
 /// A mutation of `base`: `k` edits chosen by `rng`.
@@ -114,7 +117,7 @@ proptest! {
 
     /// Mutated valid files of every format.
     #[test]
-    fn mutated_files_never_panic(which in 0usize..5, seed in any::<u64>(), k in 1usize..6) {
+    fn mutated_files_never_panic(which in 0usize..6, seed in any::<u64>(), k in 1usize..6) {
         let mut rng = SplitMix::new(seed);
         read(which, &mutate(seed_text(which), &mut rng, k));
         if which == 0 {
@@ -124,7 +127,7 @@ proptest! {
 
     /// Arbitrary text.
     #[test]
-    fn arbitrary_text_never_panics(which in 0usize..5, text in ".{0,200}") {
+    fn arbitrary_text_never_panics(which in 0usize..6, text in ".{0,200}") {
         read(which, &text);
     }
 }
@@ -139,6 +142,7 @@ fn seeds_are_valid() {
     sd_ident::parse_manifest(MANIFEST).unwrap();
     sd_testbed::parse_config(CONFIG).unwrap();
     sd_ident::read_columns(CSV.as_bytes(), "x.csv", &["r", "u", "y"]).unwrap();
+    sd_uncertainty::from_json_str(UNCERTAINTY).unwrap();
 }
 
 /// The long run (module docs): `FUZZ_SECONDS` of mutations per reader.
@@ -149,10 +153,10 @@ fn long_fuzz() {
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(60);
-    for which in 0..5 {
+    for which in 0..6 {
         let mut rng = SplitMix::new(0xf022 + which as u64);
         let (t0, mut n, mut slowest) = (Instant::now(), 0u64, Duration::ZERO);
-        while t0.elapsed() < Duration::from_secs(secs) / 5 {
+        while t0.elapsed() < Duration::from_secs(secs) / 6 {
             let k = 1 + rng.below(12);
             let text = mutate(seed_text(which), &mut rng, k);
             let t = Instant::now();
@@ -168,7 +172,8 @@ fn long_fuzz() {
                 "FRD JSON",
                 "manifest",
                 "testbed config",
-                "CSV"
+                "CSV",
+                "uncertainty JSON"
             ][which],
             t0.elapsed().as_secs_f64(),
             slowest.as_secs_f64() * 1e3
