@@ -204,7 +204,7 @@ pub fn feedback_only(u: &[f64], y: &[f64]) -> Result<Option<DataWarning>> {
 }
 
 /// `frd` at the lines whose input SNR `snr[i]` reaches [`MIN_INPUT_SNR`] (periodic
-/// [`FrfEstimate::input_snr`], or [`crate::lpm_closed_loop_snr`]'s).
+/// [`crate::FrfEstimate::input_snr`], or [`crate::lpm_closed_loop_snr`]'s).
 ///
 /// # Errors
 /// No line is trusted (the error says what the record lacks).

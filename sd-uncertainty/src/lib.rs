@@ -8,7 +8,7 @@
 //!   ([`bound`] has the math).
 //! - [`overbound`]: a low-order stable weight `W(z)` with `|W| ≥ b` on every line (checked),
 //!   and how conservative it is ([`weight`]).
-//! - [`downsample`]: the slow-rate bound the fast one implies through Lemma 6: each slow line
+//! - [`downsample()`]: the slow-rate bound the fast one implies through Lemma 6: each slow line
 //!   collects its `F` fold frequencies weighted by the slow hold,
 //!   `|Δ_T(f)| ≤ Σ_k |H_F(f_k)/F|·|Δ_h(f_k)|` ([`mod@downsample`] has the structure and when it
 //!   is tight).
