@@ -24,7 +24,7 @@ pub mod json;
 pub mod weight;
 
 pub use bound::{coverage, from_data, sigma_factor, Bound, Coverage, Form};
-pub use downsample::{downsample, Downsampled};
+pub use downsample::{downsample, downsample_nonideal, Downsampled};
 pub use error::{Result, UncertaintyError};
 pub use json::{from_json_str, to_json_string};
 pub use weight::{overbound, Weight};

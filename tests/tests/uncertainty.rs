@@ -141,10 +141,51 @@ fn bound_covers_the_truth_and_the_slow_measurement() {
         12,
     );
     let cov_avg = coverage(&slow.bound, &averaged).unwrap();
+    // the same fast bound taken down through the averaging sampler (the extension a diagnosis
+    // names): its nominal is the extended slow model's response, and the coverage comes back
+    let ni = sd_multirate::NonIdeal {
+        hold_delay: 0.0,
+        averaging: 0.8,
+    };
+    let ext = sd_uncertainty::downsample_nonideal(&b, 5, ni, averaged.freq_hz()).unwrap();
+    let p_ext = sd_multirate::downsample_nonideal(&fit.model, 5, ni)
+        .unwrap()
+        .freqresp(&ext.bound.freq_hz)
+        .unwrap();
+    for (m, n) in p_ext.response().iter().zip(&ext.bound.nominal) {
+        assert!(
+            (m[(0, 0)] - n).norm() <= 1e-9 * n.norm(),
+            "{} vs {n}",
+            m[(0, 0)]
+        );
+    }
+    // the testbed's sensor averages the continuous output; the fast samples' average is only
+    // its rectangle rule, so the nominal is the continuous model's (the fast model taken back
+    // to continuous time) through the continuous averaging sampler, as the diagnosis does
+    let ct_model = sd_model::d2c(&fit.model).unwrap();
+    let nominal: Vec<_> = sd_multirate::c2d_nonideal(&ct_model, 1e-3, ni)
+        .unwrap()
+        .freqresp(&ext.bound.freq_hz)
+        .unwrap()
+        .response()
+        .iter()
+        .map(|m| m[(0, 0)])
+        .collect();
+    let ext_ct = sd_uncertainty::Bound {
+        nominal,
+        ..ext.bound.clone()
+    };
+    let cov_ext_sampled = coverage(&ext.bound, &averaged).unwrap();
+    let cov_ext = coverage(&ext_ct, &averaged).unwrap();
+    println!(
+        "fast-sample averaging nominal: {:.3}",
+        cov_ext_sampled.fraction
+    );
     let w = overbound(&b, 8).unwrap();
     println!(
         "fast lines {}: truth covered {:.3}; slow lines {} ({} without fold data): measured \
-         covered {:.3}, truth covered {:.3}; with a 0.8 averaging sensor {:.3}; bound / true \
+         covered {:.3}, truth covered {:.3}; with a 0.8 averaging sensor {:.3}, {:.3} with the \
+         averaging in the downsampled bound; bound / true \
          error median {:.2} ({:.3} where the error exceeds 3σ, {} lines); weight order 8: \
          |W|/b median {:.2}, max {:.1}, scale {:.2}",
         b.freq_hz.len(),
@@ -154,6 +195,7 @@ fn bound_covers_the_truth_and_the_slow_measurement() {
         cov_slow.fraction,
         cov_truth_slow,
         cov_avg.fraction,
+        cov_ext.fraction,
         sd_model::median(&ratio),
         sd_model::median(&resolved),
         resolved.len(),
@@ -165,6 +207,7 @@ fn bound_covers_the_truth_and_the_slow_measurement() {
     assert!(cov_slow.fraction >= 0.93, "{:?}", cov_slow);
     assert!(cov_truth_slow >= 0.93, "{cov_truth_slow}");
     assert!(cov_avg.fraction < 0.8, "{:?}", cov_avg);
+    assert!(cov_ext.fraction >= 0.93, "{:?}", cov_ext);
     // the weight: stable, and above the bound on every line
     assert!(w.model.poles().unwrap().iter().all(|p| p.norm() < 1.0));
     let wf = w.model.freqresp(&b.freq_hz).unwrap();
