@@ -1124,6 +1124,38 @@ fn uncertainty_travels_to_the_slow_rate() {
         &p("ms.json"),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // through an averaging sampler: the bound's nominal is the slow model's response
+    let o = sdctl(&[
+        "downsample",
+        &p("m.json"),
+        "--factor",
+        "5",
+        "--averaging",
+        "0.8",
+        "--uncertainty",
+        &p("u.json"),
+        "--uncertainty-out",
+        &p("ua.json"),
+        "-o",
+        &p("ma.json"),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let ua: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(p("ua.json")).unwrap()).unwrap();
+    let ma = sd_model::read_model(std::fs::File::open(p("ma.json")).unwrap()).unwrap();
+    let fz: Vec<f64> = serde_json::from_value(ua["freq_hz"].clone()).unwrap();
+    let resp = ma.freqresp(&fz).unwrap();
+    for (i, r) in resp.response().iter().enumerate() {
+        let n = sd_model::Complex64::new(
+            ua["nominal_re"][i].as_f64().unwrap(),
+            ua["nominal_im"][i].as_f64().unwrap(),
+        );
+        assert!(
+            (r[(0, 0)] - n).norm() <= 1e-8 * n.norm(),
+            "{} vs {n}",
+            r[(0, 0)]
+        );
+    }
     let o = sdctl(&["coverage", &p("us.json"), &p("slow.json"), "--json"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let c: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();

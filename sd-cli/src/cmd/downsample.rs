@@ -19,7 +19,8 @@ pub(crate) struct Args {
     pub(crate) averaging: Option<f64>,
     /// Uncertainty JSON of the fast model (`sdctl uncertainty`): its bound is downsampled too
     /// (Lemma 6 in the frequency domain: each slow line sums its F fold components weighted by
-    /// the slow hold) and written to --uncertainty-out.
+    /// the slow hold, and by the delay and averaging when given) and written to
+    /// --uncertainty-out.
     #[arg(long, requires = "uncertainty_out")]
     pub(crate) uncertainty: Option<String>,
     /// Where the slow-rate uncertainty JSON goes (its lines: the fast bound's lines below the
@@ -62,20 +63,21 @@ impl Args {
         let d = sd_multirate::downsample_nonideal(&sys, f, ni)
             .map_err(|e| from_multirate(&model, e))?;
         if let (Some(u), Some(out)) = (uncertainty, uncertainty_out) {
-            if ni.hold_delay != 0.0 || ni.averaging != 0.0 {
-                return Err(CliError::input(
-                    "--uncertainty downsamples through the ideal hold and sampler (Lemma 6); \
-                     leave out --hold-delay and --averaging",
-                ));
-            }
-            slow_bound(&sys, f, &u, &out)?;
+            slow_bound(&sys, f, ni, &u, &out)?;
         }
         emit(&model_json(&d)?, output.as_deref())
     }
 }
 
-/// The fast bound `u` of `sys` downsampled by `f` and written to `out`.
-fn slow_bound(sys: &sd_model::StateSpace, f: usize, u: &str, out: &str) -> Result<(), CliError> {
+/// The fast bound `u` of `sys` downsampled by `f` (through the same hold and sampler as the
+/// model) and written to `out`.
+fn slow_bound(
+    sys: &sd_model::StateSpace,
+    f: usize,
+    ni: sd_multirate::NonIdeal,
+    u: &str,
+    out: &str,
+) -> Result<(), CliError> {
     use crate::cmd::uncertainty::{from_unc, read_bound};
     let b = read_bound(u)?;
     // the bound must belong to this model: its nominal is the model's response
@@ -96,7 +98,7 @@ fn slow_bound(sys: &sd_model::StateSpace, f: usize, u: &str, out: &str) -> Resul
     }
     let nyquist = 0.5 / (b.ts * f as f64);
     let lines: Vec<f64> = b.freq_hz.iter().copied().filter(|x| *x < nyquist).collect();
-    let d = sd_uncertainty::downsample(&b, f, &lines).map_err(|e| from_unc(u, e))?;
+    let d = sd_uncertainty::downsample_nonideal(&b, f, ni, &lines).map_err(|e| from_unc(u, e))?;
     eprintln!(
         "[downsample] uncertainty: {} slow lines ({} without all their folds on the fast grid)",
         d.bound.freq_hz.len(),
