@@ -169,13 +169,12 @@ pub fn emit(text: &str, out: Option<&str>) -> Result<(), CliError> {
 /// staging folder; a new `out` is that folder renamed into place in one step, and into an
 /// existing `out` (whose other files are not touched) the finished files are renamed one by
 /// one, so an interrupted run leaves the previous file or the new one, never a partial one. On
-/// an error the staging folder is removed. The path is checked before `fill` runs: an `out`
-/// (or an ancestor) that is a file is refused at once, not after the work.
+/// an error the staging folder is removed. Callers run [`check_out_dir`] before their work, so
+/// that an `out` that cannot be a folder is refused at once, not after it.
 pub fn write_folder<T>(
     out: &str,
     fill: impl FnOnce(&std::path::Path) -> Result<T, CliError>,
 ) -> Result<T, CliError> {
-    check_out_dir(out)?;
     let dir = std::path::Path::new(out);
     let io = |what: &std::path::Path, e: std::io::Error| {
         CliError::input(format!("cannot write {}: {e}", what.display()))

@@ -11,6 +11,13 @@ fn sdctl(args: &[&str]) -> Output {
         .expect("run sdctl")
 }
 
+/// `sdctl` that must succeed (its stderr shown when it does not).
+fn sdctl_ok(args: &[&str]) -> Output {
+    let o = sdctl(args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    o
+}
+
 fn tmpdir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("sdctl-test-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
@@ -54,8 +61,7 @@ const DT: &str = r#"{"type":"ss","ts":0.001,"a":[[0.5]],"b":[[1]],"c":[[1]],"d":
 
 #[test]
 fn alias_json() {
-    let o = sdctl(&["alias", "--freq-hz", "653", "--rate-hz", "1000", "--json"]);
-    assert!(o.status.success());
+    let o = sdctl_ok(&["alias", "--freq-hz", "653", "--rate-hz", "1000", "--json"]);
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!((v["alias_hz"].as_f64().unwrap() - 347.0).abs() < 1e-9);
     assert_eq!(v["fold_index"], 1);
@@ -71,17 +77,14 @@ fn c2d_d2c_freqresp_poles_norm_reduce_connect() {
     let d = tmpdir("ok");
     let ct = write(&d, "ct.json", CT);
     let out = d.join("dt.json").to_string_lossy().into_owned();
-    let o = sdctl(&["c2d", &ct, "--ts", "0.01", "-o", &out]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    sdctl_ok(&["c2d", &ct, "--ts", "0.01", "-o", &out]);
     let dt = std::fs::read_to_string(&out).unwrap();
     assert!(dt.contains("\"ts\":0.01"));
-    let o = sdctl(&["d2c", &out]);
-    assert!(o.status.success());
+    let o = sdctl_ok(&["d2c", &out]);
     let back = sd_model::model_from_json_str(&String::from_utf8_lossy(&o.stdout)).unwrap();
     assert!((back.a()[(1, 0)] + 100.0).abs() < 1e-9);
     assert!(String::from_utf8_lossy(&o.stderr).contains("candidates"));
-    let o = sdctl(&["freqresp", &out, "--grid", "1:50:20:log"]);
-    assert!(o.status.success());
+    let o = sdctl_ok(&["freqresp", &out, "--grid", "1:50:20:log"]);
     let frd = sd_model::frd_from_json_str(&String::from_utf8_lossy(&o.stdout)).unwrap();
     assert_eq!(frd.len(), 20);
     for args in [
@@ -99,11 +102,9 @@ fn c2d_d2c_freqresp_poles_norm_reduce_connect() {
     let o = sdctl(&["norm", &ct, "--json"]);
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!((v["hinf"].as_f64().unwrap() - 5.02519).abs() < 1e-4, "{v}");
-    let o = sdctl(&["reduce", &ct, "--order", "1"]);
-    assert!(o.status.success());
+    let o = sdctl_ok(&["reduce", &ct, "--order", "1"]);
     assert!(String::from_utf8_lossy(&o.stderr).contains("Hankel"));
-    let o = sdctl(&["connect", "feedback", &ct, &ct]);
-    assert!(o.status.success());
+    let o = sdctl_ok(&["connect", "feedback", &ct, &ct]);
     let fb = sd_model::model_from_json_str(&String::from_utf8_lossy(&o.stdout)).unwrap();
     assert_eq!(fb.n(), 4);
 }
@@ -215,14 +216,13 @@ fn frf_warns_about_data_it_cannot_trust() {
             "the input is the controller's reaction to the measured output",
         );
     }
-    let o = sdctl(&[
+    let o = sdctl_ok(&[
         "frf",
         &manifest0,
         "--experiment",
         "s_slow",
         "--keep-low-snr",
     ]);
-    assert!(o.status.success());
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(v["warnings"][0]["kind"], "feedback_only");
     let both = write(
@@ -249,8 +249,7 @@ fn frf_warns_about_data_it_cannot_trust() {
         &sdctl(&["frf", &still, "--experiment", "still"]),
         "not excited",
     );
-    let o = sdctl(&["frf", &still, "--experiment", "still", "--keep-low-snr"]);
-    assert!(o.status.success());
+    let o = sdctl_ok(&["frf", &still, "--experiment", "still", "--keep-low-snr"]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("warning: still: no excitation"), "{err}");
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
@@ -265,8 +264,7 @@ fn frf_warns_about_data_it_cannot_trust() {
     // the closed-loop experiment: its lowest lines are left out, and the JSON reads back
     let manifest = data.join("experiments.toml").to_string_lossy().into_owned();
     let out = d.join("a.json").to_string_lossy().into_owned();
-    let o = sdctl(&["frf", &manifest, "--experiment", "a", "-o", &out]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    sdctl_ok(&["frf", &manifest, "--experiment", "a", "-o", &out]);
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
     let n_default = v["freq_hz"].as_array().unwrap().len();
@@ -281,11 +279,9 @@ fn frf_warns_about_data_it_cannot_trust() {
         }
         None => assert_eq!(n_all, n_default),
     }
-    let o = sdctl(&["fit", &out, "--order", "2"]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    sdctl_ok(&["fit", &out, "--order", "2"]);
     // fit --json: the model, the cost per line (summing to the cost) and the warnings
-    let o = sdctl(&["fit", &out, "--order", "4", "--rigid-body", "2", "--json"]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = sdctl_ok(&["fit", &out, "--order", "4", "--rigid-body", "2", "--json"]);
     let f: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let lines = f["lines"].as_array().unwrap();
     assert_eq!(lines.len(), n_default);
@@ -320,8 +316,7 @@ fn transforms_say_what_to_do_instead() {
     assert!(sdctl(&["c2d", &st, "--ts", "0.001", "-o", &slow])
         .status
         .success());
-    let o = sdctl(&["d2c", &slow, "--near-hz", "650"]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = sdctl_ok(&["d2c", &slow, "--near-hz", "650"]);
     let back = model_of(&o);
     let f = sd_model::poles::natural_frequency(
         sd_model::linalg::convert::eigenvalues(back.a()).unwrap()[0],
@@ -462,8 +457,7 @@ fn typos_and_missing_keys_are_named() {
 fn testbed_defaults_are_the_same_with_and_without_a_config() {
     let d = tmpdir("defaults");
     let (a, b) = (d.join("a"), d.join("b"));
-    let o = sdctl(&["testbed", "--out", &a.to_string_lossy()]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    sdctl_ok(&["testbed", "--out", &a.to_string_lossy()]);
     let cfg = write(
         &d,
         "c.toml",
@@ -472,8 +466,7 @@ fn testbed_defaults_are_the_same_with_and_without_a_config() {
          [[experiment]]\nname = \"slow\"\nrate_hz = 1000.0\npid_bandwidth_hz = 20.0\nperiod = 1000\n\
          periods = 5\nf_min = 1.0\nf_max = 499.0\n",
     );
-    let o = sdctl(&["testbed", "--config", &cfg, "--out", &b.to_string_lossy()]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    sdctl_ok(&["testbed", "--config", &cfg, "--out", &b.to_string_lossy()]);
     for f in ["fast.csv", "slow.csv", "experiments.toml"] {
         let (x, y) = (
             std::fs::read_to_string(a.join(f)).unwrap(),
@@ -508,8 +501,7 @@ fn downsample_c2d_nonideal_and_alias_factor() {
     // c2d at 1 ms, and at 0.2 ms then downsample by 5: the same model (Lemma 5 then Lemma 6)
     let slow = model_of(&sdctl(&["c2d", &ct, "--ts", "0.001"]));
     let fast_file = dir.join("fast.json").to_string_lossy().into_owned();
-    let o = sdctl(&["c2d", &ct, "--ts", "0.0002", "-o", &fast_file]);
-    assert!(o.status.success());
+    sdctl_ok(&["c2d", &ct, "--ts", "0.0002", "-o", &fast_file]);
     let down = model_of(&sdctl(&["downsample", &fast_file, "--factor", "5"]));
     assert!((down.a() - slow.a()).norm() < 1e-12 * slow.a().norm());
     assert!((down.b() - slow.b()).norm() < 1e-12 * slow.b().norm());
@@ -541,7 +533,7 @@ fn downsample_c2d_nonideal_and_alias_factor() {
     let avg = model_of(&sdctl(&["c2d", &ct, "--ts", "0.001", "--averaging", "1"]));
     assert_eq!(avg.n(), 3);
     // alias with the fast folding list
-    let o = sdctl(&[
+    let o = sdctl_ok(&[
         "alias",
         "--freq-hz",
         "653",
@@ -551,7 +543,6 @@ fn downsample_c2d_nonideal_and_alias_factor() {
         "5",
         "--json",
     ]);
-    assert!(o.status.success());
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let folds = v["fast_folds"].as_array().unwrap();
     assert_eq!(folds.len(), 5);
@@ -728,8 +719,7 @@ fn frf_and_fit() {
         "exp.toml",
         "[[experiment]]\nname = \"a\"\nfile = \"data.csv\"\nsample_rate_hz = 1000.0\nperiod_samples = 1000\nskip_periods = 1\ninput = \"u\"\noutput = \"y\"\n",
     );
-    let o = sdctl(&["frf", &manifest, "--experiment", "a"]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = sdctl_ok(&["frf", &manifest, "--experiment", "a"]);
     let frd = sd_model::frd_from_json_str(&String::from_utf8_lossy(&o.stdout)).unwrap();
     assert_eq!(frd.len(), 400);
     let truth = pd.freqresp(frd.freq_hz()).unwrap();
@@ -862,8 +852,7 @@ fn testbed() {
          [[experiment]]\nname = \"id\"\nrate_hz = 1000.0\npid_bandwidth_hz = 15.0\nperiod = 1000\nperiods = 3\ninjection = \"input\"\nrole = \"model\"\n\
          [[experiment]]\nkind = \"standstill\"\nname = \"ss\"\nrate_hz = 1000.0\npid_bandwidth_hz = 40.0\nfactor = 5\nsamples = 5000\n",
     );
-    let o = sdctl(&["testbed", "--config", &cfg, "--out", &out]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    sdctl_ok(&["testbed", "--config", &cfg, "--out", &out]);
     for f in [
         "experiments.toml",
         "id.csv",
@@ -874,8 +863,7 @@ fn testbed() {
         assert!(std::path::Path::new(&out).join(f).exists(), "{f}");
     }
     let manifest = std::path::Path::new(&out).join("experiments.toml");
-    let o = sdctl(&["frf", &manifest.to_string_lossy(), "--experiment", "id"]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    sdctl_ok(&["frf", &manifest.to_string_lossy(), "--experiment", "id"]);
     let truth = sd_model::read_model(
         std::fs::File::open(std::path::Path::new(&out).join("truth.json")).unwrap(),
     )
@@ -928,8 +916,7 @@ fn testbed_then_diagnose() {
         .join("experiments.toml")
         .to_string_lossy()
         .into_owned();
-    let o = sdctl(&["diagnose", &manifest, "--out", &out]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    sdctl_ok(&["diagnose", &manifest, "--out", &out]);
     let v: serde_json::Value = serde_json::from_str(
         &std::fs::read_to_string(dir.join("diag").join("diagnosis.json")).unwrap(),
     )
@@ -972,7 +959,7 @@ fn testbed_then_diagnose() {
     );
     assert!(report.contains(&cmd), "{cmd} not in the report:\n{report}");
     let p_slow = diag.join("plant_slow.json").to_string_lossy().into_owned();
-    let o = sdctl(&[
+    sdctl_ok(&[
         "c2d",
         &diag.join("extended_model.json").to_string_lossy(),
         "--ts",
@@ -982,7 +969,6 @@ fn testbed_then_diagnose() {
         "-o",
         &p_slow,
     ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let via_c2d = sd_model::read_model(std::fs::File::open(&p_slow).unwrap()).unwrap();
     let written =
         sd_model::read_model(std::fs::File::open(diag.join("extended_model_slow.json")).unwrap())
@@ -1004,8 +990,7 @@ fn testbed_then_diagnose() {
     let out2 = dir.join("diag_given").to_string_lossy().into_owned();
     std::fs::create_dir_all(&out2).unwrap();
     write(std::path::Path::new(&out2), "keep.txt", "mine");
-    let o = sdctl(&["diagnose", &manifest, "--model", &truth, "--out", &out2]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    sdctl_ok(&["diagnose", &manifest, "--model", &truth, "--out", &out2]);
     let staged = |d: &std::path::Path| {
         std::fs::read_dir(d)
             .unwrap()
@@ -1075,7 +1060,7 @@ fn uncertainty_travels_to_the_slow_rate() {
         .into_owned();
     let p = |n: &str| d.join(n).to_string_lossy().into_owned();
     for e in ["fast", "slow"] {
-        let o = sdctl(&[
+        sdctl_ok(&[
             "frf",
             &manifest,
             "--experiment",
@@ -1083,9 +1068,8 @@ fn uncertainty_travels_to_the_slow_rate() {
             "-o",
             &p(&format!("{e}.json")),
         ]);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     }
-    let o = sdctl(&[
+    sdctl_ok(&[
         "fit",
         &p("fast.json"),
         "--order",
@@ -1096,8 +1080,7 @@ fn uncertainty_travels_to_the_slow_rate() {
         "-o",
         &p("m.json"),
     ]);
-    assert!(o.status.success());
-    let o = sdctl(&[
+    sdctl_ok(&[
         "uncertainty",
         &p("m.json"),
         &p("fast.json"),
@@ -1106,12 +1089,11 @@ fn uncertainty_travels_to_the_slow_rate() {
         "-o",
         &p("u.json"),
     ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let u: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(p("u.json")).unwrap()).unwrap();
     assert_eq!(u["type"], "uncertainty");
     assert!(u["weight"]["median_ratio"].as_f64().unwrap() >= 1.0);
-    let o = sdctl(&[
+    sdctl_ok(&[
         "downsample",
         &p("m.json"),
         "--factor",
@@ -1123,9 +1105,8 @@ fn uncertainty_travels_to_the_slow_rate() {
         "-o",
         &p("ms.json"),
     ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     // through an averaging sampler: the bound's nominal is the slow model's response
-    let o = sdctl(&[
+    sdctl_ok(&[
         "downsample",
         &p("m.json"),
         "--factor",
@@ -1139,7 +1120,6 @@ fn uncertainty_travels_to_the_slow_rate() {
         "-o",
         &p("ma.json"),
     ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let ua: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(p("ua.json")).unwrap()).unwrap();
     let ma = sd_model::read_model(std::fs::File::open(p("ma.json")).unwrap()).unwrap();
@@ -1156,13 +1136,12 @@ fn uncertainty_travels_to_the_slow_rate() {
             r[(0, 0)]
         );
     }
-    let o = sdctl(&["coverage", &p("us.json"), &p("slow.json"), "--json"]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = sdctl_ok(&["coverage", &p("us.json"), &p("slow.json"), "--json"]);
     let c: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!(c["lines"].as_u64().unwrap() > 200);
     assert!(c["fraction"].as_f64().unwrap() >= 0.93, "{c}");
     // another model's bound, a confidence that is not a probability, a missing partner option
-    let o = sdctl(&[
+    sdctl_ok(&[
         "fit",
         &p("fast.json"),
         "--order",
@@ -1173,7 +1152,6 @@ fn uncertainty_travels_to_the_slow_rate() {
         "-o",
         &p("m6.json"),
     ]);
-    assert!(o.status.success());
     assert_input_error(
         &sdctl(&[
             "downsample",

@@ -1109,7 +1109,7 @@ fn ambiguous(fitted: &[Fitted], k: usize, judge: &dyn Fn(usize) -> Statistic, al
     let chosen = fitted[k].family;
     let related =
         |f: Family| f == chosen || chosen.nested().contains(&f) || f.nested().contains(&chosen);
-    let sum = |s: Statistic| s.value * s.effective_lines.max(1.0);
+    let sum = |s: Statistic| penalised(&s, 0);
     let mine = sum(judge(k));
     fitted.iter().enumerate().any(|(i, f)| {
         f.family != Family::None
@@ -1132,8 +1132,7 @@ const PAIR_DECISIVE: f64 = 19.5;
 /// they may not separate the two; the training data, with the pair's extra parameter paid for by
 /// the test's level, can.
 fn decisive(pair: &Fitted, single: &Fitted) -> bool {
-    let sum = |s: &Statistic| s.value * s.effective_lines.max(1.0);
-    sum(&single.stat) - sum(&pair.stat) >= PAIR_DECISIVE
+    penalised(&single.stat, 0) - penalised(&pair.stat, 0) >= PAIR_DECISIVE
 }
 
 /// Naming's false-rejection probability relative to the verdict's α: an extension is named when

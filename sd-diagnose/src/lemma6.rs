@@ -36,18 +36,10 @@ pub(crate) struct Pair<'a> {
 impl Pair<'_> {
     /// The fast FRF (and its variance) at a signed frequency folded into the fast band.
     pub(crate) fn fast_at(&self, f: f64) -> Option<(C, f64)> {
-        let fs = 1.0 / self.h;
-        let g = sd_model::fold(f, fs);
-        let fa = g.abs();
-        let freq = self.fast.freq_hz();
-        let i = freq.partition_point(|&x| x < fa - 1e-9 * fs);
-        if i < freq.len() && (freq[i] - fa).abs() <= 1e-6 * fs / self.fast.len().max(1) as f64 {
-            let v = self.fast.response()[i][(0, 0)];
-            let var = self.fast.variance().map(|v| v[i][(0, 0)]).unwrap_or(0.0);
-            Some((if g < 0.0 { v.conj() } else { v }, var))
-        } else {
-            None
-        }
+        let (i, mirrored) = sd_model::folded_line(self.fast.freq_hz(), f, 1.0 / self.h)?;
+        let v = self.fast.response()[i][(0, 0)];
+        let var = self.fast.variance().map(|v| v[i][(0, 0)]).unwrap_or(0.0);
+        Some((if mirrored { v.conj() } else { v }, var))
     }
 
     /// Prediction and its variance `Σ_k |H_F/F|² var P_h(f_k)` at slow frequency f (with

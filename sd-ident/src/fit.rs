@@ -303,17 +303,21 @@ fn reflect(p: C) -> C {
 }
 
 fn cost(data: &Data, pf: &Pf) -> f64 {
-    line_costs(data, pf).iter().sum()
+    terms(data, pf).sum()
 }
 
 /// The terms `w_k²|G_k − Ĝ(z_k)|²` of the cost.
 fn line_costs(data: &Data, pf: &Pf) -> Vec<f64> {
+    terms(data, pf).collect()
+}
+
+/// The cost's terms, line by line (no allocation: `cost` runs at every LM trial).
+fn terms<'a>(data: &'a Data, pf: &'a Pf) -> impl Iterator<Item = f64> + 'a {
     data.z
         .iter()
         .zip(&data.g)
         .zip(&data.w)
         .map(|((&z, &g), &w)| (w * (pf.eval(z) - g).norm()).powi(2))
-        .collect()
 }
 
 /// Weighted least squares `min ‖A x − b‖` (b one column) by the toolkit's one solver,

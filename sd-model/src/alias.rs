@@ -38,6 +38,22 @@ pub fn fold(f: f64, fs: f64) -> f64 {
     f - fs * (f / fs).round()
 }
 
+/// The index of `f` among the increasing line frequencies `freq_hz`, when one lies within
+/// `tol` of it. The one line lookup of the workspace.
+pub fn line_index(freq_hz: &[f64], f: f64, tol: f64) -> Option<usize> {
+    let i = freq_hz.partition_point(|&x| x < f - tol);
+    (i < freq_hz.len() && (freq_hz[i] - f).abs() <= tol).then_some(i)
+}
+
+/// The line of a grid measured at rate `fs` (lines in `[0, fs/2]`, increasing) that a signed
+/// frequency `f` folds onto, and whether it lands mirrored (a negative frequency: the response
+/// there is the conjugate). `None` when no line lies within `1e-6·fs/len` of the fold.
+pub fn folded_line(freq_hz: &[f64], f: f64, fs: f64) -> Option<(usize, bool)> {
+    let g = fold(f, fs);
+    let tol = 1e-6 * fs / freq_hz.len().max(1) as f64;
+    line_index(freq_hz, g.abs(), tol).map(|i| (i, g < 0.0))
+}
+
 /// The alias of `freq_hz` at sample rate `rate_hz`.
 pub fn alias(freq_hz: f64, rate_hz: f64) -> Result<Alias> {
     check(freq_hz, "frequency", true)?;

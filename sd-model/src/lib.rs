@@ -36,7 +36,7 @@ pub mod stage;
 pub mod tf;
 pub mod time;
 
-pub use alias::{alias, fold, folding_frequencies, Alias};
+pub use alias::{alias, fold, folded_line, folding_frequencies, line_index, Alias};
 pub use c2d::{c2d, Discretization};
 pub use connect::{append, feedback, parallel, series};
 pub use d2c::{d2c, d2c_near, d2c_with_aliases, BranchPick, ModeAliases};

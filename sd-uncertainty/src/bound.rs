@@ -184,10 +184,9 @@ pub fn coverage(bound: &Bound, measured: &Frd) -> Result<Coverage> {
     let tol = 1e-9 * bound.freq_hz.last().copied().unwrap_or(1.0).max(1.0);
     let (mut lines, mut covered) = (0, 0);
     for (i, f) in measured.freq_hz().iter().enumerate() {
-        let j = bound.freq_hz.partition_point(|x| *x < f - tol);
-        if j >= bound.freq_hz.len() || (bound.freq_hz[j] - f).abs() > tol {
+        let Some(j) = sd_model::line_index(&bound.freq_hz, *f, tol) else {
             continue;
-        }
+        };
         let g = measured.response()[i][(0, 0)];
         let s = measured
             .variance()

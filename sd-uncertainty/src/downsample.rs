@@ -30,17 +30,6 @@ pub struct Downsampled {
     pub missing_hz: Vec<f64>,
 }
 
-/// The fast bound's index at a frequency folded into the fast band (`None` off its grid), and
-/// whether the fold mirrors (negative frequency: conjugate).
-fn fast_line(b: &Bound, f: f64) -> Option<(usize, bool)> {
-    let fs = 1.0 / b.ts;
-    let g = sd_model::fold(f, fs);
-    let fa = g.abs();
-    let i = b.freq_hz.partition_point(|&x| x < fa - 1e-9 * fs);
-    let tol = 1e-6 * fs / b.freq_hz.len().max(1) as f64;
-    (i < b.freq_hz.len() && (b.freq_hz[i] - fa).abs() <= tol).then_some((i, g < 0.0))
-}
-
 /// The slow bound at `slow_freq_hz` implied by the fast bound `fast` through Lemma 6 with
 /// factor `factor` (module documentation).
 ///
@@ -108,7 +97,8 @@ pub fn downsample_nonideal(
         let (mut p, mut r, mut s, mut a) = (C::new(0.0, 0.0), 0.0, 0.0, 0.0);
         for k in 0..factor {
             let fk = f - k as f64 / t;
-            let Some((i, mirrored)) = fast_line(fast, fk) else {
+            let Some((i, mirrored)) = sd_model::folded_line(&fast.freq_hz, fk, 1.0 / fast.ts)
+            else {
                 missing.push(f);
                 continue 'line;
             };

@@ -50,3 +50,4 @@ pub fn pid(bw_hz: f64, mass: f64, ts: f64) -> sd_model::StateSpace {
         .expect("a valid PID-like weight")
 }
 pub mod diagcases;
+pub mod stage;

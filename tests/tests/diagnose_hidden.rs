@@ -15,6 +15,7 @@ use sd_diagnose::{diagnose, Cause, DiagnoseOptions, Diagnosis, Verdict};
 use sd_ident::{Experiment, Lines, MultisineSpec, Phases, Role};
 use sd_testbed::{run_identification, Identification, Injection, Noise, NonIdealities, Truth};
 use sd_tests::diagcases::{hidden_effect, per_seed, Case, Effect, FINE_STEPS};
+use sd_tests::stage::closed_loop_experiment;
 
 /// Seeds the confusion matrix is reported on (disjoint from the development seeds).
 const REPORT_SEEDS: std::ops::Range<u64> = 8000..8100;
@@ -39,7 +40,6 @@ fn identify(
     seed: u64,
     role: Role,
     lines: Lines,
-    periods: usize,
 ) -> Option<Experiment> {
     let ts = 1.0 / rate;
     let opt = sd_hinf::weights::PidOptions {
@@ -64,7 +64,7 @@ fn identify(
             name: name.into(),
             controller: k,
             excitation,
-            periods,
+            periods: 7,
             transient_periods: 1,
             injection: Injection::Input,
             noise: Noise {
@@ -83,6 +83,7 @@ fn identify(
     Some(d.to_experiment())
 }
 
+/// The standard closed-loop experiment (`sd_tests::stage`), 7 periods, exact route.
 fn experiment(
     truth: &Truth,
     name: &str,
@@ -91,24 +92,7 @@ fn experiment(
     seed: u64,
     role: Role,
 ) -> Experiment {
-    let fast = rate > 2000.0;
-    let scale = (rate / 5000.0).sqrt();
-    identify(
-        truth,
-        name,
-        rate,
-        if fast { 30.0 } else { 20.0 },
-        if fast { Some(1000.0) } else { None },
-        2.0,
-        (0.05 * scale, 0.3e-9 * scale),
-        1000.0,
-        ni,
-        seed,
-        role,
-        Lines::Full,
-        7,
-    )
-    .unwrap()
+    closed_loop_experiment(truth, name, rate, ni, seed, role, 7, None).unwrap()
 }
 
 fn run(truth: &Truth, ni: NonIdealities, seed: u64) -> Diagnosis {
@@ -597,7 +581,6 @@ fn distortion_at_non_excited_lines() {
                 s,
                 role,
                 odd,
-                7,
             )
             .unwrap()
         };
@@ -685,24 +668,7 @@ fn three_experiments_speed() {
         ..Default::default()
     };
     let mk = |name: &str, rate: f64, periods: usize, seed: u64, role: Role| {
-        let fast = rate > 2000.0;
-        let scale = (rate / 5000.0).sqrt();
-        identify(
-            &truth,
-            name,
-            rate,
-            if fast { 30.0 } else { 20.0 },
-            if fast { Some(1000.0) } else { None },
-            2.0,
-            (0.05 * scale, 0.3e-9 * scale),
-            1000.0,
-            ni,
-            seed,
-            role,
-            Lines::Full,
-            periods,
-        )
-        .unwrap()
+        closed_loop_experiment(&truth, name, rate, ni, seed, role, periods, None).unwrap()
     };
     let exps = [
         mk("fast", 5000.0, 7, 70, Role::Model),

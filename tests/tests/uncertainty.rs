@@ -8,64 +8,19 @@
 //! threshold here was tuned on them: the bounds' confidence is the only setting).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-use sd_ident::{frf_periodic, Lines, MultisineSpec, PeriodicOptions, Phases, Role};
+use sd_ident::{frf_periodic, PeriodicOptions, Role};
 use sd_model::{Frd, StateSpace};
-use sd_testbed::{run_identification, Identification, Injection, Noise, NonIdealities, Truth};
+use sd_testbed::{NonIdealities, Truth};
+use sd_tests::stage::closed_loop_experiment;
 use sd_uncertainty::{coverage, downsample, from_data, overbound, Form};
 
-/// One experiment's FRF (7 periods of 2 s, one transient), trusted lines only.
+/// One experiment's FRF (`sd_tests::stage`: 7 periods of 2 s after one transient, the
+/// fine-step route with 50 sub-steps), trusted lines only.
 fn measure(truth: &Truth, rate: f64, ni: NonIdealities, seed: u64) -> Frd {
-    let ts = 1.0 / rate;
-    let fast = rate > 2000.0;
-    let bw = if fast { 30.0 } else { 20.0 };
-    let opt = sd_hinf::weights::PidOptions {
-        lowpass_ratio: if fast { 1000.0 / bw } else { 0.0 },
-        ..Default::default()
-    };
-    let k = sd_hinf::weights::pid(bw, truth.mass, Some(ts), &opt).unwrap();
-    let excitation = sd_ident::design(&MultisineSpec {
-        fs: rate,
-        period: (2.0 * rate) as usize,
-        f_min: 0.5,
-        f_max: 0.5 * rate - 0.5,
-        lines: Lines::Full,
-        phases: Phases::Random { seed },
-        rms: 2.0,
-        fold_rate_hz: Some(1000.0),
-    })
-    .unwrap();
-    let scale = (rate / 5000.0).sqrt();
-    let d = run_identification(
-        truth,
-        &Identification {
-            name: "x".into(),
-            controller: k,
-            excitation,
-            periods: 7,
-            transient_periods: 1,
-            injection: Injection::Input,
-            noise: Noise {
-                force_rms: 0.05 * scale,
-                sensor_rms: 0.3e-9 * scale,
-                sensor_drift: 0.0,
-                seed: seed + 1000,
-            },
-            nonideal: ni,
-            role: Role::Validation,
-            substeps: None,
-            fine_steps: Some(50),
-        },
-    )
-    .unwrap();
-    let e = d.to_experiment();
-    let est = frf_periodic(
-        rate,
-        e.r.as_deref(),
-        &e.u,
-        &e.y,
-        &PeriodicOptions::new(e.spec.period_samples.unwrap(), 1),
-    )
-    .unwrap();
+    let e =
+        closed_loop_experiment(truth, "x", rate, ni, seed, Role::Validation, 7, Some(50)).unwrap();
+    let opt = PeriodicOptions::new(e.spec.period_samples.unwrap(), 1);
+    let est = frf_periodic(rate, e.r.as_deref(), &e.u, &e.y, &opt).unwrap();
     est.trusted_frd().unwrap()
 }
 
