@@ -29,6 +29,11 @@ pub(crate) struct Estimate {
     /// Correlation inflation of neighbouring lines (1: independent).
     pub(crate) inflation: f64,
     pub(crate) distortion: Option<DistortionReport>,
+    /// Per excited line of a periodic odd multisine: its frequency (Hz), the local stochastic
+    /// distortion variance, and the part of it not in the FRF's variance (below the
+    /// significance gate of [`with_distortion`]); ascending in frequency, empty without
+    /// detection lines.
+    pub(crate) local_distortion: Vec<(f64, f64, f64)>,
 }
 
 /// Most lines a fit sees ([`Estimate::thinned`]).
@@ -108,6 +113,7 @@ pub(crate) fn estimate(e: &Experiment, part: Part) -> Result<Estimate> {
         f64::INFINITY
     };
     let (frd, dof) = with_distortion(est.frd.clone(), est.nl_variance.as_deref(), noise_dof)?;
+    let local_distortion = local_distortion(&est.frd, est.nl_variance.as_deref());
     // lines whose input is hardly measured (in closed loop: where the loop cancels the
     // excitation) have a biased ratio and no valid variance: left out
     let frd = sd_ident::trusted(&frd, &est.input_snr)?;
@@ -116,6 +122,7 @@ pub(crate) fn estimate(e: &Experiment, part: Part) -> Result<Estimate> {
         dof,
         inflation: 1.0,
         distortion: est.distortion,
+        local_distortion,
     })
 }
 
@@ -155,6 +162,33 @@ fn with_distortion(frd: Frd, nl: Option<&[(f64, f64)]>, noise_dof: f64) -> Resul
         frd.time(),
     )?;
     Ok((out, dof))
+}
+
+/// The local distortion variance per excited line `(f, variance, the part of it
+/// [`with_distortion`] leaves out)`: the part left out (its level at or below the gate) is
+/// what a comparison adds when distortion is known to be present (the experiment's detection
+/// lines together show it) but weak at the line.
+fn local_distortion(frd: &Frd, nl: Option<&[(f64, f64)]>) -> Vec<(f64, f64, f64)> {
+    let gate = threshold(sd_ident::NL_NEIGHBOURS as f64, NL_ALPHA);
+    nl.map_or_else(Vec::new, |nl| {
+        frd.freq_hz()
+            .iter()
+            .zip(nl)
+            .map(|(&f, &(d, ratio))| (f, d, if ratio > gate { 0.0 } else { d }))
+            .collect()
+    })
+}
+
+impl Estimate {
+    /// The local distortion variance at frequency `f` and its part below the gate (zeros
+    /// where there is none).
+    pub(crate) fn local_distortion_at(&self, f: f64) -> (f64, f64) {
+        let v = &self.local_distortion;
+        let i = v.partition_point(|x| x.0 < f * (1.0 - 1e-9));
+        v.get(i)
+            .filter(|x| (x.0 - f).abs() <= 1e-9 * f.abs().max(1.0))
+            .map_or((0.0, 0.0), |x| (x.1, x.2))
+    }
 }
 
 /// The training and held-out parts of an experiment (`None` when a part has no lines or no
@@ -207,6 +241,7 @@ fn estimate_lpm(e: &Experiment, part: Part) -> Result<Estimate> {
         dof: 2.0 * resid as f64,
         inflation: lpm_inflation(half, opt.degree),
         distortion: None,
+        local_distortion: Vec::new(),
     })
 }
 

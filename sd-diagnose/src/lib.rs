@@ -38,8 +38,9 @@
 //! - levels that disagree while no experiment involved shows nonlinear distortion at its
 //!   non-excited lines (a calibrated per-line score, [`sd_ident::DistortionReport`]), or a
 //!   same-level repeat that disagrees without distortion: cause `drift` (the plant changed
-//!   with time); a same-level disagreement *with* distortion and nothing rate-tied to test:
-//!   `nonlinearity` at one level (named, not modelled);
+//!   with time); a same-level disagreement *with* distortion and nothing rate-tied to test
+//!   (model-free, or in the model's simulation only when counting both realisations'
+//!   stochastic distortion explains it): `nonlinearity` at one level (named, not modelled);
 //! - the model-free prediction inconsistent: the rate-tied hypotheses ([`hypotheses`]),
 //!   parametric extensions of a continuous modal model built from the model's poles
 //!   ([`modal`]): `hold_delay` α (the hold switches α of each experiment's own period late,
@@ -257,6 +258,9 @@ pub enum EvidenceKind {
     AllValidation,
     /// Nonlinear distortion at the non-excited lines of one experiment.
     Distortion,
+    /// The model's simulation of a same-level experiment with the nonlinear distortion's
+    /// variance (seen at the non-excited lines) added to the noise's.
+    DistortionVariance,
     /// Whether an experiment at the model's rate ran at the model experiment's level.
     SameLevel,
     /// Two experiments at one rate and level that disagree.

@@ -1072,6 +1072,11 @@ fn explain_failed(d: &Diagnosis, e: &sd_diagnose::Evidence) -> String {
              level (or the excitation leaks); the FRFs are best linear approximations at their \
              levels"
             .into(),
+        K::DistortionVariance => "the model's misfit on this experiment is within the noise \
+             once the nonlinear distortion's variance is counted: another phase realisation at \
+             the same level differs by the nonlinearity's stochastic distortion, not by a fault \
+             of the model"
+            .into(),
         K::SameLevel => "this experiment ran at another excitation level than the model \
              experiment: it is compared as a level (a test for nonlinearity), not as a repeat"
             .into(),
