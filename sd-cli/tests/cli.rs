@@ -1140,6 +1140,102 @@ fn uncertainty_travels_to_the_slow_rate() {
     let c: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!(c["lines"].as_u64().unwrap() > 200);
     assert!(c["fraction"].as_f64().unwrap() >= 0.93, "{c}");
+    // robust stability at 1 kHz against the downsampled bound: a low-bandwidth PID is robustly
+    // stable, a high-gain one (×25) is not, and the plant inside the bound that it does not
+    // stabilise is written and is unstable in the loop
+    let ts = "0.001";
+    sdctl_ok(&[
+        "weight",
+        "pid",
+        "--bandwidth-hz",
+        "10",
+        "--mass",
+        "20",
+        "--ts",
+        ts,
+        "-o",
+        &p("k.json"),
+    ]);
+    let o = sdctl_ok(&[
+        "analyze",
+        "--plant",
+        &p("ms.json"),
+        "--controller",
+        &p("k.json"),
+        "--uncertainty",
+        &p("us.json"),
+        "--weight-order",
+        "8",
+        "--json",
+    ]);
+    let a: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let r = &a["robust"];
+    assert!(r["margin_lines"].as_f64().unwrap() > 1.0, "{a}");
+    assert!(r["margin_weight"].as_f64().unwrap() > 0.0, "{a}");
+    assert!(r["destabilising"].is_null(), "{a}");
+    let text = sdctl_ok(&[
+        "analyze",
+        "--plant",
+        &p("ms.json"),
+        "--controller",
+        &p("k.json"),
+        "--uncertainty",
+        &p("us.json"),
+    ]);
+    let text = String::from_utf8_lossy(&text.stdout).into_owned();
+    assert!(text.contains("robustly stable"), "{text}");
+    let k = sd_model::read_model(std::fs::File::open(p("k.json")).unwrap()).unwrap();
+    let hot = sd_model::series(
+        &k,
+        &sd_model::StateSpace::gain(nalgebra::DMatrix::from_element(1, 1, 25.0), k.time()).unwrap(),
+    )
+    .unwrap();
+    std::fs::write(p("hot.json"), sd_model::model_to_json_string(&hot).unwrap()).unwrap();
+    let o = sdctl_ok(&[
+        "analyze",
+        "--plant",
+        &p("ms.json"),
+        "--controller",
+        &p("hot.json"),
+        "--uncertainty",
+        &p("us.json"),
+        "--destabilising-out",
+        &p("bad_plant.json"),
+        "--json",
+    ]);
+    let a: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(a["stable"].as_bool().unwrap(), "{a}");
+    {
+        assert!(a["robust"]["margin_lines"].as_f64().unwrap() < 1.0, "{a}");
+        let d = &a["robust"]["destabilising"];
+        assert!(
+            d["max_ratio_to_bound"].as_f64().unwrap() <= 1.0 + 1e-9,
+            "{a}"
+        );
+        let o = sdctl_ok(&[
+            "analyze",
+            "--plant",
+            &p("bad_plant.json"),
+            "--controller",
+            &p("hot.json"),
+            "--json",
+        ]);
+        let b: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        assert_eq!(b["stable"], false, "{b}");
+    }
+    // the fast bound against the slow loop: another sample time
+    assert_input_error(
+        &sdctl(&[
+            "analyze",
+            "--plant",
+            &p("ms.json"),
+            "--controller",
+            &p("k.json"),
+            "--uncertainty",
+            &p("u.json"),
+        ]),
+        "sample time",
+    );
     // another model's bound, a confidence that is not a probability, a missing partner option
     sdctl_ok(&[
         "fit",

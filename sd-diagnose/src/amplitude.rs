@@ -14,6 +14,9 @@
 //! mode's band (`f(1 ± max(3ζ, 2 %))`), from the DFT of the steady record; a friction-damped
 //! rigid body's corner's is the output's rms velocity below three times the linear corner
 //! ([`mode_amplitude`]); the trend uses it relative to the model experiment's, `ρ = a/a_ref`.
+//! A level fit measures it around its fitted pole; a level the trends predict is measured
+//! self-consistently around the pole predicted at that amplitude
+//! ([`AmplitudeModel::amplitudes`]).
 //!
 //! **Trend.** Per mode and quantity `p(ρ) = p_ref + c·(ρ^k − 1)` by weighted least squares over
 //! the levels, with `k ∈ {2, 1, −1}` chosen by the weighted residual (with two levels, where
@@ -45,6 +48,12 @@ use std::f64::consts::TAU;
 
 /// Exponents tried for a trend, the default first.
 const EXPONENTS: [i32; 3] = [2, 1, -1];
+/// Largest relative frequency shift an amplitude is sought at
+/// ([`AmplitudeModel::amplitudes`]).
+const MAX_SHIFT: f64 = 0.25;
+/// Largest ratio between a self-consistent amplitude and the force's estimate of it for the
+/// former to be taken ([`AmplitudeModel::amplitudes`]).
+const FORCE_AGREEMENT: f64 = 1.5;
 /// Gauss–Newton iterations of a level fit.
 const GN_ITERATIONS: usize = 20;
 
@@ -87,6 +96,11 @@ pub(crate) struct AmplitudeModel {
     trends: Vec<(Trend, Trend, bool, bool)>,
     /// Reference amplitude per candidate (the model experiment's).
     reference: Vec<f64>,
+    /// The reference experiment's input rms in each candidate's linear band.
+    reference_force: Vec<f64>,
+    /// Per candidate, every fitted level's (force ratio, amplitude ratio): how much the mode
+    /// responds per force at each level.
+    per_force: Vec<Vec<(f64, f64)>>,
     /// Residues common to the levels (set by [`AmplitudeModel::fit`]).
     residues: Option<Residues>,
 }
@@ -165,59 +179,102 @@ fn pair_of(f: f64, z: f64) -> C {
     C::new(-z * w, w * (1.0 - z * z).max(0.0).sqrt())
 }
 
-/// Rms of `x` sampled at `fs` in the band `[lo, hi]` Hz: the one-sided power of the Hann-
-/// windowed DFT (window normalised to unit mean square, `Σw²/N = 3/8`) after the mean and the
-/// linear trend are removed. The window matters for non-periodic records: a rectangular one
-/// leaks the large low-frequency motion of a stage (whose record does not end where it
-/// starts) over every band with a level set by chance, which the Hann window's `1/f³`
-/// side-lobes suppress; whole periods of a periodic record lose nothing but the band edges'
-/// half bins.
-pub(crate) fn band_rms(x: &[f64], fs: f64, lo: f64, hi: f64) -> f64 {
-    weighted_band_rms(x, fs, (lo, hi), false)
+/// Rms of `x` sampled at `fs` in the band `[lo, hi]` Hz ([`Spectrum::band_rms`]).
+#[cfg(test)]
+fn band_rms(x: &[f64], fs: f64, lo: f64, hi: f64) -> f64 {
+    Spectrum::of(x, fs).band_rms((lo, hi), false)
 }
 
-/// [`band_rms`] of `x`, or with `derivative` of its time derivative (each line's power times
-/// `(2πf)²`): the velocity of a position record.
-fn weighted_band_rms(x: &[f64], fs: f64, (lo, hi): (f64, f64), derivative: bool) -> f64 {
-    let n = x.len();
-    if n < 4 {
-        return 0.0;
-    }
-    let nf = n as f64;
-    let mean = x.iter().sum::<f64>() / nf;
-    let tc = (nf - 1.0) / 2.0;
-    let slope = x
-        .iter()
-        .enumerate()
-        .map(|(i, v)| (i as f64 - tc) * (v - mean))
-        .sum::<f64>()
-        / (0..n).map(|i| (i as f64 - tc).powi(2)).sum::<f64>();
-    let norm = (8.0f64 / 3.0).sqrt();
-    let mut buf: Vec<C> = x
-        .iter()
-        .enumerate()
-        .map(|(i, v)| {
-            let w = norm * (1.0 - (TAU * i as f64 / nf).cos()) / 2.0;
-            C::new(w * (v - mean - slope * (i as f64 - tc)), 0.0)
-        })
-        .collect();
-    rustfft::FftPlanner::new()
-        .plan_fft_forward(n)
-        .process(&mut buf);
-    let df = fs / nf;
-    let k0 = (lo / df).ceil().max(1.0) as usize;
-    let k1 = ((hi / df).floor() as usize).min(n / 2);
-    let power: f64 = (k0..=k1)
-        .map(|k| {
-            let w = if derivative {
-                (TAU * k as f64 * df).powi(2)
-            } else {
-                1.0
+/// The one-sided power spectrum of a record, computed once for many band rms.
+pub(crate) struct Spectrum {
+    /// `|X_k|²` of the windowed DFT, `k = 0..=N/2`.
+    power: Vec<f64>,
+    df: f64,
+    n: f64,
+}
+
+impl Spectrum {
+    /// The power of the Hann-windowed DFT of `x` sampled at `fs` (window normalised to unit
+    /// mean square, `Σw²/N = 3/8`) after the mean and the linear trend are removed. The
+    /// window matters for non-periodic records: a rectangular one leaks the large
+    /// low-frequency motion of a stage (whose record does not end where it starts) over
+    /// every band with a level set by chance, which the Hann window's `1/f³` side-lobes
+    /// suppress; whole periods of a periodic record lose nothing but the band edges' half
+    /// bins.
+    pub(crate) fn of(x: &[f64], fs: f64) -> Self {
+        let n = x.len();
+        if n < 4 {
+            return Spectrum {
+                power: Vec::new(),
+                df: 1.0,
+                n: 1.0,
             };
-            w * buf[k].norm_sqr()
-        })
-        .sum();
-    (2.0 * power).sqrt() / nf
+        }
+        let nf = n as f64;
+        let mean = x.iter().sum::<f64>() / nf;
+        let tc = (nf - 1.0) / 2.0;
+        let slope = x
+            .iter()
+            .enumerate()
+            .map(|(i, v)| (i as f64 - tc) * (v - mean))
+            .sum::<f64>()
+            / (0..n).map(|i| (i as f64 - tc).powi(2)).sum::<f64>();
+        let norm = (8.0f64 / 3.0).sqrt();
+        let mut buf: Vec<C> = x
+            .iter()
+            .enumerate()
+            .map(|(i, v)| {
+                let w = norm * (1.0 - (TAU * i as f64 / nf).cos()) / 2.0;
+                C::new(w * (v - mean - slope * (i as f64 - tc)), 0.0)
+            })
+            .collect();
+        rustfft::FftPlanner::new()
+            .plan_fft_forward(n)
+            .process(&mut buf);
+        Spectrum {
+            power: buf[..=n / 2].iter().map(|c| c.norm_sqr()).collect(),
+            df: fs / nf,
+            n: nf,
+        }
+    }
+
+    /// Rms in the band `[lo, hi]` Hz, or with `derivative` the rms of the time derivative
+    /// (each line's power times `(2πf)²`: the velocity of a position record).
+    pub(crate) fn band_rms(&self, (lo, hi): (f64, f64), derivative: bool) -> f64 {
+        if self.power.is_empty() || hi.is_nan() || lo.is_nan() || hi < lo {
+            return 0.0;
+        }
+        let k0 = (lo / self.df).ceil().max(1.0) as usize;
+        let k1 = ((hi / self.df).floor().max(0.0) as usize).min(self.power.len() - 1);
+        let power: f64 = (k0..=k1)
+            .map(|k| {
+                let w = if derivative {
+                    (TAU * k as f64 * self.df).powi(2)
+                } else {
+                    1.0
+                };
+                w * self.power[k]
+            })
+            .sum();
+        (2.0 * power).sqrt() / self.n
+    }
+}
+
+/// The spectra of an experiment's steady input and output.
+pub(crate) struct Records {
+    u: Spectrum,
+    y: Spectrum,
+}
+
+impl Records {
+    pub(crate) fn of(e: &Experiment) -> Self {
+        let start = e.spec.skip_periods * e.spec.period_samples.unwrap_or(0);
+        let fs = e.spec.sample_rate_hz;
+        Records {
+            u: Spectrum::of(&e.u[start.min(e.u.len())..], fs),
+            y: Spectrum::of(&e.y[start.min(e.y.len())..], fs),
+        }
+    }
 }
 
 /// The band of a pole ([`band`]).
@@ -242,10 +299,9 @@ fn band(f: f64, z: f64) -> (f64, f64) {
 /// Gaussian velocity as the viscous damping `√(2/π)·F/σ_v` (its describing function), and
 /// the velocity of a damped rigid body is flat to its corner and falls as `1/f` above, so the
 /// band holds its rms at every amplitude where the corner falls.
-fn mode_amplitude(basis: &ModalBasis, pm: usize, at: C, y: &[f64], fs: f64) -> f64 {
+fn mode_amplitude(basis: &ModalBasis, pm: usize, at: C, y: &Spectrum) -> f64 {
     if !basis.is_rigid_damping(pm) {
-        let (lo, hi) = band_of(at);
-        return band_rms(y, fs, lo, hi);
+        return y.band_rms(band_of(at), false);
     }
     let poles = basis.poles();
     let corner = natural(poles[pm], [[0.0; 2]; 2]).0;
@@ -253,13 +309,7 @@ fn mode_amplitude(basis: &ModalBasis, pm: usize, at: C, y: &[f64], fs: f64) -> f
         .filter(|&j| !basis.is_real(j))
         .map(|j| natural(poles[j], [[0.0; 2]; 2]).0)
         .fold(f64::INFINITY, f64::min);
-    weighted_band_rms(y, fs, (0.0, (3.0 * corner).min(0.5 * lowest_pair)), true)
-}
-
-/// The steady output of an experiment.
-fn steady_output(e: &Experiment) -> &[f64] {
-    let start = e.spec.skip_periods * e.spec.period_samples.unwrap_or(0);
-    &e.y[start.min(e.y.len())..]
+    y.band_rms((0.0, (3.0 * corner).min(0.5 * lowest_pair)), true)
 }
 
 /// One level's modal fit (module documentation): the candidates' pole pairs free, from the
@@ -375,8 +425,7 @@ fn finish(
     let misfit = (cost / lines.max(1) as f64).max(1.0);
     let k = weights * est.inflation.max(1.0) * misfit;
     let poles = b.poles();
-    let y = steady_output(lv.exp);
-    let fs = lv.exp.spec.sample_rate_hz;
+    let y = Records::of(lv.exp).y;
     let mut modal = Vec::new();
     let mut amplitude = Vec::new();
     for (m, &pm) in cand.iter().enumerate() {
@@ -389,7 +438,7 @@ fn finish(
             }
         };
         let nat = natural(poles[pm], [[c(0, 0), c(0, 1)], [c(1, 0), c(1, 1)]]);
-        amplitude.push(mode_amplitude(linear_basis, pm, poles[pm], y, fs));
+        amplitude.push(mode_amplitude(linear_basis, pm, poles[pm], &y));
         modal.push(nat);
     }
     let linear = cand
@@ -654,12 +703,42 @@ impl AmplitudeModel {
                 && moves(&zp.iter().map(|p| (p.1, p.2)).collect::<Vec<_>>(), a_mode);
             trends.push((ft, zt, fm, zm));
         }
+        let force_rec = Records::of(
+            levels
+                .first()
+                .ok_or_else(|| DiagnoseError::Setup("no level to fit".into()))?
+                .exp,
+        );
+        let force = |rec: &Records, pm: usize| rec.u.band_rms(band_of(basis.poles()[pm]), false);
+        let reference_force: Vec<f64> = cand
+            .iter()
+            .map(|&pm| force(&force_rec, pm).max(f64::MIN_POSITIVE))
+            .collect();
+        let recs: Vec<Records> = levels.iter().map(|lv| Records::of(lv.exp)).collect();
+        let per_force = cand
+            .iter()
+            .enumerate()
+            .map(|(m, &pm)| {
+                recs.iter()
+                    .zip(fits)
+                    .map(|(r, f)| {
+                        (
+                            force(r, pm) / reference_force[m],
+                            f.amplitude[m] / reference[m].max(f64::MIN_POSITIVE),
+                        )
+                    })
+                    .filter(|(x, y)| x.is_finite() && *x > 0.0 && y.is_finite() && *y > 0.0)
+                    .collect()
+            })
+            .collect();
         let mut me = AmplitudeModel {
             basis: basis.clone(),
             h,
             cand: cand.to_vec(),
             trends,
             reference,
+            reference_force,
+            per_force,
             residues: None,
         };
         me.residues = Some(me.reference_residues(levels)?);
@@ -677,22 +756,110 @@ impl AmplitudeModel {
     fn pairs_at(&self, amp: &[f64]) -> Vec<C> {
         let mut pairs = self.basis.poles().to_vec();
         for (m, &pm) in self.cand.iter().enumerate() {
-            let (ft, zt, fm, zm) = &self.trends[m];
-            if !(*fm || *zm) {
-                continue;
-            }
             let rho = amp[m] / self.reference[m].max(f64::MIN_POSITIVE);
-            let lin = natural(pairs[pm], [[0.0; 2]; 2]);
-            let f = if *fm { ft.at(rho).0 } else { lin.0 };
-            pairs[pm] = if self.basis.is_real(pm) {
-                // a corner stays a stable real pole
-                C::new(-TAU * f.max(1e-3 * lin.0), 0.0)
-            } else {
-                let z = if *zm || *fm { zt.at(rho).0 } else { lin.1 };
-                pair_of(f, z.clamp(1e-6, 0.999))
-            };
+            pairs[pm] = self.pole_at(m, rho);
         }
         pairs
+    }
+
+    /// Candidate `m`'s pole at relative amplitude `rho`: from its trends when it moves, else
+    /// linear.
+    fn pole_at(&self, m: usize, rho: f64) -> C {
+        let pm = self.cand[m];
+        let lin_pole = self.basis.poles()[pm];
+        let (ft, zt, fm, zm) = &self.trends[m];
+        if !(*fm || *zm) {
+            return lin_pole;
+        }
+        let lin = natural(lin_pole, [[0.0; 2]; 2]);
+        let f = if *fm { ft.at(rho).0 } else { lin.0 };
+        if self.basis.is_real(pm) {
+            // a corner stays a stable real pole
+            C::new(-TAU * f.max(1e-3 * lin.0), 0.0)
+        } else {
+            let z = zt.at(rho).0;
+            pair_of(f.max(1e-3 * lin.0), z.clamp(1e-6, 0.999))
+        }
+    }
+
+    /// Candidate `m`'s amplitude in an experiment: self-consistent, the rms of the output in
+    /// the band of the pole the trend predicts at that very amplitude. With `g(ρ)` the rms in
+    /// the band of the pole at `ρ` over the reference amplitude, the stable solutions of
+    /// `ρ = g(ρ)` (where `g(ρ) − ρ` turns from positive to negative) are sought on a 2 % grid
+    /// of `ρ` from 1/16 to 64 while the pole stays within ±[`MAX_SHIFT`] of its linear
+    /// frequency, each refined by bisection. Several solutions are usual once a mode has left
+    /// its linear band: a band on the skirt of the response measures a smaller amplitude,
+    /// which predicts a smaller shift, and a band far off may catch another mode. They are
+    /// told apart by the force: the input's rms in the linear band over the reference
+    /// experiment's (measured without the model), times the response per force of the fitted
+    /// level nearest in force, estimates the amplitude; the solution nearest it (in `ln ρ`)
+    /// is taken when within a factor [`FORCE_AGREEMENT`], else the force's estimate itself.
+    /// A pole that does not move, or a friction corner's, whose band does not depend on the
+    /// pole, is measured directly.
+    fn amplitude_of(&self, m: usize, rec: &Records) -> f64 {
+        let pm = self.cand[m];
+        let (fm, zm) = (self.trends[m].2, self.trends[m].3);
+        let lin_pole = self.basis.poles()[pm];
+        let direct = mode_amplitude(&self.basis, pm, lin_pole, &rec.y);
+        if !(fm || zm) || self.basis.is_real(pm) || direct <= 0.0 {
+            return direct;
+        }
+        let a_ref = self.reference[m].max(f64::MIN_POSITIVE);
+        let f_lin = natural(lin_pole, [[0.0; 2]; 2]).0;
+        // ln(g(ρ)/ρ) at ln ρ, where the pole stays within MAX_SHIFT of the linear one
+        let d = |ln_rho: f64| -> Option<f64> {
+            let p = self.pole_at(m, ln_rho.exp());
+            let f = natural(p, [[0.0; 2]; 2]).0;
+            let g = mode_amplitude(&self.basis, pm, p, &rec.y) / a_ref;
+            ((f / f_lin - 1.0).abs() <= MAX_SHIFT && g > 0.0).then(|| g.ln() - ln_rho)
+        };
+        // the amplitude the force predicts: its ratio times the response per force of the
+        // fitted level nearest in force
+        let phi = rec.u.band_rms(band_of(lin_pole), false) / self.reference_force[m];
+        let from_force = self.per_force[m]
+            .iter()
+            .min_by(|a, b| (a.0 / phi).ln().abs().total_cmp(&(b.0 / phi).ln().abs()))
+            .map(|(f, r)| phi * r / f)
+            .filter(|r| r.is_finite() && *r > 0.0);
+        let Some(target) = from_force.map(f64::ln) else {
+            return direct;
+        };
+        let step = 0.02f64.ln_1p();
+        let (lo, hi) = ((1.0f64 / 16.0).ln(), 64f64.ln());
+        let n = ((hi - lo) / step).ceil() as usize;
+        let grid: Vec<(f64, Option<f64>)> = (0..=n)
+            .map(|k| {
+                let x = lo + step * k as f64;
+                (x, d(x))
+            })
+            .collect();
+        let mut best: Option<f64> = None;
+        for w in grid.windows(2) {
+            let (Some(d0), Some(d1)) = (w[0].1, w[1].1) else {
+                continue;
+            };
+            if !(d0 >= 0.0 && d1 < 0.0) {
+                continue;
+            }
+            let (mut a, mut b) = (w[0].0, w[1].0);
+            for _ in 0..30 {
+                let c = 0.5 * (a + b);
+                match d(c) {
+                    Some(dc) if dc >= 0.0 => a = c,
+                    _ => b = c,
+                }
+            }
+            let x = 0.5 * (a + b);
+            if best.is_none_or(|bx| (x - target).abs() < (bx - target).abs()) {
+                best = Some(x);
+            }
+        }
+        // a solution far from what the force says is another mode's or the skirt's: the
+        // force's amplitude then stands
+        let x = best
+            .filter(|x| (x - target).abs() <= FORCE_AGREEMENT.ln())
+            .unwrap_or(target);
+        x.exp() * a_ref
     }
 
     /// Residues fitted to the reference level (the model experiment) at its trend poles: the
@@ -708,23 +875,13 @@ impl AmplitudeModel {
         Residues::fit(&lv.est.frd, &phi)
     }
 
-    /// A level's mode amplitudes: the rms of its output in each candidate's band around the
-    /// frequency the model predicts at that amplitude (a fixed point from the linear band,
-    /// three rounds: a moving mode leaves its linear band), as the level fits measure it.
+    /// A level's mode amplitudes, each self-consistent with its predicted pole
+    /// ([`AmplitudeModel::amplitude_of`]), as the level fits measure them.
     pub(crate) fn amplitudes(&self, lv: &Level<'_>) -> Vec<f64> {
-        let y = steady_output(lv.exp);
-        let fs = lv.exp.spec.sample_rate_hz;
-        let mut pairs = self.basis.poles().to_vec();
-        let mut amp = Vec::new();
-        for _ in 0..3 {
-            amp = self
-                .cand
-                .iter()
-                .map(|&pm| mode_amplitude(&self.basis, pm, pairs[pm], y, fs))
-                .collect();
-            pairs = self.pairs_at(&amp);
-        }
-        amp
+        let rec = Records::of(lv.exp);
+        (0..self.cand.len())
+            .map(|m| self.amplitude_of(m, &rec))
+            .collect()
     }
 
     /// The prediction of a level's FRF lines, with the residues' variance (the trend's poles
@@ -899,7 +1056,7 @@ mod tests {
         assert!((band_rms(&x, fs, 190.0, 210.0) / (0.5 / 2f64.sqrt()) - 1.0).abs() < 1e-3);
         // the derivative's rms: 2πf times the amplitude over √2, both sines together
         let v = ((TAU * 50.0 * 2.0).powi(2) + (TAU * 200.0 * 0.5).powi(2)).sqrt() / 2f64.sqrt();
-        let got = weighted_band_rms(&x, fs, (0.0, 300.0), true);
+        let got = Spectrum::of(&x, fs).band_rms((0.0, 300.0), true);
         assert!((got / v - 1.0).abs() < 1e-3, "{got} {v}");
     }
 

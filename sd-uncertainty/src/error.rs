@@ -11,6 +11,9 @@ pub enum UncertaintyError {
     /// A multirate operation failed.
     #[error(transparent)]
     Multirate(#[from] sd_multirate::MultirateError),
+    /// A closed-loop computation failed.
+    #[error(transparent)]
+    Analysis(#[from] sd_analysis::AnalysisError),
     /// The weight's fit failed.
     #[error(transparent)]
     Ident(#[from] sd_ident::IdentError),

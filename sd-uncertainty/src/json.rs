@@ -9,7 +9,8 @@
 //!
 //! `bound` is in the form's units (plant units for `additive`, relative for `multiplicative`)
 //! and is what a reader uses; `residual` and `sigma` (plant units) say where it came from;
-//! `weight` is optional and informational on reading.
+//! `weight` is optional; [`from_json_str`] reads the bound, [`weight_from_json_str`] the
+//! weight's model (robust analysis uses it between the lines).
 
 use crate::bound::{sigma_factor, Bound, Form};
 use crate::error::{Result, UncertaintyError};
@@ -167,6 +168,33 @@ pub fn from_json_str(text: &str) -> Result<Bound> {
         sigma,
         additive,
     })
+}
+
+/// The overbounding weight's model `W(z)` of an uncertainty JSON text, `None` when the file
+/// has none. The weight must be SISO and discrete at the bound's `ts`.
+///
+/// # Errors
+/// What [`from_json_str`] refuses; a `weight` without a valid `model`.
+pub fn weight_from_json_str(text: &str) -> Result<Option<sd_model::StateSpace>> {
+    let b = from_json_str(text)?;
+    let v: serde_json::Value = serde_json::from_str(text).map_err(bad)?;
+    let Some(w) = v.get("weight") else {
+        return Ok(None);
+    };
+    let m = w
+        .get("model")
+        .ok_or_else(|| bad("`weight` must hold a `model`"))?;
+    let model = sd_model::model_from_json_str(&m.to_string())
+        .map_err(|e| bad(format!("`weight.model`: {e}")))?;
+    let at_ts = matches!(model.time(), sd_model::SampleTime::Discrete { ts }
+        if (ts - b.ts).abs() <= 1e-9 * b.ts);
+    if model.nu() != 1 || model.ny() != 1 || !at_ts {
+        return Err(bad(format!(
+            "`weight.model` must be SISO and discrete at the bound's ts = {} s",
+            b.ts
+        )));
+    }
+    Ok(Some(model))
 }
 
 #[cfg(test)]

@@ -12,6 +12,9 @@
 //!   collects its `F` fold frequencies weighted by the slow hold,
 //!   `|Δ_T(f)| ≤ Σ_k |H_F(f_k)/F|·|Δ_h(f_k)|` ([`mod@downsample`] has the structure and when it
 //!   is tight).
+//! - [`robust_stability`]: the largest scaling of the bound a loop tolerates (small gain on
+//!   the lines and, with the weight, between them), the worst-case sensitivity, and a
+//!   destabilising plant inside the bound when there is one ([`robust`]).
 //! - [`coverage`]: the fraction of a measurement's lines inside nominal ± bound, the check of a
 //!   bound on data it was not made from.
 //!
@@ -21,12 +24,14 @@ pub mod bound;
 pub mod downsample;
 pub mod error;
 pub mod json;
+pub mod robust;
 pub mod weight;
 
 pub use bound::{coverage, from_data, sigma_factor, Bound, Coverage, Form};
 pub use downsample::{downsample, downsample_nonideal, Downsampled};
 pub use error::{Result, UncertaintyError};
-pub use json::{from_json_str, to_json_string};
+pub use json::{from_json_str, to_json_string, weight_from_json_str};
+pub use robust::{destabilising, robust_stability, Destabilising, Robust};
 pub use weight::{overbound, Weight};
 
 /// The crate README's example, compiled and run as a doctest.

@@ -4,9 +4,9 @@
 //!
 //! Seed ranges: development (looked at while building the search and the naming rule)
 //! `0..100` and `1000..1100`; the CI subset `3000..3032` (a regression check, run at every
-//! commit); `2000..2100`, `4000..4100`, `5000..5100` and `6000..6100` were reported once for
-//! earlier versions and are spent (development now); reported now (not looked at before the
-//! figures were taken) `8000..8100`:
+//! commit); `2000..2100`, `4000..4100`, `5000..5100`, `6000..6100` and `8000..8100` were
+//! reported once for earlier versions and are spent (development now); reported now (not
+//! looked at before the figures were taken) `10000..10100`:
 //! `cargo test --release -p sd-tests --test diagnose_hidden -- --ignored --nocapture`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 use sd_model::median;
@@ -18,7 +18,7 @@ use sd_tests::diagcases::{hidden_effect, per_seed, Case, Effect, FINE_STEPS};
 use sd_tests::stage::closed_loop_experiment;
 
 /// Seeds the confusion matrix is reported on (disjoint from the development seeds).
-const REPORT_SEEDS: std::ops::Range<u64> = 8000..8100;
+const REPORT_SEEDS: std::ops::Range<u64> = 10000..10100;
 /// The default run's regression subset (disjoint from both).
 const CI_SEEDS: std::ops::Range<u64> = 3000..3032;
 
@@ -288,6 +288,12 @@ fn run_case(seed: u64) -> Outcome {
                 ))
                 .collect::<Vec<_>>()
         );
+    }
+    if std::env::var("DIAG_EVIDENCE").is_ok() {
+        for e in &d.evidence {
+            println!("    {:.3} / {:.3} {}", e.statistic, e.threshold, e.test);
+        }
+        println!("    partial {:?}", d.partial);
     }
     Outcome {
         errors: parameter_errors(case.effect, &d),

@@ -1,6 +1,7 @@
 //! `sdctl analyze`.
 
-use crate::io::{emit, from_analysis, read_model, CliError};
+use crate::cmd::uncertainty::{from_unc, read_bound};
+use crate::io::{emit, from_analysis, read_model, read_text, CliError};
 use serde_json::json;
 
 /// Arguments of `sdctl analyze`.
@@ -12,6 +13,17 @@ pub(crate) struct Args {
     /// Controller model JSON (negative feedback u = −K y).
     #[arg(long)]
     pub(crate) controller: String,
+    /// Uncertainty JSON at the loop's sample time (from `sdctl uncertainty` or `sdctl
+    /// downsample --uncertainty`): robust stability against it (margin > 1: robustly stable).
+    #[arg(long)]
+    pub(crate) uncertainty: Option<String>,
+    /// Fit an overbounding weight of this order for the margin between the lines when the
+    /// uncertainty file has none.
+    #[arg(long, requires = "uncertainty")]
+    pub(crate) weight_order: Option<usize>,
+    /// Write the destabilising plant inside the bound (when there is one) to this model JSON.
+    #[arg(long, requires = "uncertainty")]
+    pub(crate) destabilising_out: Option<String>,
     #[arg(help = crate::commands::JSON_HELP, long)]
     pub(crate) json: bool,
 }
@@ -22,14 +34,21 @@ impl Args {
         let Args {
             plant,
             controller,
+            uncertainty,
+            weight_order,
+            destabilising_out,
             json,
         } = self;
         let p = read_model(&plant)?;
         let k = read_model(&controller)?;
         let cl = sd_analysis::ClosedLoop::new(&p, &k).map_err(|e| from_analysis("analyze", e))?;
         let s = cl.summary().map_err(|e| from_analysis("analyze", e))?;
+        let robust = uncertainty
+            .as_deref()
+            .map(|u| robust(&p, &k, u, weight_order, destabilising_out.as_deref()))
+            .transpose()?;
         if json {
-            let v = json!({
+            let mut v = json!({
                 "stable": s.stable,
                 "closed_loop_radius": s.closed_loop_radius,
                 "bandwidth_hz": s.bandwidth_hz,
@@ -40,10 +59,16 @@ impl Args {
                 "phase_margin_deg": s.phase_margin_deg,
                 "modulus_margin": s.modulus_margin,
             });
+            if let (Some(r), Some(obj)) = (&robust, v.as_object_mut()) {
+                obj.insert("robust".into(), json!(r));
+            }
             emit(&v.to_string(), None)
         } else {
+            let extra = robust
+                .as_ref()
+                .map_or(String::new(), |r| format!("\n{}", robust_text(r)));
             emit(
-            &format!(
+            &(format!(
                 "closed loop {} (spectral {} {:.6})\ncrossover {:.3} Hz (|L| = 1), closed-loop bandwidth {:.3} Hz (|T| −3 dB)\n|S| peak {:.2} dB at {:.3} Hz (modulus margin {:.4})\ngain margin {:.2} dB, phase margin {:.2} deg",
                 if s.stable { "stable" } else { "UNSTABLE" },
                 if p.time().is_continuous() { "abscissa" } else { "radius" },
@@ -55,9 +80,103 @@ impl Args {
                 s.modulus_margin,
                 s.gain_margin_db,
                 s.phase_margin_deg
-            ),
+            ) + &extra),
             None,
         )
         }
     }
+}
+
+/// Robust stability against the uncertainty file `path` (its weight, or one fitted of
+/// `weight_order`), writing the destabilising plant to `out` when there is one.
+fn robust(
+    p: &sd_model::StateSpace,
+    k: &sd_model::StateSpace,
+    path: &str,
+    weight_order: Option<usize>,
+    out: Option<&str>,
+) -> Result<sd_uncertainty::Robust, CliError> {
+    let bound = read_bound(path)?;
+    let mut weight =
+        sd_uncertainty::weight_from_json_str(&read_text(path)?).map_err(|e| from_unc(path, e))?;
+    if weight.is_none() {
+        if let Some(n) = weight_order {
+            weight = Some(
+                sd_uncertainty::overbound(&bound, n)
+                    .map_err(|e| from_unc("--weight-order", e))?
+                    .model,
+            );
+        }
+    }
+    let r = sd_uncertainty::robust_stability(p, k, &bound, weight.as_ref())
+        .map_err(|e| from_unc(path, e))?;
+    if let Some(out) = out {
+        match &r.destabilising {
+            Some(d) => {
+                let text = sd_model::model_to_json_string(&d.plant)
+                    .map_err(|e| crate::io::from_model("--destabilising-out", e))?;
+                emit(&text, Some(out))?;
+            }
+            None => eprintln!(
+                "[analyze] no destabilising plant inside the bound: nothing written to {out}"
+            ),
+        }
+    }
+    Ok(r)
+}
+
+/// The robust-stability lines of the text output.
+fn robust_text(r: &sd_uncertainty::Robust) -> String {
+    let form = match r.form {
+        sd_uncertainty::Form::Additive => "additive (|W K S| < 1)",
+        sd_uncertainty::Form::Multiplicative => "multiplicative (|W T| < 1)",
+    };
+    let verdict = |m: f64| {
+        if m > 1.0 {
+            "robustly stable"
+        } else {
+            "NOT robustly stable"
+        }
+    };
+    let mut t = if r.nominal_stable {
+        format!(
+            "robust stability, {form}: margin {:.3} on the bound's lines (worst at {:.2} Hz): {}",
+            r.margin_lines,
+            r.worst_line_hz,
+            verdict(r.margin_lines)
+        )
+    } else {
+        "robust stability: the nominal loop is unstable (margin 0)".to_string()
+    };
+    if let (Some(m), Some(f)) = (r.margin_weight, r.weight_peak_hz) {
+        t += &format!(
+            "\nwith the overbounding weight (between the lines too): margin {m:.3} (peak at \
+             {f:.2} Hz): {}",
+            verdict(m)
+        );
+    }
+    if r.nominal_stable {
+        t += &format!(
+            "\nworst-case |S| over the bound: {:.2} dB at {:.2} Hz",
+            r.worst_sensitivity_db, r.worst_sensitivity_hz
+        );
+    }
+    if let Some(d) = &r.destabilising {
+        t += &format!(
+            "\na plant inside the bound that this controller does not stabilise: |Δ| = {:.3e} \
+             at {:.2} Hz (bound {:.3e}; at most {:.3} of the bound on every line), closed-loop \
+             radius {:.6}; reduce {} near {:.0} Hz (less gain there, or more phase margin)",
+            d.magnitude,
+            d.freq_hz,
+            d.bound_at,
+            d.max_ratio_to_bound,
+            d.closed_loop_radius,
+            match r.form {
+                sd_uncertainty::Form::Additive => "|K S|",
+                sd_uncertainty::Form::Multiplicative => "|T|",
+            },
+            d.freq_hz
+        );
+    }
+    t
 }
