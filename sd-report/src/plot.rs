@@ -19,7 +19,7 @@ fn legend<'a, DB: DrawingBackend + 'a, CT: plotters::coord::CoordTranslate>(
         .map_err(crate::plot_err)
 }
 
-/// One curve: label, frequencies (Hz), magnitudes (dB).
+/// One curve: label (empty: no legend entry), frequencies (Hz), magnitudes (dB).
 pub struct Curve<'a> {
     /// Legend entry.
     pub label: &'a str,
@@ -194,13 +194,15 @@ fn draw_magnitude<DB: DrawingBackend>(
             .map(|(f, d)| (*f, *d))
             .collect();
         let color = c.color;
-        chart
+        let series = chart
             .draw_series(LineSeries::new(pts, color.stroke_width(2)))
-            .map_err(crate::plot_err)?
-            .label(c.label)
-            .legend(move |(x, y)| {
+            .map_err(crate::plot_err)?;
+        // an empty label draws without a legend entry (the second edge of a band)
+        if !c.label.is_empty() {
+            series.label(c.label).legend(move |(x, y)| {
                 PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
             });
+        }
     }
     for (f, label) in marks {
         chart
@@ -292,13 +294,14 @@ pub fn line_plot(
                         .map(|(x, y)| (*x, *y))
                         .collect();
                 let color = l.color;
-                chart
+                let series = chart
                     .draw_series(LineSeries::new(pts, color.stroke_width(2)))
-                    .map_err(crate::plot_err)?
-                    .label(l.label)
-                    .legend(move |(x, y)| {
+                    .map_err(crate::plot_err)?;
+                if !l.label.is_empty() {
+                    series.label(l.label).legend(move |(x, y)| {
                         PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
                     });
+                }
             }
             legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
         }};

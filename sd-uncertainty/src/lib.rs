@@ -15,6 +15,9 @@
 //! - [`robust_stability`]: the largest scaling of the bound a loop tolerates (small gain on
 //!   the lines and, with the weight, between them), the worst-case sensitivity, and a
 //!   destabilising plant inside the bound when there is one ([`robust`]).
+//! - [`chordal_gap`]: the largest chordal distance between a model and a measured FRF (the
+//!   ν-gap to the measured plant when the winding condition holds, [`gap`]), against which a
+//!   loopshaping design's margin `ε = 1/γ` is read.
 //! - [`coverage`]: the fraction of a measurement's lines inside nominal ± bound, the check of a
 //!   bound on data it was not made from.
 //!
@@ -23,6 +26,7 @@
 pub mod bound;
 pub mod downsample;
 pub mod error;
+pub mod gap;
 pub mod json;
 pub mod robust;
 pub mod weight;
@@ -30,8 +34,9 @@ pub mod weight;
 pub use bound::{coverage, from_data, sigma_factor, Bound, Coverage, Form};
 pub use downsample::{downsample, downsample_nonideal, Downsampled};
 pub use error::{Result, UncertaintyError};
+pub use gap::{chordal, chordal_gap, ChordalGap};
 pub use json::{from_json_str, to_json_string, weight_from_json_str};
-pub use robust::{destabilising, robust_stability, Destabilising, Robust};
+pub use robust::{destabilising, loading_per_line, robust_stability, Destabilising, Robust};
 pub use weight::{overbound, Weight};
 
 /// The crate README's example, compiled and run as a doctest.

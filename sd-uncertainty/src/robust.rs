@@ -132,6 +132,27 @@ fn check(plant: &StateSpace, controller: &StateSpace, bound: &Bound) -> Result<(
     Ok(())
 }
 
+/// `b_k·|M(f_k)|` on every line of `bound` (`M = KS` or `T` by the bound's form): where the
+/// loop is closest to instability under the bound (`1/max` is the margin; a band's `1/max`
+/// the margin that band alone leaves).
+///
+/// # Errors
+/// As [`robust_stability`].
+pub fn loading_per_line(
+    plant: &StateSpace,
+    controller: &StateSpace,
+    bound: &Bound,
+) -> Result<Vec<(f64, f64)>> {
+    check(plant, controller, bound)?;
+    let cl = ClosedLoop::new(plant, controller)?;
+    bound
+        .freq_hz
+        .iter()
+        .zip(bound.values())
+        .map(|(&f, b)| Ok((f, b * m_at(&cl, bound.form, f)?.norm())))
+        .collect()
+}
+
 /// The robust stability of the loop `(plant, controller)` against `bound`, with the margin
 /// of the overbounding `weight` where given (module documentation).
 ///

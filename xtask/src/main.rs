@@ -9,6 +9,7 @@
 
 mod bench;
 mod paper;
+mod uncertainty;
 
 use std::process::ExitCode;
 
