@@ -360,6 +360,9 @@ struct Controllers {
     c2: StateSpace,
     gamma_min: f64,
     gamma: f64,
+    /// Controller 1's loopshaping weight and the 4-block norm its design achieved.
+    w1: StateSpace,
+    achieved: f64,
     /// Per controller: its closed-loop summary (JSON).
     summary: Vec<(&'static str, serde_json::Value)>,
     /// |S_d| (dB) with the design model on `grid`, per controller.
@@ -416,6 +419,8 @@ fn controllers(
         c2,
         gamma_min: design.gamma_min,
         gamma: design.gamma,
+        w1: w1.clone(),
+        achieved: design.achieved,
         summary,
         s_curves,
         grid: fs_grid,
@@ -1049,6 +1054,9 @@ fn uncertainty_md(md: &mut String, u: &crate::uncertainty::Uncertain) {
             let _ = write!(md, ". ");
         }
     }
+    let _ = write!(md, "Controller 1's loopshaping margin is ε = 1/achieved = {:.3}; the chordal distance between the shaped design model and the shaped 1 kHz measurement is {:.3} (at {:.1} Hz): {} ",
+        u.eps, u.nu_gap.max, u.nu_gap.at_hz,
+        if u.nu_gap.max < u.eps { "below ε, so the design's margin covers the measured plant (Vinnicombe's ν-gap condition, with the winding condition assumed)." } else { "at or above ε: the design's margin alone does not cover the measured plant." });
     if let [c1, c2, ..] = u.robust.as_slice() {
         let (n1, r1, a1) = (c1.name, &c1.plain, c1.alias_band);
         let (n2, r2, a2) = (c2.name, &c2.plain, c2.alias_band);
@@ -1095,6 +1103,7 @@ pub fn run(out: &str, quick: bool, averaging: f64) -> Result<(), String> {
         (&fitted.p_fast, &fitted.p_down),
         &diag,
         [("controller1", &c.c1), ("controller2", &c.c2)],
+        (&fitted.p_design, &c.w1, c.achieved),
     )?;
     p.say(
         5,
@@ -1189,6 +1198,24 @@ mod tests {
         assert!((ss["controller2"]["dominant_hz_fast"].as_f64().expect("f") - 653.0).abs() <= 10.0);
         assert!((ss["controller2"]["dominant_hz_slow"].as_f64().expect("f") - 347.0).abs() <= 10.0);
         assert!(report["fit"]["median_rel_error"].as_f64().expect("fit") <= 0.05);
+        // the error bound: it covers the truth at 5 kHz and, downsampled plainly, misses the
+        // 1 kHz measurement (the averaging sensor); each controller gets a robust margin
+        let u = &report["uncertainty"];
+        eprintln!("uncertainty {u}");
+        assert!(
+            u["coverage_fast"].as_f64().expect("coverage_fast") >= 0.9,
+            "{u}"
+        );
+        assert!(
+            u["coverage_slow"].as_f64().expect("coverage_slow") <= 0.5,
+            "{u}"
+        );
+        for c in [c1, c2] {
+            assert!(
+                c["robust_stability_margin"].as_f64().expect("margin") > 0.0,
+                "{c}"
+            );
+        }
         // the reduced run's low-order fit may not carry the extension to the noise level on
         // held-out periods: then the cause is `unexplained` with the averaging sampler as the
         // best partial explanation; either way the averaging sampler and a clear gain
@@ -1203,6 +1230,10 @@ mod tests {
         );
         assert!(report["diagnosis"]["gain_ratio"].as_f64().expect("gain") >= 3.0);
         if cause == "averaging_sampler" {
+            let ext = u["coverage_slow_extended"]
+                .as_f64()
+                .expect("extended coverage");
+            assert!(ext >= 0.9, "{u}");
             let beta = report["diagnosis"]["parameters"]["window_frac"]
                 .as_f64()
                 .expect("window");

@@ -33,6 +33,11 @@ pub struct Uncertain {
     pub slow_extended: Option<(Bound, StateSpace)>,
     /// Per controller.
     pub robust: Vec<ControllerRobust>,
+    /// Controller 1's loopshaping margin `ε = 1/achieved` and the chordal distance between
+    /// the shaped design model and the shaped 1 kHz measurement (the ν-gap to the measured
+    /// plant when the winding condition holds).
+    pub eps: f64,
+    pub nu_gap: sd_uncertainty::ChordalGap,
 }
 
 /// One controller's robust stability.
@@ -83,6 +88,7 @@ pub fn uncertainty(
     (p_fast, p_down): (&StateSpace, &StateSpace),
     diag: &sd_diagnose::Diagnosis,
     controllers: [(&'static str, &StateSpace); 2],
+    (p_design, w1, achieved): (&StateSpace, &StateSpace, f64),
 ) -> Result<Uncertain, String> {
     let fast_frd = fast.trusted_frd().map_err(s)?;
     let slow_frd = slow.trusted_frd().map_err(s)?;
@@ -152,7 +158,10 @@ pub fn uncertainty(
             extended: ext_r,
         });
     }
+    let nu_gap = sd_uncertainty::chordal_gap(p_design, &slow_frd, Some(w1)).map_err(s)?;
     Ok(Uncertain {
+        eps: 1.0 / achieved,
+        nu_gap,
         coverage_fast,
         coverage_slow,
         coverage_slow_extended,
@@ -178,6 +187,8 @@ pub fn band_db(b: &Bound) -> (Vec<f64>, Vec<f64>) {
 /// The `report.json` entries: `uncertainty` and each controller's margins.
 pub fn json(u: &Uncertain) -> (serde_json::Value, Vec<(&'static str, serde_json::Value)>) {
     let unc = serde_json::json!({
+        "controller1_stability_margin_eps": u.eps,
+        "nu_gap_measured": u.nu_gap,
         "confidence": CONFIDENCE,
         "coverage_fast": u.coverage_fast,
         "coverage_slow": u.coverage_slow,
