@@ -36,7 +36,9 @@ pub use downsample::{downsample, downsample_nonideal, Downsampled};
 pub use error::{Result, UncertaintyError};
 pub use gap::{chordal, chordal_gap, ChordalGap};
 pub use json::{from_json_str, to_json_string, weight_from_json_str};
-pub use robust::{destabilising, loading_per_line, robust_stability, Destabilising, Robust};
+pub use robust::{
+    destabilising, loading_per_line, robust_stability, worst_case_plant, Destabilising, Robust,
+};
 pub use weight::{overbound, Weight};
 
 /// The crate README's example, compiled and run as a doctest.

@@ -303,27 +303,13 @@ fn allpass_for(phi: f64, theta: f64) -> f64 {
     0.5 * (lo + hi)
 }
 
-/// A perturbation inside `bound` that destabilises the loop, built at line `f0` (module
-/// documentation); `None` when no resonator narrow enough keeps it inside the bound.
-///
-/// # Errors
-/// Numerical failures of the models.
-pub fn destabilising(
-    plant: &StateSpace,
-    controller: &StateSpace,
-    bound: &Bound,
-    cl: &ClosedLoop,
-    f0: f64,
-) -> Result<Option<Destabilising>> {
+/// A stable `Δ(z)` with `Δ(f₀) = target` and `|Δ(f_k)| ≤ b_k` on every line of `bound`
+/// (module documentation: resonator × all-pass × sign, the resonator narrowed until the bound
+/// holds), with its largest `|Δ|/b` over the lines; `None` when no resonator narrow enough
+/// keeps it inside.
+fn perturbation_at(bound: &Bound, f0: f64, target: C) -> Result<Option<(StateSpace, f64)>> {
     let ts = bound.ts;
     let b = bound.values();
-    let k0 =
-        bound.freq_hz.iter().position(|f| *f == f0).ok_or_else(|| {
-            UncertaintyError::Input(format!("{f0} Hz is not a line of the bound"))
-        })?;
-    let m0 = m_at(cl, bound.form, f0)?;
-    let c = -1.0 / m0;
-    let eps = (0.5 * (b[k0] / c.norm() - 1.0)).clamp(0.0, 0.01);
     let theta = TAU * f0 * ts;
     let time = SampleTime::discrete(ts)?;
     let mut delta_r = 0.2f64.min(theta.min(PI - theta));
@@ -332,7 +318,7 @@ pub fn destabilising(
         delta_r *= 0.5;
         let n = resonator(theta, r, ts)?;
         let n0 = n.freqresp(&[f0])?.response()[0][(0, 0)];
-        let mut phi = (c / n0).arg();
+        let mut phi = (target / n0).arg();
         let sign = if phi <= 0.0 {
             1.0
         } else {
@@ -341,7 +327,7 @@ pub fn destabilising(
         };
         let a = allpass_for(phi, theta);
         let ap = TransferFunction::new(vec![-a, 1.0], vec![1.0, -a], time)?.to_ss()?;
-        let g = sign * (1.0 + eps) * c.norm() / n0.norm();
+        let g = sign * target.norm() / n0.norm();
         let gain = StateSpace::gain(nalgebra::DMatrix::from_element(1, 1, g), time)?;
         let delta = sd_model::series(&sd_model::series(&n, &ap)?, &gain)?;
         let resp = delta.freqresp(&bound.freq_hz)?;
@@ -351,26 +337,90 @@ pub fn destabilising(
             .zip(&b)
             .map(|(d, bk)| d[(0, 0)].norm() / bk.max(f64::MIN_POSITIVE))
             .fold(0.0, f64::max);
-        if ratio > 1.0 + 1e-9 {
-            continue;
+        if ratio <= 1.0 + 1e-9 {
+            return Ok(Some((delta, ratio)));
         }
-        let perturbed = match bound.form {
-            Form::Additive => sd_model::parallel(plant, &delta)?,
-            Form::Multiplicative => {
-                let one = StateSpace::gain(nalgebra::DMatrix::from_element(1, 1, 1.0), time)?;
-                sd_model::series(&sd_model::parallel(&one, &delta)?, plant)?
-            }
-        };
-        let (radius, _) = ClosedLoop::new(&perturbed, controller)?.stability()?;
-        return Ok(Some(Destabilising {
-            freq_hz: f0,
-            magnitude: (1.0 + eps) * c.norm(),
-            bound_at: b[k0],
-            max_ratio_to_bound: ratio,
-            closed_loop_radius: radius,
-            perturbation: delta,
-            plant: perturbed,
-        }));
     }
     Ok(None)
+}
+
+/// The plant `P̂ + Δ` or `P̂(1 + Δ)` by the bound's form.
+fn perturbed(plant: &StateSpace, delta: &StateSpace, form: Form, ts: f64) -> Result<StateSpace> {
+    Ok(match form {
+        Form::Additive => sd_model::parallel(plant, delta)?,
+        Form::Multiplicative => {
+            let one = StateSpace::gain(
+                nalgebra::DMatrix::from_element(1, 1, 1.0),
+                SampleTime::discrete(ts)?,
+            )?;
+            sd_model::series(&sd_model::parallel(&one, delta)?, plant)?
+        }
+    })
+}
+
+/// The index of line `f0` of `bound`.
+fn line_of(bound: &Bound, f0: f64) -> Result<usize> {
+    bound
+        .freq_hz
+        .iter()
+        .position(|f| *f == f0)
+        .ok_or_else(|| UncertaintyError::Input(format!("{f0} Hz is not a line of the bound")))
+}
+
+/// A perturbation inside `bound` that destabilises the loop, built at line `f0` (module
+/// documentation): `Δ(f₀) = −(1 + ε)/M(f₀)`, `ε` up to 1 % within the bound there; `None` when
+/// no resonator narrow enough keeps it inside the bound.
+///
+/// # Errors
+/// `f0` not a line of the bound; numerical failures of the models.
+pub fn destabilising(
+    plant: &StateSpace,
+    controller: &StateSpace,
+    bound: &Bound,
+    cl: &ClosedLoop,
+    f0: f64,
+) -> Result<Option<Destabilising>> {
+    let b = bound.values();
+    let k0 = line_of(bound, f0)?;
+    let c = -1.0 / m_at(cl, bound.form, f0)?;
+    let eps = (0.5 * (b[k0] / c.norm() - 1.0)).clamp(0.0, 0.01);
+    let Some((delta, ratio)) = perturbation_at(bound, f0, c * (1.0 + eps))? else {
+        return Ok(None);
+    };
+    let plant = perturbed(plant, &delta, bound.form, bound.ts)?;
+    let (radius, _) = ClosedLoop::new(&plant, controller)?.stability()?;
+    Ok(Some(Destabilising {
+        freq_hz: f0,
+        magnitude: (1.0 + eps) * c.norm(),
+        bound_at: b[k0],
+        max_ratio_to_bound: ratio,
+        closed_loop_radius: radius,
+        perturbation: delta,
+        plant,
+    }))
+}
+
+/// The worst-phase plant at the full bound at line `f0`: `Δ(f₀) = −b₀·M̄(f₀)/|M(f₀)|`, which
+/// takes `1 + Δ·M` there to `1 − b₀|M|`, the closest to 0 the bound allows. Against a
+/// controller with a margin above 1 on the lines this plant must be stable: a check of the
+/// margin where random perturbations rarely go. Returns the perturbed plant and its largest
+/// `|Δ|/b` over the lines; `None` as [`destabilising`].
+///
+/// # Errors
+/// As [`destabilising`].
+pub fn worst_case_plant(
+    plant: &StateSpace,
+    controller: &StateSpace,
+    bound: &Bound,
+    f0: f64,
+) -> Result<Option<(StateSpace, f64)>> {
+    check(plant, controller, bound)?;
+    let cl = ClosedLoop::new(plant, controller)?;
+    let k0 = line_of(bound, f0)?;
+    let m0 = m_at(&cl, bound.form, f0)?;
+    let b0 = bound.values()[k0];
+    let target = -b0 * m0.conj() / m0.norm().max(f64::MIN_POSITIVE);
+    Ok(perturbation_at(bound, f0, target)?
+        .map(|(d, r)| perturbed(plant, &d, bound.form, bound.ts).map(|p| (p, r)))
+        .transpose()?)
 }
