@@ -420,7 +420,7 @@ pub fn worst_case_plant(
     let m0 = m_at(&cl, bound.form, f0)?;
     let b0 = bound.values()[k0];
     let target = -b0 * m0.conj() / m0.norm().max(f64::MIN_POSITIVE);
-    Ok(perturbation_at(bound, f0, target)?
+    perturbation_at(bound, f0, target)?
         .map(|(d, r)| perturbed(plant, &d, bound.form, bound.ts).map(|p| (p, r)))
-        .transpose()?)
+        .transpose()
 }
