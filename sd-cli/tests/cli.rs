@@ -1223,6 +1223,62 @@ fn uncertainty_travels_to_the_slow_rate() {
         let b: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
         assert_eq!(b["stable"], false, "{b}");
     }
+    // the model carries its bound: `uncertainty --embed`, then `downsample` takes it along and
+    // `analyze` and `coverage` read it from the model file
+    sdctl_ok(&[
+        "uncertainty",
+        &p("m.json"),
+        &p("fast.json"),
+        "--embed",
+        &p("mu.json"),
+        "-o",
+        &p("u2.json"),
+    ]);
+    sdctl_ok(&[
+        "downsample",
+        &p("mu.json"),
+        "--factor",
+        "5",
+        "-o",
+        &p("msu.json"),
+    ]);
+    let msu: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(p("msu.json")).unwrap()).unwrap();
+    assert_eq!(msu["uncertainty"]["ts"].as_f64(), Some(0.001), "{msu}");
+    let o = sdctl_ok(&[
+        "analyze",
+        "--plant",
+        &p("msu.json"),
+        "--controller",
+        &p("k.json"),
+        "--json",
+    ]);
+    let a: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(a["robust"]["margin_lines"].as_f64().unwrap() > 1.0, "{a}");
+    let o = sdctl_ok(&["coverage", &p("msu.json"), &p("slow.json"), "--json"]);
+    let c: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(c["fraction"].as_f64().unwrap() >= 0.93, "{c}");
+    // a typo inside the carried bound is named
+    let typo = std::fs::read_to_string(p("msu.json"))
+        .unwrap()
+        .replace("\"confidence\"", "\"confidense\"");
+    let t = write(&d, "typo_carried.json", &typo);
+    assert_input_error(
+        &sdctl(&["coverage", &t, &p("slow.json")]),
+        "did you mean `confidence`",
+    );
+    assert_input_error(
+        &sdctl(&[
+            "analyze",
+            "--plant",
+            &p("ms.json"),
+            "--controller",
+            &p("k.json"),
+            "--weight-order",
+            "8",
+        ]),
+        "need --uncertainty",
+    );
     // the fast bound against the slow loop: another sample time
     assert_input_error(
         &sdctl(&[

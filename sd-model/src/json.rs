@@ -94,12 +94,32 @@ fn matrix_to_rows(m: &DMatrix<f64>) -> Vec<Vec<f64>> {
         .collect()
 }
 
+/// `uncertainty` (in every form) is the model's error bound, read by `sd-uncertainty`
+/// (ignored here).
 const SS_KEYS: &[&str] = &[
-    "type", "ts", "a", "b", "c", "d", "name", "inputs", "outputs",
+    "type",
+    "ts",
+    "a",
+    "b",
+    "c",
+    "d",
+    "name",
+    "inputs",
+    "outputs",
+    "uncertainty",
 ];
-const TF_KEYS: &[&str] = &["type", "ts", "num", "den", "name"];
+const TF_KEYS: &[&str] = &["type", "ts", "num", "den", "name", "uncertainty"];
 /// `warnings` is what `sdctl frf` found in the data (informational; ignored on reading).
-const FRD_KEYS: &[&str] = &["type", "ts", "freq_hz", "re", "im", "var", "warnings"];
+const FRD_KEYS: &[&str] = &[
+    "type",
+    "ts",
+    "freq_hz",
+    "re",
+    "im",
+    "var",
+    "warnings",
+    "uncertainty",
+];
 /// Names other tools use for the sampling period.
 const TS_ALIASES: &[(&str, &str)] = &[("dt", "ts"), ("Ts", "ts"), ("sample_time", "ts")];
 

@@ -11,6 +11,10 @@
 //! and is what a reader uses; `residual` and `sigma` (plant units) say where it came from;
 //! `weight` is optional; [`from_json_str`] reads the bound, [`weight_from_json_str`] the
 //! weight's model (robust analysis uses it between the lines).
+//!
+//! **Carried by a model or FRD.** The same object under the key `"uncertainty"` of a model JSON
+//! (any form) or an FRD JSON: the model with its error bound in one file ([`embed`]). Both
+//! readers accept either file.
 
 use crate::bound::{sigma_factor, Bound, Form};
 use crate::error::{Result, UncertaintyError};
@@ -75,6 +79,44 @@ pub fn to_json_string(b: &Bound, w: Option<&Weight>) -> Result<String> {
 /// different lengths, a negative or non-finite bound, a confidence outside (0, 1).
 pub fn from_json_str(text: &str) -> Result<Bound> {
     let v: serde_json::Value = serde_json::from_str(text).map_err(bad)?;
+    from_value(carrier(&v)?)
+}
+
+/// The uncertainty object of a JSON value: the value itself (`"type": "uncertainty"`), or the
+/// `uncertainty` a model or FRD JSON carries.
+fn carrier(v: &serde_json::Value) -> Result<&serde_json::Value> {
+    let own = v.get("type").and_then(|t| t.as_str()) == Some("uncertainty");
+    match (own, v.get("uncertainty")) {
+        (true, _) => Ok(v),
+        (false, Some(u)) => Ok(u),
+        (false, None) => Err(bad(
+            "neither an uncertainty JSON (`\"type\": \"uncertainty\"`) nor a model or FRD \
+             JSON carrying one (`\"uncertainty\": {…}`; `sdctl uncertainty … --embed` writes one)",
+        )),
+    }
+}
+
+/// Whether a model or FRD JSON text carries an uncertainty (`"uncertainty"` key).
+pub fn carries(text: &str) -> bool {
+    serde_json::from_str::<serde_json::Value>(text)
+        .ok()
+        .is_some_and(|v| v.get("uncertainty").is_some())
+}
+
+/// A model or FRD JSON text with the bound (and its weight) carried under `"uncertainty"`.
+///
+/// # Errors
+/// The text is not a JSON object; the weight's model cannot be written.
+pub fn embed(text: &str, b: &Bound, w: Option<&Weight>) -> Result<String> {
+    let mut v: serde_json::Value = serde_json::from_str(text).map_err(bad)?;
+    let u: serde_json::Value = serde_json::from_str(&to_json_string(b, w)?).map_err(bad)?;
+    v.as_object_mut()
+        .ok_or_else(|| bad("a bound is carried by a model or FRD JSON object"))?
+        .insert("uncertainty".into(), u);
+    serde_json::to_string(&v).map_err(bad)
+}
+
+fn from_value(v: &serde_json::Value) -> Result<Bound> {
     let obj = v
         .as_object()
         .ok_or_else(|| bad("the file must hold one JSON object"))?;
@@ -178,7 +220,7 @@ pub fn from_json_str(text: &str) -> Result<Bound> {
 pub fn weight_from_json_str(text: &str) -> Result<Option<sd_model::StateSpace>> {
     let b = from_json_str(text)?;
     let v: serde_json::Value = serde_json::from_str(text).map_err(bad)?;
-    let Some(w) = v.get("weight") else {
+    let Some(w) = carrier(&v)?.get("weight") else {
         return Ok(None);
     };
     let m = w
@@ -241,5 +283,25 @@ mod tests {
         assert!(from_json_str(&neg).is_err());
         assert!(from_json_str("{").is_err());
         assert!(from_json_str(&text.replace("0.95", "1.5")).is_err());
+    }
+
+    #[test]
+    fn a_model_carries_its_bound() {
+        let b = sample(Form::Additive);
+        let model = r#"{"type":"tf","ts":0.001,"num":[1.0],"den":[1.0,-0.5]}"#;
+        assert!(!carries(model));
+        let with = embed(model, &b, None).unwrap();
+        assert!(carries(&with));
+        // the model reader accepts it, the bound reads back
+        let m = sd_model::model_from_json_str(&with).unwrap();
+        assert_eq!(m.n(), 1);
+        let back = from_json_str(&with).unwrap();
+        assert_eq!(back.freq_hz, b.freq_hz);
+        assert!(weight_from_json_str(&with).unwrap().is_none());
+        // a model without one is refused with what to do
+        let e = from_json_str(model).unwrap_err().to_string();
+        assert!(e.contains("--embed"), "{e}");
+        // not an object
+        assert!(embed("[1, 2]", &b, None).is_err());
     }
 }

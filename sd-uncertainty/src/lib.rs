@@ -35,7 +35,7 @@ pub use bound::{coverage, from_data, sigma_factor, Bound, Coverage, Form};
 pub use downsample::{downsample, downsample_nonideal, Downsampled};
 pub use error::{Result, UncertaintyError};
 pub use gap::{chordal, chordal_gap, ChordalGap};
-pub use json::{from_json_str, to_json_string, weight_from_json_str};
+pub use json::{carries, embed, from_json_str, to_json_string, weight_from_json_str};
 pub use robust::{
     destabilising, loading_per_line, robust_stability, worst_case_plant, Destabilising, Robust,
 };

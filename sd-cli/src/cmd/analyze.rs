@@ -14,15 +14,16 @@ pub(crate) struct Args {
     #[arg(long)]
     pub(crate) controller: String,
     /// Uncertainty JSON at the loop's sample time (from `sdctl uncertainty` or `sdctl
-    /// downsample --uncertainty`): robust stability against it (margin > 1: robustly stable).
+    /// downsample --uncertainty`, or a model carrying one): robust stability against it
+    /// (margin > 1: robustly stable). A plant file that carries its bound is used by default.
     #[arg(long)]
     pub(crate) uncertainty: Option<String>,
     /// Fit an overbounding weight of this order for the margin between the lines when the
     /// uncertainty file has none.
-    #[arg(long, requires = "uncertainty")]
+    #[arg(long)]
     pub(crate) weight_order: Option<usize>,
     /// Write the destabilising plant inside the bound (when there is one) to this model JSON.
-    #[arg(long, requires = "uncertainty")]
+    #[arg(long)]
     pub(crate) destabilising_out: Option<String>,
     #[arg(help = crate::commands::JSON_HELP, long)]
     pub(crate) json: bool,
@@ -43,6 +44,20 @@ impl Args {
         let k = read_model(&controller)?;
         let cl = sd_analysis::ClosedLoop::new(&p, &k).map_err(|e| from_analysis("analyze", e))?;
         let s = cl.summary().map_err(|e| from_analysis("analyze", e))?;
+        // a plant file that carries its bound is judged against it unless another is given
+        let uncertainty = uncertainty.or_else(|| {
+            let carried = read_text(&plant).is_ok_and(|t| sd_uncertainty::carries(&t));
+            if carried {
+                eprintln!("[analyze] {plant} carries its uncertainty: robust stability against it");
+            }
+            carried.then(|| plant.clone())
+        });
+        if uncertainty.is_none() && (weight_order.is_some() || destabilising_out.is_some()) {
+            return Err(CliError::input(
+                "--weight-order and --destabilising-out need --uncertainty (or a plant file \
+                 that carries its bound)",
+            ));
+        }
         let robust = uncertainty
             .as_deref()
             .map(|u| robust(&p, &k, u, weight_order, destabilising_out.as_deref()))

@@ -1,5 +1,6 @@
 //! `sdctl downsample`.
 
+use crate::cmd::uncertainty::{from_unc, read_bound};
 use crate::commands::{factor_arg, model_json};
 use crate::io::{emit, from_multirate, read_model, CliError};
 
@@ -24,7 +25,8 @@ pub(crate) struct Args {
     #[arg(long, requires = "uncertainty_out")]
     pub(crate) uncertainty: Option<String>,
     /// Where the slow-rate uncertainty JSON goes (its lines: the fast bound's lines below the
-    /// slow Nyquist frequency).
+    /// slow Nyquist frequency). Without --uncertainty, a model file that carries its bound
+    /// (`sdctl uncertainty --embed`) gives a slow model carrying the downsampled bound.
     #[arg(long, requires = "uncertainty")]
     pub(crate) uncertainty_out: Option<String>,
     #[arg(help = crate::commands::OUTPUT_HELP, short, long)]
@@ -62,23 +64,28 @@ impl Args {
         };
         let d = sd_multirate::downsample_nonideal(&sys, f, ni)
             .map_err(|e| from_multirate(&model, e))?;
+        let mut text = model_json(&d)?;
         if let (Some(u), Some(out)) = (uncertainty, uncertainty_out) {
-            slow_bound(&sys, f, ni, &u, &out)?;
+            let slow = slow_bound(&sys, f, ni, &u)?;
+            let t = sd_uncertainty::to_json_string(&slow, None).map_err(|e| from_unc(&out, e))?;
+            emit(&t, Some(&out))?;
+        } else if model != "-" && sd_uncertainty::carries(&crate::io::read_text(&model)?) {
+            // the model carries its bound: the slow model carries the downsampled one
+            let slow = slow_bound(&sys, f, ni, &model)?;
+            text = sd_uncertainty::embed(&text, &slow, None).map_err(|e| from_unc(&model, e))?;
         }
-        emit(&model_json(&d)?, output.as_deref())
+        emit(&text, output.as_deref())
     }
 }
 
-/// The fast bound `u` of `sys` downsampled by `f` (through the same hold and sampler as the
-/// model) and written to `out`.
+/// The fast bound in file `u` (an uncertainty JSON, or a model carrying one) of `sys`,
+/// downsampled by `f` through the same hold and sampler as the model.
 fn slow_bound(
     sys: &sd_model::StateSpace,
     f: usize,
     ni: sd_multirate::NonIdeal,
     u: &str,
-    out: &str,
-) -> Result<(), CliError> {
-    use crate::cmd::uncertainty::{from_unc, read_bound};
+) -> Result<sd_uncertainty::Bound, CliError> {
     let b = read_bound(u)?;
     // the bound must belong to this model: its nominal is the model's response
     let p = sys
@@ -104,6 +111,5 @@ fn slow_bound(
         d.bound.freq_hz.len(),
         d.missing_hz.len()
     );
-    let text = sd_uncertainty::to_json_string(&d.bound, None).map_err(|e| from_unc(out, e))?;
-    emit(&text, Some(out))
+    Ok(d.bound)
 }

@@ -25,6 +25,10 @@ pub(crate) struct Args {
     /// Also fit an overbounding weight W(z) of this order (|W| ≥ bound on every line).
     #[arg(long)]
     pub(crate) weight_order: Option<usize>,
+    /// Also write the model JSON with the bound (and weight) carried in it under
+    /// "uncertainty" to this file: `downsample` takes it along, `analyze` and `coverage` read it.
+    #[arg(long)]
+    pub(crate) embed: Option<String>,
     #[arg(help = crate::commands::OUTPUT_HELP, short, long)]
     pub(crate) output: Option<String>,
 }
@@ -86,6 +90,11 @@ impl Args {
                 None => String::new(),
             }
         );
+        if let Some(out) = &self.embed {
+            let carried = sd_uncertainty::embed(&read_text(&self.model)?, &b, w.as_ref())
+                .map_err(|e| from_unc("--embed", e))?;
+            emit(&carried, Some(out))?;
+        }
         let text =
             sd_uncertainty::to_json_string(&b, w.as_ref()).map_err(|e| from_unc("output", e))?;
         emit(&text, self.output.as_deref())
