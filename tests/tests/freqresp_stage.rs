@@ -67,3 +67,50 @@ fn freqresp_stage60_at_1khz_with_folded_modes() {
     println!("stage60 @ 1 kHz: max relative error vs LU {worst:.3e}");
     assert!(worst <= 1e-10);
 }
+
+/// Scaling of the frequency response with the state dimension: a lightly damped modal stage
+/// (n/2 modes, ζ = 0.01, 20 Hz–2.2 kHz, sampled at 5 kHz), 10⁵ points. Prints the path the
+/// evaluator took, its construction time and the time per point:
+/// `cargo test --release -p sd-tests --test freqresp_stage freqresp_scaling -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn freqresp_scaling() {
+    use sd_model::{SampleTime, StateSpace};
+    for n in [20usize, 60, 120, 240] {
+        let m = n / 2;
+        let mut a = nalgebra::DMatrix::zeros(n, n);
+        let mut b = nalgebra::DMatrix::zeros(n, 1);
+        let mut c = nalgebra::DMatrix::zeros(1, n);
+        for k in 0..m {
+            let f = 20.0 * (2200.0f64 / 20.0).powf(k as f64 / (m - 1) as f64);
+            let w = std::f64::consts::TAU * f;
+            a[(2 * k, 2 * k + 1)] = 1.0;
+            a[(2 * k + 1, 2 * k)] = -w * w;
+            a[(2 * k + 1, 2 * k + 1)] = -0.02 * w;
+            b[(2 * k + 1, 0)] = 1.0;
+            c[(0, 2 * k)] = 1.0 + 0.1 * (k % 7) as f64;
+        }
+        let ct = StateSpace::new(
+            a,
+            b,
+            c,
+            nalgebra::DMatrix::zeros(1, 1),
+            SampleTime::Continuous,
+        )
+        .unwrap();
+        let dt = sd_model::c2d(&ct, 2e-4, sd_model::Discretization::Zoh).unwrap();
+        let f = sd_model::grid(1.0, 2499.0, 100_000, true).unwrap();
+        let t0 = std::time::Instant::now();
+        let ev = sd_model::FreqRespEvaluator::new(&dt).unwrap();
+        let t_new = t0.elapsed().as_secs_f64();
+        let t1 = std::time::Instant::now();
+        let r = ev.eval_many(&f);
+        let t_eval = t1.elapsed().as_secs_f64();
+        assert_eq!(r.len(), f.len());
+        println!(
+            "n {n}: path {:?}, reduction {t_new:.3} s, 1e5 points {t_eval:.3} s ({:.2} µs/point)",
+            ev.path(),
+            1e6 * t_eval / f.len() as f64
+        );
+    }
+}
