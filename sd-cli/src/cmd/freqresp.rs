@@ -32,7 +32,20 @@ impl Args {
                 }
             }
         }
-        let frd = sys.freqresp(&f).map_err(|e| from_model(&model, e))?;
+        let ev = sd_model::FreqRespEvaluator::new(&sys).map_err(|e| from_model(&model, e))?;
+        // which algorithm ran (the block-diagonal form unless it failed its accuracy check)
+        eprintln!(
+            "[freqresp] {} states, {} points, path: {}",
+            sys.n(),
+            f.len(),
+            match ev.path() {
+                sd_model::EvalPath::BlockDiagonal => "block-diagonal (O(n) per point)",
+                sd_model::EvalPath::Hessenberg => "Hessenberg (O(n²) per point)",
+                sd_model::EvalPath::Dense => "dense LU (O(n³) per point)",
+            }
+        );
+        let frd = sd_model::Frd::new(f.clone(), ev.eval_many(&f), None, sys.time())
+            .map_err(|e| from_model(&model, e))?;
         let txt = sd_model::frd_to_json_string(&frd).map_err(|e| from_model("output", e))?;
         emit(&txt, output.as_deref())
     }
