@@ -970,10 +970,10 @@ fn report_table(md: &mut String, r: &Results<'_>) -> Result<(), String> {
         }
     };
     for (name, v) in &r.c.summary {
-        let _ = writeln!(md, "| {name} with the design model | crossover {:.1} Hz, closed-loop bandwidth {:.1} Hz, |S| peak {:.1} dB at {:.1} Hz, |S(347 Hz)| {:.1} dB, {} |",
+        let _ = writeln!(md, "| {name} with the design model | crossover {:.1} Hz, closed-loop bandwidth {:.1} Hz, \\|S\\| peak {:.1} dB at {:.1} Hz, \\|S(347 Hz)\\| {:.1} dB, {} |",
             num(v, "crossover_hz"), num(v, "bandwidth_hz"), num(v, "sensitivity_peak_db"), num(v, "sensitivity_peak_hz"), num(v, "sensitivity_at_alias_db"), stable(v));
         let t = &v["true_plant"];
-        let _ = writeln!(md, "| {name} on the true 1 kHz plant | |S| peak {:.1} dB at {:.1} Hz, |S(347 Hz)| {:.1} dB, {} |",
+        let _ = writeln!(md, "| {name} on the true 1 kHz plant | \\|S\\| peak {:.1} dB at {:.1} Hz, \\|S(347 Hz)\\| {:.1} dB, {} |",
             num(t, "sensitivity_peak_db"), num(t, "sensitivity_peak_hz"), num(t, "sensitivity_at_alias_db"), stable(t));
     }
     let u = r.unc;
@@ -983,7 +983,7 @@ fn report_table(md: &mut String, r: &Results<'_>) -> Result<(), String> {
     for c in &u.robust {
         let (name, plain, ext) = (c.name, &c.plain, &c.extended);
         let alias = (c.alias_band, c.alias_band_extended);
-        let _ = writeln!(md, "| {name}, robust stability margin (1/max b·|T| over the 1 kHz lines; > 1 robustly stable) | {:.3} against the plain bound (worst at {:.1} Hz){}; the aliased band 300–400 Hz alone: {:.1}{} |",
+        let _ = writeln!(md, "| {name}, robust stability margin (1/max b·\\|T\\| over the 1 kHz lines; > 1 robustly stable) | {:.3} against the plain bound (worst at {:.1} Hz){}; the aliased band 300–400 Hz alone: {:.1}{} |",
             plain.margin_lines, plain.worst_line_hz,
             ext.as_ref().map_or(String::new(), |x| format!("; {:.3} against the extended bound (worst at {:.1} Hz)", x.margin_lines, x.worst_line_hz)),
             alias.0, alias.1.map_or(String::new(), |a| format!(" (extended: {a:.1})")));
