@@ -1292,6 +1292,21 @@ fn uncertainty_travels_to_the_slow_rate() {
         ]),
         "sample time",
     );
+    // a measurement the bound misses (the slow FRF scaled by 1.5): the text says what to do
+    let mut scaled: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(p("slow.json")).unwrap()).unwrap();
+    for key in ["re", "im"] {
+        for line in scaled[key].as_array_mut().unwrap() {
+            let v = line[0][0].as_f64().unwrap();
+            line[0][0] = serde_json::json!(1.5 * v);
+        }
+    }
+    let sc = write(&d, "scaled.json", &scaled.to_string());
+    let o = sdctl_ok(&["coverage", &p("us.json"), &sc]);
+    let text = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(text.contains("sdctl diagnose"), "{text}");
+    let o = sdctl_ok(&["coverage", &p("us.json"), &p("slow.json")]);
+    assert!(!String::from_utf8_lossy(&o.stdout).contains("sdctl diagnose"));
     // another model's bound, a confidence that is not a probability, a missing partner option
     sdctl_ok(&[
         "fit",

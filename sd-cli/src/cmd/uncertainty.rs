@@ -130,6 +130,19 @@ impl CoverageArgs {
                 100.0 * c.fraction,
                 100.0 * b.confidence
             );
+            // below the confidence by more than three binomial standard deviations: the
+            // model's error here is not what the data the bound came from show
+            let n = c.lines.max(1) as f64;
+            let sd = (b.confidence * (1.0 - b.confidence) / n).sqrt();
+            if c.fraction < b.confidence - 3.0 * sd {
+                println!(
+                    "the measurement lies outside the bound more often than its confidence allows: \
+                     the model misses something the bound's data do not show (at a slower rate, a \
+                     rate-tied effect): run `sdctl diagnose` on both experiments, then take the \
+                     bound down through the named cause (`sdctl downsample … --hold-delay/--averaging \
+                     --uncertainty …`)"
+                );
+            }
         }
         Ok(())
     }
