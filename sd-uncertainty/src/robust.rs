@@ -84,13 +84,17 @@ pub struct Destabilising {
     pub plant: StateSpace,
 }
 
-/// `M = KS` (additive) or `T` (multiplicative) at `f` Hz.
-fn m_at(cl: &ClosedLoop, form: Form, f: f64) -> Result<C> {
-    let r = cl.responses(f)?;
-    Ok(match form {
+/// `M = KS` (additive) or `T` (multiplicative) of a loop's responses.
+fn m_of(r: &sd_analysis::Responses, form: Form) -> C {
+    match form {
         Form::Additive => r.ks[(0, 0)],
         Form::Multiplicative => r.t[(0, 0)],
-    })
+    }
+}
+
+/// `M` at `f` Hz.
+fn m_at(cl: &ClosedLoop, form: Form, f: f64) -> Result<C> {
+    Ok(m_of(&cl.responses(f)?, form))
 }
 
 /// Checks the loop and the bound belong together: discrete SISO at the bound's sample time,
@@ -173,11 +177,7 @@ pub fn robust_stability(
     let mut ws = (0.0f64, worst.1);
     for (&f, &bk) in bound.freq_hz.iter().zip(&b) {
         let r = cl.responses(f)?;
-        let m = match bound.form {
-            Form::Additive => r.ks[(0, 0)],
-            Form::Multiplicative => r.t[(0, 0)],
-        };
-        let x = bk * m.norm();
+        let x = bk * m_of(&r, bound.form).norm();
         if x > worst.0 {
             worst = (x, f);
         }

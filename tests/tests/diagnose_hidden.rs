@@ -12,76 +12,15 @@
 use sd_model::median;
 
 use sd_diagnose::{diagnose, Cause, DiagnoseOptions, Diagnosis, Verdict};
-use sd_ident::{Experiment, Lines, MultisineSpec, Phases, Role};
-use sd_testbed::{run_identification, Identification, Injection, Noise, NonIdealities, Truth};
+use sd_ident::{Experiment, Lines, Role};
+use sd_testbed::{NonIdealities, Truth};
 use sd_tests::diagcases::{hidden_effect, per_seed, Case, Effect, FINE_STEPS};
-use sd_tests::stage::closed_loop_experiment;
+use sd_tests::stage::{closed_loop_experiment, identification_experiment, ExperimentSpec};
 
 /// Seeds the confusion matrix is reported on (disjoint from the development seeds).
 const REPORT_SEEDS: std::ops::Range<u64> = 10000..10100;
 /// The default run's regression subset (disjoint from both).
 const CI_SEEDS: std::ops::Range<u64> = 3000..3032;
-
-/// One closed-loop identification experiment on the virtual stage, as the diagnosis reads it:
-/// a PID-like controller (bandwidth `bw`, low-pass at `lowpass` Hz or none), a full random-phase
-/// multisine on the 0.5 Hz grid up to just below Nyquist, 7 periods (1 transient), white force
-/// and sensor noise. `None` when the controller does not stabilize the stage.
-#[allow(clippy::too_many_arguments)]
-fn identify(
-    truth: &Truth,
-    name: &str,
-    rate: f64,
-    bw: f64,
-    lowpass: Option<f64>,
-    rms: f64,
-    noise: (f64, f64),
-    fold_rate: f64,
-    ni: NonIdealities,
-    seed: u64,
-    role: Role,
-    lines: Lines,
-) -> Option<Experiment> {
-    let ts = 1.0 / rate;
-    let opt = sd_hinf::weights::PidOptions {
-        lowpass_ratio: lowpass.map(|f| f / bw).unwrap_or(0.0),
-        ..Default::default()
-    };
-    let k = sd_hinf::weights::pid(bw, truth.mass, Some(ts), &opt).ok()?;
-    let excitation = sd_ident::design(&MultisineSpec {
-        fs: rate,
-        period: (2.0 * rate) as usize,
-        f_min: 0.5,
-        f_max: 0.5 * rate - 0.5,
-        lines,
-        phases: Phases::Random { seed },
-        rms,
-        fold_rate_hz: Some(fold_rate),
-    })
-    .ok()?;
-    let d = run_identification(
-        truth,
-        &Identification {
-            name: name.into(),
-            controller: k,
-            excitation,
-            periods: 7,
-            transient_periods: 1,
-            injection: Injection::Input,
-            noise: Noise {
-                force_rms: noise.0,
-                sensor_rms: noise.1,
-                sensor_drift: 0.0,
-                seed: seed + 1000,
-            },
-            nonideal: ni,
-            role,
-            substeps: None,
-            fine_steps: None,
-        },
-    )
-    .ok()?;
-    Some(d.to_experiment())
-}
 
 /// The standard closed-loop experiment (`sd_tests::stage`), 7 periods, exact route.
 fn experiment(
@@ -574,19 +513,24 @@ fn distortion_at_non_excited_lines() {
     let odd = Lines::RandomOdd { group: 3, seed: 9 };
     let run = |truth: &Truth, seed: u64| {
         let mk = |name: &str, rms: f64, s: u64, role: Role| {
-            identify(
+            let spec = ExperimentSpec {
+                bandwidth_hz: 30.0,
+                lowpass_hz: Some(1000.0),
+                rms,
+                noise: (0.02 * rms, 0.1e-9),
+                fold_rate_hz: 1000.0,
+                lines: odd,
+                periods: 7,
+                fine_steps: None,
+            };
+            identification_experiment(
                 truth,
                 name,
                 5000.0,
-                30.0,
-                Some(1000.0),
-                rms,
-                (0.02 * rms, 0.1e-9),
-                1000.0,
+                &spec,
                 NonIdealities::default(),
                 s,
                 role,
-                odd,
             )
             .unwrap()
         };

@@ -17,30 +17,11 @@
 //! here is tuned: the controllers' bandwidths were picked to give one margin on each side of 1).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-use sd_ident::{frf_periodic, PeriodicOptions, Role};
-use sd_model::{Frd, SampleTime, StateSpace};
+use sd_model::{SampleTime, StateSpace};
 use sd_testbed::{NonIdealities, Truth};
 use sd_tests::gen::Rng;
-use sd_tests::stage::closed_loop_experiment;
+use sd_tests::stage::{closed_loop_frf, rigid_body_and_one_mode};
 use sd_uncertainty::{downsample, from_data, overbound, robust_stability, Bound, Form};
-
-/// The 5 kHz FRF of the standard experiment (trusted lines).
-fn measure(truth: &Truth, seed: u64) -> Frd {
-    let e = closed_loop_experiment(
-        truth,
-        "fast",
-        5000.0,
-        NonIdealities::default(),
-        seed,
-        Role::Model,
-        7,
-        Some(50),
-    )
-    .unwrap();
-    let opt = PeriodicOptions::new(e.spec.period_samples.unwrap(), 1);
-    let est = frf_periodic(5000.0, e.r.as_deref(), &e.u, &e.y, &opt).unwrap();
-    est.trusted_frd().unwrap()
-}
 
 /// A bound whose additive values are `|W(f)|` on `freq` (nominal `p`).
 fn bound_of_weight(w: &StateSpace, p: &StateSpace, freq: &[f64], ts: f64) -> Bound {
@@ -97,18 +78,8 @@ fn random_unit(rng: &mut Rng, ts: f64) -> StateSpace {
 #[test]
 fn robust_stability_holds_on_plants_inside_the_bound() {
     let truth = Truth::default();
-    let fast_frd = measure(&truth, 21);
-    let fit = sd_ident::fit(
-        &fast_frd,
-        &sd_ident::FitOptions {
-            order: 4,
-            rigid_body: 2,
-            feedthrough: false,
-            ..Default::default()
-        },
-    )
-    .unwrap();
-    let p_fast = fit.model;
+    let fast_frd = closed_loop_frf(&truth, 5000.0, NonIdealities::default(), 21);
+    let p_fast = rigid_body_and_one_mode(&fast_frd);
     let b_fast = from_data(&p_fast, &fast_frd, Form::Additive, 0.95).unwrap();
     // a relative weight: the relative bound is flat where the model is good (a few %) and
     // large at the modes it misses; the additive one spans five decades

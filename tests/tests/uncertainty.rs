@@ -8,33 +8,17 @@
 //! threshold here was tuned on them: the bounds' confidence is the only setting).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-use sd_ident::{frf_periodic, PeriodicOptions, Role};
-use sd_model::{Frd, StateSpace};
+use sd_model::StateSpace;
 use sd_testbed::{NonIdealities, Truth};
-use sd_tests::stage::closed_loop_experiment;
+use sd_tests::stage::{closed_loop_frf as measure, rigid_body_and_one_mode};
 use sd_uncertainty::{coverage, downsample, from_data, overbound, Form};
 
-/// One experiment's FRF (`sd_tests::stage`: 7 periods of 2 s after one transient, the
-/// fine-step route with 50 sub-steps), trusted lines only.
-fn measure(truth: &Truth, rate: f64, ni: NonIdealities, seed: u64) -> Frd {
-    let e =
-        closed_loop_experiment(truth, "x", rate, ni, seed, Role::Validation, 7, Some(50)).unwrap();
-    let opt = PeriodicOptions::new(e.spec.period_samples.unwrap(), 1);
-    let est = frf_periodic(rate, e.r.as_deref(), &e.u, &e.y, &opt).unwrap();
-    est.trusted_frd().unwrap()
-}
-
-/// The fraction of lines where the truth's error `|P − P̂|` is within the additive bound.
+/// The fraction of lines where the truth's error `|P − P̂|` is within the additive bound (its
+/// response as a measurement without variance).
 fn truth_coverage(truth: &StateSpace, b: &sd_uncertainty::Bound) -> f64 {
-    let p = truth.freqresp(&b.freq_hz).unwrap();
-    let inside = p
-        .response()
-        .iter()
-        .zip(&b.nominal)
-        .zip(&b.additive)
-        .filter(|((g, n), a)| (g[(0, 0)] - *n).norm() <= **a)
-        .count();
-    inside as f64 / b.freq_hz.len() as f64
+    coverage(b, &truth.freqresp(&b.freq_hz).unwrap())
+        .unwrap()
+        .fraction
 }
 
 /// At 95 % per line: the fast bound covers the truth's error, its downsampled form covers the
@@ -48,17 +32,8 @@ fn bound_covers_the_truth_and_the_slow_measurement() {
     let ct = sd_testbed::truth_model(&truth).unwrap();
     let fast_frd = measure(&truth, 5000.0, NonIdealities::default(), 11);
     // a low-order model (the rigid body and one mode): it misses the higher modes
-    let fit = sd_ident::fit(
-        &fast_frd,
-        &sd_ident::FitOptions {
-            order: 4,
-            rigid_body: 2,
-            feedthrough: false,
-            ..Default::default()
-        },
-    )
-    .unwrap();
-    let b = from_data(&fit.model, &fast_frd, Form::Additive, 0.95).unwrap();
+    let model = rigid_body_and_one_mode(&fast_frd);
+    let b = from_data(&model, &fast_frd, Form::Additive, 0.95).unwrap();
     let p_fast = sd_model::c2d(&ct, 2e-4, sd_model::Discretization::Zoh).unwrap();
     let cov_truth = truth_coverage(&p_fast, &b);
     let slow_frd = measure(&truth, 1000.0, NonIdealities::default(), 12);
@@ -103,7 +78,7 @@ fn bound_covers_the_truth_and_the_slow_measurement() {
         averaging: 0.8,
     };
     let ext = sd_uncertainty::downsample_nonideal(&b, 5, ni, averaged.freq_hz()).unwrap();
-    let p_ext = sd_multirate::downsample_nonideal(&fit.model, 5, ni)
+    let p_ext = sd_multirate::downsample_nonideal(&model, 5, ni)
         .unwrap()
         .freqresp(&ext.bound.freq_hz)
         .unwrap();
@@ -117,7 +92,7 @@ fn bound_covers_the_truth_and_the_slow_measurement() {
     // the testbed's sensor averages the continuous output; the fast samples' average is only
     // its rectangle rule, so the nominal is the continuous model's (the fast model taken back
     // to continuous time) through the continuous averaging sampler, as the diagnosis does
-    let ct_model = sd_model::d2c(&fit.model).unwrap();
+    let ct_model = sd_model::d2c(&model).unwrap();
     let nominal: Vec<_> = sd_multirate::c2d_nonideal(&ct_model, 1e-3, ni)
         .unwrap()
         .freqresp(&ext.bound.freq_hz)

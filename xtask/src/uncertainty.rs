@@ -53,17 +53,11 @@ pub struct ControllerRobust {
     pub alias_band_extended: Option<f64>,
 }
 
-/// The fraction of `b`'s lines where `truth`'s response lies inside nominal ± bound.
+/// The fraction of `b`'s lines where `truth`'s response lies inside nominal ± bound (its
+/// response as a measurement without variance).
 fn truth_coverage(truth: &StateSpace, b: &Bound) -> Result<f64, String> {
     let p = truth.freqresp(&b.freq_hz).map_err(s)?;
-    let inside = p
-        .response()
-        .iter()
-        .zip(&b.nominal)
-        .zip(&b.additive)
-        .filter(|((g, n), a)| (g[(0, 0)] - *n).norm() <= **a)
-        .count();
-    Ok(inside as f64 / b.freq_hz.len().max(1) as f64)
+    Ok(coverage(b, &p).map_err(s)?.fraction)
 }
 
 /// Robust stability of `k` with `plant` against `bound`, with a relative weight between the
