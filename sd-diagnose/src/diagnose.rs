@@ -1146,15 +1146,9 @@ fn pick(fitted: &[Fitted], judge: &dyn Fn(usize) -> Statistic, held: bool) -> us
     if nested.is_empty() {
         return 0;
     }
-    // a second cause smaller than a physical floor is not named (hold delay 1 % of a period,
-    // window 2 %, clock 0.02 %): such a parameter absorbs estimator bias, not an effect
+    // a second cause below its physical floor is not named ([`below_floor`])
     let p = &fitted[0].params;
-    let tiny = |f: Family| match f {
-        Family::Delay => p.hold_delay < 0.01,
-        Family::Average => p.averaging < 0.02,
-        Family::Clock => p.clock_error.iter().all(|e| e.abs() < 2e-4),
-        _ => false,
-    };
+    let tiny = |f: Family| below_floor(f, p);
     let (d, a, c) = (Family::Delay, Family::Average, Family::Clock);
     let keep = match fitted[0].family {
         Family::DelayAverage if tiny(d) => Some(a),
@@ -1181,6 +1175,33 @@ fn pick(fitted: &[Fitted], judge: &dyn Fn(usize) -> Statistic, held: bool) -> us
         Some(i) if sum(me) + pen >= sum(judge(i)) && !decisive(&fitted[0], &fitted[i]) => i,
         _ => 0,
     }
+}
+
+/// Whether the single cause `f` of parameters `p` is below its physical floor: a hold delay
+/// under 1 % of a period, a window under 2 %, clock errors all under 0.02 %. Such a parameter
+/// absorbs estimator bias, not an effect. In particular a delayed hold or an averaging sampler
+/// of any width `> 0` makes the sample see the previous input through a feedthrough (`D u_k`
+/// becomes `D u_{k−1}`), so a vanishing delay or window can buy a fitted model's spurious
+/// feedthrough a better fit: the limit `α → 0⁺` is not the plain model.
+fn below_floor(f: Family, p: &RateTied) -> bool {
+    match f {
+        Family::Delay => p.hold_delay < 0.01,
+        Family::Average => p.averaging < 0.02,
+        Family::Clock => p.clock_error.iter().all(|e| e.abs() < 2e-4),
+        _ => false,
+    }
+}
+
+/// Whether any cause of family `fam` is below its physical floor ([`below_floor`]): such a
+/// family is not named.
+fn any_below_floor(fam: Family, p: &RateTied) -> bool {
+    [Family::Delay, Family::Average, Family::Clock]
+        .into_iter()
+        .any(|f| match f {
+            Family::Delay => fam.delay() && below_floor(f, p),
+            Family::Average => fam.average() && below_floor(f, p),
+            _ => fam.clock() && below_floor(f, p),
+        })
 }
 
 /// Whether another hypothesis, sharing no cause with the chosen one (`k`), explains the data as
@@ -1333,6 +1354,7 @@ fn halves(j: &Judged<'_>, tied: &[&Val<'_>], progress: &mut dyn FnMut(&str)) -> 
         // without held-out data the discrepancy must stand at the naming level itself, on the
         // naming yardstick (residue and pole covariance)
         let would = chosen.family != Family::None
+            && !any_below_floor(chosen.family, &chosen.params)
             && explains(&j.modal.stat_full(&chosen.params, &train)?, j.modal.alpha)
             && !explains(
                 &j.modal.stat_full(&RateTied::default(), &train)?,
@@ -1368,7 +1390,10 @@ fn halves(j: &Judged<'_>, tied: &[&Val<'_>], progress: &mut dyn FnMut(&str)) -> 
     let mut labels: Vec<String> = tied.iter().map(|v| held_out_label(v.exp)).collect();
     labels.extend(tied.iter().map(|v| earlier_label(v.exp)));
     // the discrepancy must replicate on the held-out data, and the extension explain it
-    let would = chosen.family != Family::None && !before.passes() && explains(&after, alpha);
+    let would = chosen.family != Family::None
+        && !any_below_floor(chosen.family, &chosen.params)
+        && !before.passes()
+        && explains(&after, alpha);
     Ok(Settled {
         family: chosen.family,
         params: chosen.params.clone(),
@@ -1477,7 +1502,11 @@ fn leave_one_out(
     Ok(Settled {
         family: first.family,
         params: first.params.clone(),
-        named: same && first.family != Family::None && !b.passes() && explains(&a, j.modal.alpha),
+        named: same
+            && first.family != Family::None
+            && !any_below_floor(first.family, &first.params)
+            && !b.passes()
+            && explains(&a, j.modal.alpha),
         ambiguous: false,
         partial: ranked(&first, Some(a.value)),
         ranking,

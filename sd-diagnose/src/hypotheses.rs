@@ -25,6 +25,8 @@ use crate::lemma6::{compare, Pred};
 use crate::modal::{ModalBasis, Residues};
 use crate::stats::{statistic, Line, Statistic};
 use crate::Result;
+use nalgebra::DMatrix;
+use num_complex::Complex64 as C;
 use sd_model::linalg::golden_min;
 use sd_multirate::NonIdeal;
 use serde::Serialize;
@@ -245,6 +247,110 @@ impl Modal<'_> {
         self.lines_with(res, ni, clock, t, false)
     }
 
+    /// A target's true period and the frequencies of its lines on the model's time axis under
+    /// a clock error: the slow clock runs `1 + e` slow, so line `f` of the record is `f/(1 + e)`.
+    fn grid(&self, clock: f64, t: &Target<'_>) -> (f64, Vec<f64>) {
+        let ts = self.h * t.factor as f64 * (1.0 + clock);
+        let f = t
+            .est
+            .frd
+            .freq_hz()
+            .iter()
+            .map(|f| f / (1.0 + clock))
+            .collect();
+        (ts, f)
+    }
+
+    /// The extension's prediction at every line of every target, residues refitted under its
+    /// non-idealities (the profile the fit itself follows).
+    fn predictions(&self, p: &RateTied, targets: &[Target<'_>]) -> Result<Vec<Vec<C>>> {
+        let res = self.residues(p.nonideal())?;
+        targets
+            .iter()
+            .enumerate()
+            .map(|(j, t)| {
+                let (ts, f) = self.grid(p.clock(j), t);
+                let phi = self.basis.responses(ts, p.nonideal(), &f)?;
+                Ok(phi.iter().map(|row| res.predict(row).0).collect())
+            })
+            .collect()
+    }
+
+    /// The covariance the model's own estimation error adds to fitted parameters θ (delta
+    /// method). The residues and poles `q` were fitted to the fast experiment with covariance
+    /// `Σ_q` ([`Residues::with_poles`]). At the optimum the normal equations
+    /// `Re Σ_i w_i J_iᴴ e_i = 0` (`J_i = ∂P̂_i/∂θ` by central differences with the coordinates'
+    /// steps, `e_i` the line's residual, `w_i = 1/(c·var_i)`) move with `q` by `δθ = M⁻¹N δq`,
+    /// `M = Re Σ w_i J_iᴴJ_i`, `N = Re Σ w_i J_iᴴ g_i`, `g_i = ∂P̂_i/∂q = [φ_i, ∂φ_i/∂poles]`; so
+    /// `cov θ` gains `A Σ_q Aᵀ` with `A = M⁻¹N`. The data's own term (the Hessian's inverse)
+    /// counts the model's error per line, as if independent; shared by all lines through `q`, it
+    /// does not average out, and a hold delay trades against the modes' phases. `None` when the
+    /// joint covariance or `M⁻¹` is not available.
+    fn model_covariance(
+        &self,
+        coords: &[(Coord, f64)],
+        centre: &RateTied,
+        targets: &[Target<'_>],
+    ) -> Result<Option<DMatrix<f64>>> {
+        let ni = centre.nonideal();
+        let res = self.residues_full(ni)?;
+        let Some(sq) = res.joint_covariance() else {
+            return Ok(None);
+        };
+        let shifted = |k: usize, s: f64| {
+            let mut q = centre.clone();
+            let (c, h) = coords[k];
+            match c {
+                Coord::Delay => q.hold_delay += s * h,
+                Coord::Average => q.averaging += s * h,
+                Coord::Clock(j) => q.clock_error[j] += s * h,
+            }
+            q
+        };
+        let mut slopes = Vec::with_capacity(coords.len());
+        for (k, (_, h)) in coords.iter().enumerate() {
+            let plus = self.predictions(&shifted(k, 1.0), targets)?;
+            let minus = self.predictions(&shifted(k, -1.0), targets)?;
+            slopes.push((plus, minus, *h));
+        }
+        let (nt, nq) = (coords.len(), sq.nrows());
+        let mut m = DMatrix::<f64>::zeros(nt, nt);
+        let mut n = DMatrix::<f64>::zeros(nt, nq);
+        for (j, t) in targets.iter().enumerate() {
+            let (ts, f) = self.grid(centre.clock(j), t);
+            let phi = self.basis.responses(ts, ni, &f)?;
+            let dphi = self.basis.pole_sensitivities(&res.r, ts, ni, &f)?;
+            let Some(var) = t.est.frd.variance() else {
+                continue;
+            };
+            for i in 0..f.len() {
+                let v = (var[i][(0, 0)] + res.predict(&phi[i]).1) * t.est.inflation.max(1.0);
+                if !(v.is_finite() && v > 0.0) {
+                    continue;
+                }
+                let jac: Vec<C> = slopes
+                    .iter()
+                    .map(|(p, mi, h)| (p[j][i] - mi[j][i]) / (2.0 * h))
+                    .collect();
+                let g: Vec<&C> = phi[i].iter().chain(&dphi[i]).collect();
+                for a in 0..nt {
+                    for b in 0..nt {
+                        m[(a, b)] += (jac[a].conj() * jac[b]).re / v;
+                    }
+                    for (c, gc) in g.iter().enumerate().take(nq) {
+                        n[(a, c)] += (jac[a].conj() * **gc).re / v;
+                    }
+                }
+            }
+        }
+        let Some(mi) = m.try_inverse() else {
+            return Ok(None);
+        };
+        let a = mi * n;
+        let cov = &a * sq * a.transpose();
+        Ok(cov.iter().all(|x| x.is_finite()).then_some(cov))
+    }
+
     fn lines_with(
         &self,
         res: &Residues,
@@ -253,14 +359,7 @@ impl Modal<'_> {
         t: &Target<'_>,
         full: bool,
     ) -> Result<Vec<Line>> {
-        let ts = self.h * t.factor as f64 * (1.0 + clock);
-        let f: Vec<f64> = t
-            .est
-            .frd
-            .freq_hz()
-            .iter()
-            .map(|f| f / (1.0 + clock))
-            .collect();
+        let (ts, f) = self.grid(clock, t);
         let phi = self.basis.responses(ts, ni, &f)?;
         let dphi = if full {
             Some(self.basis.pole_sensitivities(&res.r, ts, ni, &f)?)
@@ -519,7 +618,9 @@ impl Modal<'_> {
     /// its Hessian, here by central differences (steps: 0.01 for α, 0.02 for β, 2·10⁻⁴ for
     /// clock errors; a stencil that would cross a bound moves inside it). When the extension
     /// leaves misfit (`s̄ > 1`) the errors widen by `√s̄`, the residual-variance factor of least
-    /// squares. `None` where the curvature is not positive (a flat direction).
+    /// squares. The model's own estimation error is added by the delta method
+    /// ([`Modal::model_covariance`]). `None` where the curvature is not positive (a flat
+    /// direction).
     pub(crate) fn std_errors(
         &self,
         fam: Family,
@@ -593,9 +694,12 @@ impl Modal<'_> {
                 hess[(k, i)] = v;
             }
         }
-        let Some(cov) = hess.clone().try_inverse() else {
+        let Some(mut cov) = hess.clone().try_inverse() else {
             return Ok(out);
         };
+        if let Some(model) = self.model_covariance(&coords, &centre, targets)? {
+            cov += model;
+        }
         let widen = base.value.max(1.0);
         for (i, (c, _)) in coords.iter().enumerate() {
             let v = cov[(i, i)] * widen;

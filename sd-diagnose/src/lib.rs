@@ -762,6 +762,20 @@ impl Diagnosis {
     pub fn model_source(&self) -> &str {
         &self.model_info.source
     }
+
+    /// How much lower the penalised criterion (training data) of the best-ranked rate-tied
+    /// extension is than the plain model's (`none`): the likelihood-ratio evidence for a
+    /// rate-tied cause, parameters paid for. `None` without a rate-tied search.
+    pub fn advantage_over_none(&self) -> Option<f64> {
+        let none = self.ranking.iter().find(|r| r.cause == "none")?;
+        let best = self
+            .ranking
+            .iter()
+            .filter(|r| r.cause != "none")
+            .map(|r| r.criterion)
+            .min_by(f64::total_cmp)?;
+        Some(none.criterion - best)
+    }
 }
 
 /// A continuous model with the rate-tied non-idealities that act when it is discretised.

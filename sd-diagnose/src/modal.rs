@@ -575,6 +575,12 @@ impl Residues {
         self.full.as_ref().map_or(self.r.len(), |f| f.nrows())
     }
 
+    /// The joint covariance of residues and pole parameters (after [`Residues::with_poles`]),
+    /// ordered as the gradient `[φ, ∂φ/∂poles]` of [`Residues::predict_full`].
+    pub(crate) fn joint_covariance(&self) -> Option<&DMatrix<f64>> {
+        self.full.as_ref()
+    }
+
     /// The covariances times `k`.
     pub(crate) fn scaled(mut self, k: f64) -> Self {
         self.cov *= k;
