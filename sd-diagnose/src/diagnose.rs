@@ -1557,10 +1557,13 @@ fn causes_of(
                 p.hold_delay / v.exp.spec.sample_rate_hz,
             );
         }
+        let both = fam.average();
         out.push(Cause::HoldDelay {
             delay_frac: p.hold_delay,
             delay_frac_std: std.hold_delay,
             delay_s,
+            combined_lag_frac: both.then(|| p.hold_delay + 0.5 * p.averaging),
+            combined_lag_frac_std: std.combined_lag.filter(|_| both),
         });
     }
     out

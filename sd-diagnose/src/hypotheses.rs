@@ -63,6 +63,9 @@ pub(crate) struct StdErrors {
     pub(crate) hold_delay: Option<f64>,
     pub(crate) averaging: Option<f64>,
     pub(crate) clock_error: Vec<Option<f64>>,
+    /// With a delay and a window: the standard error of `α + β/2`, the lag both act like to
+    /// first order (determined even where the split between them is not).
+    pub(crate) combined_lag: Option<f64>,
 }
 
 /// A free coordinate of an extension.
@@ -641,6 +644,7 @@ impl Modal<'_> {
             hold_delay: None,
             averaging: None,
             clock_error: vec![None; p.clock_error.len()],
+            combined_lag: None,
         };
         if coords.is_empty() {
             return Ok(out);
@@ -701,6 +705,14 @@ impl Modal<'_> {
             cov += model;
         }
         let widen = base.value.max(1.0);
+        let at = |c: fn(&Coord) -> bool| coords.iter().position(|(x, _)| c(x));
+        if let (Some(d), Some(a)) = (
+            at(|c| matches!(c, Coord::Delay)),
+            at(|c| matches!(c, Coord::Average)),
+        ) {
+            let v = (cov[(d, d)] + 0.25 * cov[(a, a)] + cov[(d, a)]) * widen;
+            out.combined_lag = (v.is_finite() && v > 0.0).then(|| v.sqrt());
+        }
         for (i, (c, _)) in coords.iter().enumerate() {
             let v = cov[(i, i)] * widen;
             let sd = (v.is_finite() && v > 0.0 && hess[(i, i)] > 0.0).then(|| v.sqrt());

@@ -167,6 +167,14 @@ pub enum Cause {
         delay_frac_std: Option<f64>,
         /// The delay in seconds per experiment.
         delay_s: BTreeMap<String, f64>,
+        /// With an averaging window named too: `delay_frac + window_frac/2`, the lag both act
+        /// like to first order, which the data determine even where the split between the two
+        /// is not (compare its standard error with theirs).
+        #[serde(skip_serializing_if = "Option::is_none")]
+        combined_lag_frac: Option<f64>,
+        /// Its standard error.
+        #[serde(skip_serializing_if = "Option::is_none")]
+        combined_lag_frac_std: Option<f64>,
     },
     /// The sensor averages over `window_frac` of each sample period.
     AveragingSampler {

@@ -707,13 +707,25 @@ pub fn cause_text(c: &Cause) -> Option<String> {
             delay_frac,
             delay_frac_std,
             delay_s,
+            combined_lag_frac,
+            combined_lag_frac_std,
         } => {
             let per: Vec<String> = delay_s
                 .iter()
                 .map(|(n, t)| format!("{:.1} µs at `{n}`", t * 1e6))
                 .collect();
+            let lag = combined_lag_frac
+                .map(|l| {
+                    format!(
+                        "; with the averaging window, the combined lag (delay + half the window) \
+                         is {} of a period, determined even where the split between the two is \
+                         not",
+                        pm(l, *combined_lag_frac_std, 1.0, 3)
+                    )
+                })
+                .unwrap_or_default();
             format!(
-                "The hold switches {} of each sample period late ({})",
+                "The hold switches {} of each sample period late ({}){lag}",
                 pm(*delay_frac, *delay_frac_std, 1.0, 3),
                 per.join(", ")
             )
