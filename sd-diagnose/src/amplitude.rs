@@ -894,6 +894,14 @@ impl AmplitudeModel {
         Ok(predicted_lines(lv.est, &phi, self.res()?))
     }
 
+    /// Whether any mode moves with amplitude in this model.
+    pub(crate) fn moves_any(&self) -> bool {
+        self.cand
+            .iter()
+            .enumerate()
+            .any(|(m, _)| self.trends[m].2 || self.trends[m].3)
+    }
+
     /// Whether a level's amplitude lies outside the range of the levels the model was
     /// fitted on (for any moving mode).
     pub(crate) fn extrapolates(&self, lv: &Level<'_>, fits: &[&LevelFit]) -> bool {

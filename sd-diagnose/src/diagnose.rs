@@ -708,6 +708,26 @@ fn without_unneeded_slow_poles(
     Ok(basis)
 }
 
+/// The basis with its two slowest real poles read as a friction-damped rigid body
+/// ([`ModalBasis::with_slow_poles_as_damped_rigid_body`]), when it still describes the model
+/// experiment `reference` within [`SLOW_POLE_SLACK`] times the larger of the verdict's
+/// threshold and the plain basis's statistic; `None` otherwise.
+fn slow_poles_as_rigid_body(
+    plain: &ModalBasis,
+    h: f64,
+    reference: &Level<'_>,
+    alpha: f64,
+) -> Result<Option<ModalBasis>> {
+    let Some(b) = plain.with_slow_poles_as_damped_rigid_body()? else {
+        return Ok(None);
+    };
+    let full = describes(plain, h, reference, alpha)?;
+    let bound = SLOW_POLE_SLACK * full.threshold.max(full.value);
+    Ok(describes(&b, h, reference, alpha)
+        .is_ok_and(|s| s.value <= bound)
+        .then_some(b))
+}
+
 /// A same-level repeat at the model experiment's rate that disagrees while neither of the
 /// pair shows distortion: drift (a pair that shows distortion differs by the nonlinearity's
 /// stochastic contributions, another phase realisation, and is no evidence of drift).
@@ -793,10 +813,15 @@ fn nonlinearity(
     // a rigid body damped at the model experiment's level (friction) becomes one block whose
     // damping moves (a pole below the first line is an integrator for the data)
     let f0 = data.fast.frd.freq_hz().first().copied().unwrap_or(0.0);
-    let damped = j
+    let mut damped = j
         .modal
         .basis
         .with_damped_rigid_body(std::f64::consts::TAU * f0)?;
+    if !damped.is_damped() {
+        if let Some(b) = slow_poles_as_rigid_body(&damped, data.h, &levels[0], alpha)? {
+            damped = b;
+        }
+    }
     progress("modal fit of every level");
     // the damped rigid body without the slow poles the model experiment does not need, then
     // with them; if its fits fail, the model's own basis; a mode the model split into two
@@ -897,7 +922,17 @@ fn levels_left_out(
             statistic([(a.as_slice(), c)], alpha).value,
             statistic([(b.as_slice(), c)], alpha).value,
         );
-        let extrapolated = m.extrapolates(lv, &tf);
+        // beyond the fitted amplitudes of a moving mode; or, where nothing moves on the
+        // training levels, beyond their excitation levels
+        let level_of = |q: usize| at[q].map_or(1.0, |i| data.vals[i].level);
+        let (lo, hi) = (0..levels.len())
+            .filter(|q| *q != k)
+            .map(level_of)
+            .fold((f64::INFINITY, 0.0f64), |(lo, hi), x| {
+                (lo.min(x), hi.max(x))
+            });
+        let beyond = level_of(k) < lo * 0.999 || level_of(k) > hi * 1.001;
+        let extrapolated = m.extrapolates(lv, &tf) || (!m.moves_any() && beyond);
         per.insert(
             lv.name.clone(),
             HeldOut {

@@ -115,6 +115,30 @@ impl ModalBasis {
         Self::build((2, real[k].abs()), &real[k + 1..], &pairs)
     }
 
+    /// The basis with a friction-damped rigid body where a fit of the model experiment shows
+    /// none at all: at the lowest level, where friction acts as a large viscous `c_eq`, a fit
+    /// may spend two real poles below the modes on `1/(s(ms + c))` (the integrator then reads
+    /// as the slower one). The slowest real pole becomes the integrator and the next the
+    /// corner of the block `1/(s(s + a))`, `1/(s + a)` ([`ModalBasis::with_damped_rigid_body`]).
+    /// `None` when the model has a rigid body or fewer than two real poles below its lowest
+    /// pair. Whether the model experiment is still described is the caller's check.
+    pub(crate) fn with_slow_poles_as_damped_rigid_body(&self) -> Result<Option<Self>> {
+        if self.rigid > 0 {
+            return Ok(None);
+        }
+        let lowest_pair = self
+            .pairs
+            .iter()
+            .map(|p| p.norm())
+            .fold(f64::INFINITY, f64::min);
+        let mut real = self.real.clone();
+        real.sort_by(|a, b| b.total_cmp(a));
+        if real.len() < 2 || real[1].abs() >= lowest_pair {
+            return Ok(None);
+        }
+        Self::build((2, real[1].abs()), &real[2..], &self.pairs).map(Some)
+    }
+
     /// The basis with each group of pole pairs closer than twice their half-power
     /// half-widths together reduced to its least damped pair (a fit of a mode whose
     /// frequency wanders with amplitude, or of a distorted resonance, may split it into two

@@ -6,9 +6,9 @@
 //! A held-out level counts as *visible* when the linear model's statistic on it (in the moving
 //! mode's band, the gain's metric) is at least [`VISIBLE`]: there the extension must gain at
 //! least 3. Seeds: development `0..20` (and `100..125`, `150..170`, `300..325`, `350..386`,
-//! `400..425`, `450..466`, `800..825`, `850..866`, reported by earlier versions); the default
-//! run `50..53` (non-periodic `50..52`); reported (not looked at before the figures were
-//! taken) `1100..1125` (periodic) and `1150..1166` (non-periodic):
+//! `400..425`, `450..466`, `800..825`, `850..866`, `1100..1125`, `1150..1166`, reported by
+//! earlier versions); the default run `50..53` (non-periodic `50..52`); reported (not looked
+//! at before the figures were taken) `1200..1225` (periodic) and `1250..1266` (non-periodic):
 //! `cargo test --release -p sd-tests --test diagnose_levels -- --ignored --nocapture`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 use sd_model::median;
@@ -20,10 +20,10 @@ use sd_tests::diagcases::{
 
 /// The linear model's held-out statistic from which a level's nonlinearity counts as visible.
 const VISIBLE: f64 = 5.0;
-const REPORT_SEEDS: std::ops::Range<u64> = 1100..1125;
+const REPORT_SEEDS: std::ops::Range<u64> = 1200..1225;
 const CI_SEEDS: std::ops::Range<u64> = 50..53;
 /// Reported seeds of the non-periodic forms (separate noise records, one rising record).
-const REPORT_SEEDS_NOISE: std::ops::Range<u64> = 1150..1166;
+const REPORT_SEEDS_NOISE: std::ops::Range<u64> = 1250..1266;
 /// The default run's non-periodic subset.
 const CI_SEEDS_NOISE: std::ops::Range<u64> = 50..52;
 
@@ -58,10 +58,24 @@ struct Outcome {
 }
 
 impl Outcome {
+    /// Whether any held-out level shows the nonlinearity above noise (the linear model's
+    /// statistic there at least [`VISIBLE`]).
+    fn visible(&self) -> bool {
+        self.levels.iter().any(|l| l.1 >= VISIBLE)
+    }
+
+    /// The kind named (`hardening`/`softening`), or — where no held-out level shows the
+    /// nonlinearity above noise — `none` (the kind is stated only beyond the frequency
+    /// trend's uncertainty, and a trend the data hardly show may stay within it). The
+    /// opposite kind is always wrong.
+    fn kind_right(&self, expected: FreqTrend) -> bool {
+        self.kind == Some(expected) || (!self.visible() && self.kind == Some(FreqTrend::None))
+    }
+
     fn right(&self) -> bool {
         match self.case.effect {
-            LevelEffect::Hardening => self.kind == Some(FreqTrend::Hardening),
-            LevelEffect::Softening => self.kind == Some(FreqTrend::Softening),
+            LevelEffect::Hardening => self.kind_right(FreqTrend::Hardening),
+            LevelEffect::Softening => self.kind_right(FreqTrend::Softening),
             LevelEffect::Linear => self.cause == "none",
             // named; whether the friction-damped rigid body's corner is found falling and
             // predicted is reported by `summarize` (not yet reliable enough to require)
@@ -325,6 +339,20 @@ fn summarize(out: &[Outcome]) -> (usize, usize) {
         median(&t),
         t.iter().cloned().fold(0.0, f64::max)
     );
+    let expected = |o: &&Outcome| match o.case.effect {
+        LevelEffect::Hardening => FreqTrend::Hardening,
+        _ => FreqTrend::Softening,
+    };
+    let named = nl.iter().filter(|o| o.kind == Some(expected(o))).count();
+    let unseen = nl
+        .iter()
+        .filter(|o| o.kind == Some(FreqTrend::None) && !o.visible())
+        .count();
+    println!(
+        "cubic kind: {named} of {} named right, {unseen} `none` with no level visible, {} wrong",
+        nl.len(),
+        nl.iter().filter(|o| !o.right()).count()
+    );
     let coulomb = of(&[LevelEffect::Coulomb]);
     let (cvis, cvis_x) = visible_gains(&coulomb);
     if !coulomb.is_empty() {
@@ -373,7 +401,7 @@ fn levels_default_subset_nonperiodic() {
     }
 }
 
-/// The reported seeds of the non-periodic forms (`1150..1166`).
+/// The reported seeds of the non-periodic forms (`1250..1266`).
 #[test]
 #[ignore]
 fn levels_reported_nonperiodic() {
@@ -429,7 +457,7 @@ fn four_levels_speed() {
     }
 }
 
-/// The reported periodic seeds (`1100..1125`).
+/// The reported periodic seeds (`1200..1225`).
 #[test]
 #[ignore]
 fn levels_reported() {
