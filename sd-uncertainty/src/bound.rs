@@ -93,6 +93,24 @@ pub fn sigma_factor(confidence: f64) -> Result<f64> {
     Ok((-(1.0 - confidence).ln()).sqrt())
 }
 
+/// The per-line confidence that makes a bound hold on all `lines` lines at once with
+/// probability at least `simultaneous` (Bonferroni: `1 − (1 − c)/K`, valid whatever the
+/// correlation between lines, e.g. the local polynomial method's; for independent lines it
+/// is within `(1 − c)²/2` of Šidák's exact `c^{1/K}`). At K = 1000 lines and c = 99.9 % the
+/// per-line confidence is 1 − 10⁻⁶ and `κ` = 3.72 (1.73 at 95 % per line).
+///
+/// # Errors
+/// `simultaneous` outside (0, 1); no lines.
+pub fn per_line_confidence(simultaneous: f64, lines: usize) -> Result<f64> {
+    sigma_factor(simultaneous)?;
+    if lines == 0 {
+        return Err(UncertaintyError::Input(
+            "a simultaneous confidence needs at least one line".into(),
+        ));
+    }
+    Ok(1.0 - (1.0 - simultaneous) / lines as f64)
+}
+
 /// SISO check shared by the constructors.
 pub(crate) fn siso(what: &str, shape: (usize, usize)) -> Result<()> {
     if shape != (1, 1) {

@@ -31,7 +31,7 @@ pub mod json;
 pub mod robust;
 pub mod weight;
 
-pub use bound::{coverage, from_data, sigma_factor, Bound, Coverage, Form};
+pub use bound::{coverage, from_data, per_line_confidence, sigma_factor, Bound, Coverage, Form};
 pub use downsample::{downsample, downsample_nonideal, Downsampled};
 pub use error::{Result, UncertaintyError};
 pub use gap::{chordal, chordal_gap, ChordalGap};

@@ -16,9 +16,13 @@ pub(crate) struct Args {
     pub(crate) model: String,
     /// Measured FRD JSON with variances (`var`), at the model's sample time.
     pub(crate) frd: String,
-    /// Probability per line that the bound holds.
+    /// Probability per line that the bound holds (with --simultaneous: on all lines at once).
     #[arg(long, default_value_t = 0.95, allow_negative_numbers = true)]
     pub(crate) confidence: f64,
+    /// The confidence holds for all lines at once (per line 1 − (1 − c)/K, Bonferroni): a
+    /// bound the true error stays under everywhere, not only on a share c of the lines.
+    #[arg(long)]
+    pub(crate) simultaneous: bool,
     /// Additive (plant units) or multiplicative (relative) bound.
     #[arg(long, value_enum, default_value = "additive")]
     pub(crate) form: FormArg,
@@ -57,7 +61,13 @@ impl Args {
             FormArg::Additive => sd_uncertainty::Form::Additive,
             FormArg::Multiplicative => sd_uncertainty::Form::Multiplicative,
         };
-        let b = sd_uncertainty::from_data(&model, &frd, form, self.confidence)
+        let per_line = if self.simultaneous {
+            sd_uncertainty::per_line_confidence(self.confidence, frd.len())
+                .map_err(|e| from_unc("--confidence", e))?
+        } else {
+            self.confidence
+        };
+        let b = sd_uncertainty::from_data(&model, &frd, form, per_line)
             .map_err(|e| from_unc(&self.frd, e))?;
         let w = self
             .weight_order
@@ -66,14 +76,19 @@ impl Args {
             .map_err(|e| from_unc("--weight-order", e))?;
         let v = b.values();
         eprintln!(
-            "[uncertainty] {} lines, {} bound at {:.1} % per line: median {:.3e}, largest {:.3e} \
+            "[uncertainty] {} lines, {} bound at {} % per line{}: median {:.3e}, largest {:.3e} \
              at {:.2} Hz{}",
             v.len(),
             match form {
                 sd_uncertainty::Form::Additive => "additive",
                 sd_uncertainty::Form::Multiplicative => "multiplicative",
             },
-            100.0 * self.confidence,
+            (1e6 * 100.0 * per_line).round() / 1e6,
+            if self.simultaneous {
+                format!(" ({} % on all lines at once)", 100.0 * self.confidence)
+            } else {
+                String::new()
+            },
             sd_model::median(&v),
             v.iter().cloned().fold(0.0, f64::max),
             b.freq_hz[v
