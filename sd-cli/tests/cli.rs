@@ -1093,6 +1093,32 @@ fn uncertainty_travels_to_the_slow_rate() {
         serde_json::from_str(&std::fs::read_to_string(p("u.json")).unwrap()).unwrap();
     assert_eq!(u["type"], "uncertainty");
     assert!(u["weight"]["median_ratio"].as_f64().unwrap() >= 1.0);
+    // 99 % on all lines at once: per line 1 − 0.01/K, a wider bound everywhere
+    sdctl_ok(&[
+        "uncertainty",
+        &p("m.json"),
+        &p("fast.json"),
+        "--confidence",
+        "0.99",
+        "--simultaneous",
+        "-o",
+        &p("u_all.json"),
+    ]);
+    let all: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(p("u_all.json")).unwrap()).unwrap();
+    let k = all["freq_hz"].as_array().unwrap().len() as f64;
+    let c = all["confidence"].as_f64().unwrap();
+    assert!((c - (1.0 - 0.01 / k)).abs() < 1e-12, "{c} for {k} lines");
+    let wider = |x: &serde_json::Value, y: &serde_json::Value| {
+        let (a, b) = (
+            x["bound"].as_array().unwrap(),
+            y["bound"].as_array().unwrap(),
+        );
+        a.iter()
+            .zip(b)
+            .all(|(a, b)| a.as_f64().unwrap() >= b.as_f64().unwrap())
+    };
+    assert!(wider(&all, &u));
     sdctl_ok(&[
         "downsample",
         &p("m.json"),

@@ -83,6 +83,27 @@ impl LevelFit {
             .zip(self.linear.get(m))
             .is_some_and(|(f, l)| determined(*f, *l))
     }
+
+    /// Whether this fit — of the model experiment, the data the linear model was fitted to —
+    /// finds pair `m` where the linear model has it: its frequency within its half-power
+    /// half-width `ζf` and its damping within a factor 2 (or within three standard errors). A
+    /// pair the free fit moves further on the very data it came from is not determined by
+    /// them (a spurious pair of an order chosen for the whole band), and its trend over the
+    /// levels would be noise. A friction corner is not held to this: the damped rigid body
+    /// ([`ModalBasis::with_damped_rigid_body`]) is not the fit's own pole, and the reference
+    /// level's fit places it.
+    pub(crate) fn agrees_with_linear(&self, m: usize) -> bool {
+        let (Some(&(f, z, sf, sz)), Some(&(fl, zl, _, _))) =
+            (self.modal.get(m), self.linear.get(m))
+        else {
+            return false;
+        };
+        let near = |x: f64, lin: f64, sd: f64| {
+            (x / lin).ln().abs() <= 2f64.ln() || (x - lin).abs() <= 3.0 * sd
+        };
+        is_real_pole(zl)
+            || (((f - fl).abs() <= zl * fl || (f - fl).abs() <= 3.0 * sf) && near(z, zl, sz))
+    }
 }
 
 /// The fitted amplitude-dependent model.

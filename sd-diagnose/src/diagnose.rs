@@ -644,8 +644,9 @@ fn level_tests(data: &Data<'_>, ch: &Checks) -> Vec<(usize, Statistic)> {
 }
 
 /// Every level's modal fit on `basis`: the candidates, less those the model experiment
-/// itself does not determine, fitted again without them; `None` when a fit fails or no
-/// candidate is left.
+/// itself does not determine or finds elsewhere than the linear model
+/// ([`LevelFit::agrees_with_linear`]), fitted again without them; `None` when a fit fails or
+/// no candidate is left.
 fn level_fits(
     basis: &ModalBasis,
     data: &Data<'_>,
@@ -663,7 +664,11 @@ fn level_fits(
     let cand: Vec<usize> = cand
         .iter()
         .enumerate()
-        .filter(|(m, _)| first.first().is_some_and(|f| f.determines(*m)))
+        .filter(|(m, _)| {
+            first
+                .first()
+                .is_some_and(|f| f.determines(*m) && f.agrees_with_linear(*m))
+        })
         .map(|(_, c)| *c)
         .collect();
     if cand.is_empty() {
