@@ -1602,7 +1602,7 @@ fn causes_of(
             delay_frac: p.hold_delay,
             delay_frac_std: std.hold_delay,
             delay_s,
-            combined_lag_frac: both.then(|| p.hold_delay + 0.5 * p.averaging),
+            combined_lag_frac: both.then_some(p.hold_delay + 0.5 * p.averaging),
             combined_lag_frac_std: std.combined_lag.filter(|_| both),
         });
     }
