@@ -87,6 +87,10 @@ fn c2d_d2c_freqresp_poles_norm_reduce_connect() {
     let o = sdctl_ok(&["freqresp", &out, "--grid", "1:50:20:log"]);
     let frd = sd_model::frd_from_json_str(&String::from_utf8_lossy(&o.stdout)).unwrap();
     assert_eq!(frd.len(), 20);
+    // which algorithm ran is in the output (a 2-state model with distinct poles: block form)
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["eval_path"], "block_diagonal");
+    assert!(String::from_utf8_lossy(&o.stderr).contains("block-diagonal"));
     for args in [
         vec!["poles", &ct, "--json"],
         vec!["zeros", &ct],

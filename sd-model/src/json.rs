@@ -109,7 +109,8 @@ const SS_KEYS: &[&str] = &[
     "uncertainty",
 ];
 const TF_KEYS: &[&str] = &["type", "ts", "num", "den", "name", "uncertainty"];
-/// `warnings` is what `sdctl frf` found in the data (informational; ignored on reading).
+/// `warnings` is what `sdctl frf` found in the data, `eval_path` how `sdctl freqresp`
+/// evaluated a model (both informational; ignored on reading).
 const FRD_KEYS: &[&str] = &[
     "type",
     "ts",
@@ -118,6 +119,7 @@ const FRD_KEYS: &[&str] = &[
     "im",
     "var",
     "warnings",
+    "eval_path",
     "uncertainty",
 ];
 /// Names other tools use for the sampling period.

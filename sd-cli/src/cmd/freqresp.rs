@@ -34,19 +34,29 @@ impl Args {
         }
         let ev = sd_model::FreqRespEvaluator::new(&sys).map_err(|e| from_model(&model, e))?;
         // which algorithm ran (the block-diagonal form unless it failed its accuracy check)
-        eprintln!(
-            "[freqresp] {} states, {} points, path: {}",
-            sys.n(),
-            f.len(),
-            match ev.path() {
-                sd_model::EvalPath::BlockDiagonal => "block-diagonal (O(n) per point)",
-                sd_model::EvalPath::Hessenberg => "Hessenberg (O(n²) per point)",
-                sd_model::EvalPath::Dense => "dense LU (O(n³) per point)",
+        let (key, words) = match ev.path() {
+            sd_model::EvalPath::BlockDiagonal => {
+                ("block_diagonal", "block-diagonal (O(n) per point)")
             }
+            sd_model::EvalPath::Hessenberg => ("hessenberg", "Hessenberg (O(n²) per point)"),
+            sd_model::EvalPath::Dense => ("dense", "dense LU (O(n³) per point)"),
+        };
+        eprintln!(
+            "[freqresp] {} states, {} points, path: {words}",
+            sys.n(),
+            f.len()
         );
         let frd = sd_model::Frd::new(f.clone(), ev.eval_many(&f), None, sys.time())
             .map_err(|e| from_model(&model, e))?;
         let txt = sd_model::frd_to_json_string(&frd).map_err(|e| from_model("output", e))?;
-        emit(&txt, output.as_deref())
+        // the FRD object gains `"eval_path"` (informational, ignored by the readers): spliced
+        // before its closing brace rather than re-serialising a large document
+        let body = txt.strip_suffix('}').ok_or_else(|| {
+            CliError::numerical("the FRD JSON writer returned no object".to_string())
+        })?;
+        emit(
+            &format!("{body},\"eval_path\":\"{key}\"}}"),
+            output.as_deref(),
+        )
     }
 }
