@@ -269,8 +269,7 @@ fn frf_warns_about_data_it_cannot_trust() {
     let manifest = data.join("experiments.toml").to_string_lossy().into_owned();
     let out = d.join("a.json").to_string_lossy().into_owned();
     sdctl_ok(&["frf", &manifest, "--experiment", "a", "-o", &out]);
-    let v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    let v = read_json(&out);
     let n_default = v["freq_hz"].as_array().unwrap().len();
     let o = sdctl(&["frf", &manifest, "--experiment", "a", "--keep-low-snr"]);
     let all: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
@@ -484,6 +483,11 @@ fn testbed_defaults_are_the_same_with_and_without_a_config() {
 }
 
 /// The JSON a successful command printed, with each of `keys` present.
+/// A JSON file the CLI wrote.
+fn read_json(path: impl AsRef<std::path::Path>) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
 fn json_with_keys(o: &Output, keys: &[&str]) -> serde_json::Value {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
@@ -1093,8 +1097,7 @@ fn uncertainty_travels_to_the_slow_rate() {
         "-o",
         &p("u.json"),
     ]);
-    let u: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(p("u.json")).unwrap()).unwrap();
+    let u = read_json(p("u.json"));
     assert_eq!(u["type"], "uncertainty");
     assert!(u["weight"]["median_ratio"].as_f64().unwrap() >= 1.0);
     // 99 % on all lines at once: per line 1 − 0.01/K, a wider bound everywhere
@@ -1108,8 +1111,7 @@ fn uncertainty_travels_to_the_slow_rate() {
         "-o",
         &p("u_all.json"),
     ]);
-    let all: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(p("u_all.json")).unwrap()).unwrap();
+    let all = read_json(p("u_all.json"));
     let k = all["freq_hz"].as_array().unwrap().len() as f64;
     let c = all["confidence"].as_f64().unwrap();
     assert!((c - (1.0 - 0.01 / k)).abs() < 1e-12, "{c} for {k} lines");
@@ -1150,8 +1152,7 @@ fn uncertainty_travels_to_the_slow_rate() {
         "-o",
         &p("ma.json"),
     ]);
-    let ua: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(p("ua.json")).unwrap()).unwrap();
+    let ua = read_json(p("ua.json"));
     let ma = sd_model::read_model(std::fs::File::open(p("ma.json")).unwrap()).unwrap();
     let fz: Vec<f64> = serde_json::from_value(ua["freq_hz"].clone()).unwrap();
     let resp = ma.freqresp(&fz).unwrap();
@@ -1272,8 +1273,7 @@ fn uncertainty_travels_to_the_slow_rate() {
         "-o",
         &p("msu.json"),
     ]);
-    let msu: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(p("msu.json")).unwrap()).unwrap();
+    let msu = read_json(p("msu.json"));
     assert_eq!(msu["uncertainty"]["ts"].as_f64(), Some(0.001), "{msu}");
     let o = sdctl_ok(&[
         "analyze",
@@ -1323,8 +1323,7 @@ fn uncertainty_travels_to_the_slow_rate() {
         "sample time",
     );
     // a measurement the bound misses (the slow FRF scaled by 1.5): the text says what to do
-    let mut scaled: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(p("slow.json")).unwrap()).unwrap();
+    let mut scaled = read_json(p("slow.json"));
     for key in ["re", "im"] {
         for line in scaled[key].as_array_mut().unwrap() {
             let v = line[0][0].as_f64().unwrap();

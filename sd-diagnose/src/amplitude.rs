@@ -917,10 +917,7 @@ impl AmplitudeModel {
 
     /// Whether any mode moves with amplitude in this model.
     pub(crate) fn moves_any(&self) -> bool {
-        self.cand
-            .iter()
-            .enumerate()
-            .any(|(m, _)| self.trends[m].2 || self.trends[m].3)
+        self.trends.iter().any(|t| t.2 || t.3)
     }
 
     /// Whether a level's amplitude lies outside the range of the levels the model was

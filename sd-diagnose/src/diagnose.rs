@@ -681,6 +681,14 @@ fn level_fits(
 /// Slack on the model experiment's statistic within which a slow pole counts as unneeded.
 const SLOW_POLE_SLACK: f64 = 1.1;
 
+/// The statistic a changed basis may reach on the model experiment `reference` and still
+/// describe it: [`SLOW_POLE_SLACK`] times the larger of the verdict's threshold and `basis`'s
+/// own statistic.
+fn slack_bound(basis: &ModalBasis, h: f64, reference: &Level<'_>, alpha: f64) -> Result<f64> {
+    let full = describes(basis, h, reference, alpha)?;
+    Ok(SLOW_POLE_SLACK * full.threshold.max(full.value))
+}
+
 /// A friction-damped rigid body's basis without the slow real poles and overdamped pairs
 /// ([`ModalBasis::slow_extras`]) the model experiment does not need: each, slowest first, is
 /// dropped when the basis without it still describes the model experiment `reference`
@@ -697,8 +705,7 @@ fn without_unneeded_slow_poles(
     if extras.is_empty() {
         return Ok(damped.clone());
     }
-    let full = describes(damped, h, reference, alpha)?;
-    let bound = SLOW_POLE_SLACK * full.threshold.max(full.value);
+    let bound = slack_bound(damped, h, reference, alpha)?;
     let mut dropped: Vec<num_complex::Complex64> = Vec::new();
     let mut basis = damped.clone();
     for p in extras {
@@ -726,8 +733,7 @@ fn slow_poles_as_rigid_body(
     let Some(b) = plain.with_slow_poles_as_damped_rigid_body()? else {
         return Ok(None);
     };
-    let full = describes(plain, h, reference, alpha)?;
-    let bound = SLOW_POLE_SLACK * full.threshold.max(full.value);
+    let bound = slack_bound(plain, h, reference, alpha)?;
     Ok(describes(&b, h, reference, alpha)
         .is_ok_and(|s| s.value <= bound)
         .then_some(b))
@@ -901,6 +907,8 @@ fn levels_left_out(
     let (mut before, mut after, mut held) = (Vec::new(), Vec::new(), Vec::new());
     let mut per = BTreeMap::new();
     let mut loo: LeftOut = vec![None; levels.len()];
+    // each level's excitation relative to the model experiment's
+    let level_of = |q: usize| at[q].map_or(1.0, |i| data.vals[i].level);
     for (k, lv) in levels.iter().enumerate().skip(1) {
         let Some(i) = at[k] else { continue };
         let train: Vec<&Level<'_>> = levels
@@ -929,7 +937,6 @@ fn levels_left_out(
         );
         // beyond the fitted amplitudes of a moving mode; or, where nothing moves on the
         // training levels, beyond their excitation levels
-        let level_of = |q: usize| at[q].map_or(1.0, |i| data.vals[i].level);
         let (lo, hi) = (0..levels.len())
             .filter(|q| *q != k)
             .map(level_of)
@@ -1232,16 +1239,13 @@ fn below_floor(f: Family, p: &RateTied) -> bool {
     }
 }
 
-/// Whether any cause of family `fam` is below its physical floor ([`below_floor`]): such a
-/// family is not named.
-fn any_below_floor(fam: Family, p: &RateTied) -> bool {
-    [Family::Delay, Family::Average, Family::Clock]
-        .into_iter()
-        .any(|f| match f {
-            Family::Delay => fam.delay() && below_floor(f, p),
-            Family::Average => fam.average() && below_floor(f, p),
-            _ => fam.clock() && below_floor(f, p),
-        })
+/// Whether family `fam` with parameters `p` may be named at all: a rate-tied family none of
+/// whose causes is below its physical floor ([`below_floor`]).
+fn nameable(fam: Family, p: &RateTied) -> bool {
+    fam != Family::None
+        && !(fam.delay() && below_floor(Family::Delay, p))
+        && !(fam.average() && below_floor(Family::Average, p))
+        && !(fam.clock() && below_floor(Family::Clock, p))
 }
 
 /// Whether another hypothesis, sharing no cause with the chosen one (`k`), explains the data as
@@ -1393,8 +1397,7 @@ fn halves(j: &Judged<'_>, tied: &[&Val<'_>], progress: &mut dyn FnMut(&str)) -> 
     let Some(held) = held else {
         // without held-out data the discrepancy must stand at the naming level itself, on the
         // naming yardstick (residue and pole covariance)
-        let would = chosen.family != Family::None
-            && !any_below_floor(chosen.family, &chosen.params)
+        let would = nameable(chosen.family, &chosen.params)
             && explains(&j.modal.stat_full(&chosen.params, &train)?, j.modal.alpha)
             && !explains(
                 &j.modal.stat_full(&RateTied::default(), &train)?,
@@ -1430,10 +1433,8 @@ fn halves(j: &Judged<'_>, tied: &[&Val<'_>], progress: &mut dyn FnMut(&str)) -> 
     let mut labels: Vec<String> = tied.iter().map(|v| held_out_label(v.exp)).collect();
     labels.extend(tied.iter().map(|v| earlier_label(v.exp)));
     // the discrepancy must replicate on the held-out data, and the extension explain it
-    let would = chosen.family != Family::None
-        && !any_below_floor(chosen.family, &chosen.params)
-        && !before.passes()
-        && explains(&after, alpha);
+    let would =
+        nameable(chosen.family, &chosen.params) && !before.passes() && explains(&after, alpha);
     Ok(Settled {
         family: chosen.family,
         params: chosen.params.clone(),
@@ -1543,8 +1544,7 @@ fn leave_one_out(
         family: first.family,
         params: first.params.clone(),
         named: same
-            && first.family != Family::None
-            && !any_below_floor(first.family, &first.params)
+            && nameable(first.family, &first.params)
             && !b.passes()
             && explains(&a, j.modal.alpha),
         ambiguous: false,
@@ -1603,7 +1603,7 @@ fn causes_of(
             delay_frac_std: std.hold_delay,
             delay_s,
             combined_lag_frac: both.then_some(p.hold_delay + 0.5 * p.averaging),
-            combined_lag_frac_std: std.combined_lag.filter(|_| both),
+            combined_lag_frac_std: std.combined_lag,
         });
     }
     out

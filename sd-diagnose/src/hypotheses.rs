@@ -76,6 +76,19 @@ enum Coord {
     Clock(usize),
 }
 
+/// `p` moved by `shift[k]` steps along each coordinate `coords[k]` (coordinate, step).
+fn shifted(p: &RateTied, coords: &[(Coord, f64)], shift: &[f64]) -> RateTied {
+    let mut q = p.clone();
+    for ((c, h), s) in coords.iter().zip(shift) {
+        match c {
+            Coord::Delay => q.hold_delay += s * h,
+            Coord::Average => q.averaging += s * h,
+            Coord::Clock(j) => q.clock_error[*j] += s * h,
+        }
+    }
+    q
+}
+
 /// Which parameters are free.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 pub enum Family {
@@ -300,20 +313,15 @@ impl Modal<'_> {
         let Some(sq) = res.joint_covariance() else {
             return Ok(None);
         };
-        let shifted = |k: usize, s: f64| {
-            let mut q = centre.clone();
-            let (c, h) = coords[k];
-            match c {
-                Coord::Delay => q.hold_delay += s * h,
-                Coord::Average => q.averaging += s * h,
-                Coord::Clock(j) => q.clock_error[j] += s * h,
-            }
-            q
+        let along = |k: usize, s: f64| {
+            let mut unit = vec![0.0; coords.len()];
+            unit[k] = s;
+            shifted(centre, coords, &unit)
         };
         let mut slopes = Vec::with_capacity(coords.len());
         for (k, (_, h)) in coords.iter().enumerate() {
-            let plus = self.predictions(&shifted(k, 1.0), targets)?;
-            let minus = self.predictions(&shifted(k, -1.0), targets)?;
+            let plus = self.predictions(&along(k, 1.0), targets)?;
+            let minus = self.predictions(&along(k, -1.0), targets)?;
             slopes.push((plus, minus, *h));
         }
         let (nt, nq) = (coords.len(), sq.nrows());
@@ -678,15 +686,7 @@ impl Modal<'_> {
             }
         }
         let eval = |shift: &[f64]| -> f64 {
-            let mut q = centre.clone();
-            for ((c, h), s) in coords.iter().zip(shift) {
-                match c {
-                    Coord::Delay => q.hold_delay += s * h,
-                    Coord::Average => q.averaging += s * h,
-                    Coord::Clock(j) => q.clock_error[*j] += s * h,
-                }
-            }
-            self.stat(&q, targets)
+            self.stat(&shifted(&centre, &coords, shift), targets)
                 .map(|st| st.value * keff)
                 .unwrap_or(f64::NAN)
         };

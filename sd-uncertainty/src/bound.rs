@@ -95,9 +95,10 @@ pub fn sigma_factor(confidence: f64) -> Result<f64> {
 
 /// The per-line confidence that makes a bound hold on all `lines` lines at once with
 /// probability at least `simultaneous` (Bonferroni: `1 − (1 − c)/K`, valid whatever the
-/// correlation between lines, e.g. the local polynomial method's; for independent lines it
-/// is within `(1 − c)²/2` of Šidák's exact `c^{1/K}`). At K = 1000 lines and c = 99.9 % the
-/// per-line confidence is 1 − 10⁻⁶ and `κ` = 3.72 (1.73 at 95 % per line).
+/// correlation between lines, e.g. the local polynomial method's; for independent lines the
+/// bound then holds everywhere with probability between `c` and `c + (1 − c)²/2`). At
+/// K = 1000 lines and c = 99.9 % the per-line confidence is 1 − 10⁻⁶ and
+/// `κ = √(ln 10⁶)` = 3.72 (1.73 at 95 % per line).
 ///
 /// # Errors
 /// `simultaneous` outside (0, 1); no lines.

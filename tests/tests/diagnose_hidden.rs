@@ -144,27 +144,27 @@ impl Outcome {
     fn right(&self) -> bool {
         self.cause == self.case.effect.expected()
     }
-    /// Limits: delay and combined lag `α + β/2` 0.03 periods (the fine-step grid alone is
-    /// ±0.01), window 0.05, clock 5e-4 (relative); beyond them only within three of the
-    /// parameter's stated standard errors (the diagnosis said the data do not pin it closer).
+    /// Within [`limit`], or beyond it only within three of the parameter's stated standard
+    /// errors (the diagnosis said the data do not pin it closer).
     fn params_ok(&self) -> bool {
-        self.errors.iter().all(|(k, e, s)| {
-            let limit = match *k {
-                "delay" | "lag" => 0.03,
-                "window" => 0.05,
-                _ => 5e-4,
-            };
-            *e <= limit || s.is_some_and(|s| *e <= 3.0 * s)
-        })
+        self.errors
+            .iter()
+            .all(|(k, e, s)| *e <= limit(k) || s.is_some_and(|s| *e <= 3.0 * s))
     }
 
     /// Outside the absolute limit alone (reported beside `params_ok`).
     fn beyond_limit(&self) -> bool {
-        self.errors.iter().any(|(k, e, _)| match *k {
-            "delay" | "lag" => *e > 0.03,
-            "window" => *e > 0.05,
-            _ => *e > 5e-4,
-        })
+        self.errors.iter().any(|(k, e, _)| *e > limit(k))
+    }
+}
+
+/// The absolute limit of a parameter's error: delay and combined lag `α + β/2` 0.03 periods
+/// (the fine-step grid alone is ±0.01), window 0.05, clock 5e-4 (relative).
+fn limit(kind: &str) -> f64 {
+    match kind {
+        "delay" | "lag" => 0.03,
+        "window" => 0.05,
+        _ => 5e-4,
     }
 }
 

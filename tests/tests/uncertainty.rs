@@ -160,14 +160,11 @@ fn simultaneous_bound_is_never_below_the_truth_error() {
     let ct = sd_testbed::truth_model(&truth).unwrap();
     let p_fast = sd_model::c2d(&ct, 2e-4, sd_model::Discretization::Zoh).unwrap();
     let p_slow = sd_multirate::downsample(&p_fast, 5).unwrap();
+    // lines where the truth's error exceeds the bound (its response as a measurement without
+    // variance)
     let below = |truth: &StateSpace, b: &sd_uncertainty::Bound| -> usize {
-        let r = truth.freqresp(&b.freq_hz).unwrap();
-        r.response()
-            .iter()
-            .zip(&b.nominal)
-            .zip(&b.additive)
-            .filter(|((g, n), a)| (g[(0, 0)] - **n).norm() > **a)
-            .count()
+        let c = coverage(b, &truth.freqresp(&b.freq_hz).unwrap()).unwrap();
+        c.lines - c.covered
     };
     let (mut lines, mut pointwise_below, mut kappa) = (0, 0, 0.0);
     for seed in 21..31 {
