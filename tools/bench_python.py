@@ -7,6 +7,8 @@ CASES.json: {"c2d": {"model": path, "ts": h, "repeats": k},
              "dare": {"model": path (DT), "repeats": k},                     (optional)
              "loopshape": {"plant": path, "w1": path, "repeats": k},         (optional)
              "frf": {"u": f64 file, "y": f64 file, "period": P, "skip": S, "repeats": k}}
+The c2d and freqresp cases are also timed through our own Python package (`sdtoolkit`, from
+`pip install ./sd-python`) when it is importable: the cost of calling the library from Python.
 """
 import json, sys, time
 import numpy as np
@@ -51,6 +53,18 @@ w = 2 * np.pi * hz
 t, r = median_time(lambda: control.frequency_response(sys_d, w), f["repeats"])
 resp = np.asarray(r.response).reshape(-1)
 res["freqresp_python_control"] = {"median_s": t, "re_sample": resp[:: max(1, len(resp) // 1000)].real.tolist(), "im_sample": resp[:: max(1, len(resp) // 1000)].imag.tolist(), "stride": max(1, len(resp) // 1000)}
+try:
+    import sdtoolkit
+
+    (a, b, cc, d), _ = load(c["model"])
+    sys_t = sdtoolkit.StateSpace(a, b, cc, d)
+    t_c2d, _ = median_time(lambda: sdtoolkit.c2d(sys_t, c["ts"]), c["repeats"])
+    (a, b, cc, d), ts = load(f["model"])
+    sys_td = sdtoolkit.StateSpace(a, b, cc, d, ts)
+    t_fr, g = median_time(lambda: sdtoolkit.freqresp(sys_td, hz), f["repeats"])
+    res["sdtoolkit"] = {"c2d_s": t_c2d, "freqresp_s": t_fr, "max_rel_difference_vs_python_control": float(np.max(np.abs(g - resp) / np.abs(resp)))}
+except ImportError:
+    res["sdtoolkit"] = {"error": "not importable (pip install ./sd-python)"}
 ds = cases.get("downsample")
 if ds:
     (a, b, cc, d), _ = load(ds["model"])

@@ -18,5 +18,16 @@ pub enum AnalysisError {
     InvalidArgument(String),
 }
 
+impl AnalysisError {
+    /// A numerical failure on valid input; everything else is input to fix.
+    pub fn is_numerical(&self) -> bool {
+        match self {
+            AnalysisError::Model(m) => m.is_numerical(),
+            AnalysisError::Multirate(m) => m.is_numerical(),
+            _ => false,
+        }
+    }
+}
+
 /// Result alias of this crate.
 pub type Result<T> = std::result::Result<T, AnalysisError>;

@@ -27,79 +27,49 @@ impl CliError {
     }
 }
 
-/// Maps a library error to an exit code: convergence failures are numerical (1), everything
-/// else is the input's fault (2).
-pub fn from_model(context: &str, e: ModelError) -> CliError {
-    let code = match e {
-        ModelError::NotConverged { .. } => 1,
-        _ => 2,
-    };
+/// A library error with its exit code: numerical failures on valid input (each error type's
+/// `is_numerical`) exit 1, everything else is the input's fault (2).
+fn classify(context: &str, e: &dyn std::fmt::Display, numerical: bool) -> CliError {
     CliError {
-        code,
+        code: if numerical { 1 } else { 2 },
         message: format!("{context}: {e}"),
     }
 }
 
-/// Maps an `sd-multirate` error: numerical failures exit 1, everything else 2.
+/// Maps an `sd-model` error.
+pub fn from_model(context: &str, e: ModelError) -> CliError {
+    classify(context, &e, e.is_numerical())
+}
+
+/// Maps an `sd-multirate` error.
 pub fn from_multirate(context: &str, e: sd_multirate::MultirateError) -> CliError {
-    match e {
-        sd_multirate::MultirateError::Model(m) => from_model(context, m),
-        other => CliError {
-            code: 2,
-            message: format!("{context}: {other}"),
-        },
-    }
+    classify(context, &e, e.is_numerical())
 }
 
-/// Maps an `sd-hinf` error: numerical failures exit 1, everything else (including "no
-/// stabilizing solution", a property of the problem given) 2.
+/// Maps an `sd-hinf` error ("no stabilizing solution", a property of the problem given, is
+/// the input's).
 pub fn from_hinf(context: &str, e: sd_hinf::HinfError) -> CliError {
-    match e {
-        sd_hinf::HinfError::Model(m) => from_model(context, m),
-        sd_hinf::HinfError::Numerical(_) => CliError {
-            code: 1,
-            message: format!("{context}: {e}"),
-        },
-        other => CliError {
-            code: 2,
-            message: format!("{context}: {other}"),
-        },
-    }
+    classify(context, &e, e.is_numerical())
 }
 
-/// Maps an `sd-ident` error: numerical failures exit 1, everything else 2.
+/// Maps an `sd-ident` error.
 pub fn from_ident(context: &str, e: sd_ident::IdentError) -> CliError {
-    match e {
-        sd_ident::IdentError::Model(m) => from_model(context, m),
-        sd_ident::IdentError::Numerical(_) => CliError::numerical(format!("{context}: {e}")),
-        other => CliError {
-            code: 2,
-            message: format!("{context}: {other}"),
-        },
-    }
+    classify(context, &e, e.is_numerical())
 }
 
 /// Maps an `sd-analysis` error.
 pub fn from_analysis(context: &str, e: sd_analysis::AnalysisError) -> CliError {
-    match e {
-        sd_analysis::AnalysisError::Model(m) => from_model(context, m),
-        sd_analysis::AnalysisError::Multirate(m) => from_multirate(context, m),
-        other => CliError {
-            code: 2,
-            message: format!("{context}: {other}"),
-        },
-    }
+    classify(context, &e, e.is_numerical())
 }
 
 /// Maps an `sd-testbed` error.
 pub fn from_testbed(context: &str, e: sd_testbed::TestbedError) -> CliError {
-    match e {
-        sd_testbed::TestbedError::Model(m) => from_model(context, m),
-        other => CliError {
-            code: 2,
-            message: format!("{context}: {other}"),
-        },
-    }
+    classify(context, &e, e.is_numerical())
+}
+
+/// Maps an `sd-diagnose` error.
+pub fn from_diagnose(context: &str, e: sd_diagnose::DiagnoseError) -> CliError {
+    classify(context, &e, e.is_numerical())
 }
 
 /// Reads a file (or stdin for "-") to a string.
@@ -122,23 +92,7 @@ pub fn load_experiments(
     manifest: &str,
     keep: impl Fn(&str) -> bool,
 ) -> Result<Vec<sd_ident::Experiment>, CliError> {
-    let text = read_text(manifest)?;
-    let specs = sd_ident::parse_manifest(&text).map_err(|e| from_ident(manifest, e))?;
-    let base = std::path::Path::new(manifest)
-        .parent()
-        .map(|p| p.to_path_buf())
-        .unwrap_or_default();
-    let mut exps = Vec::new();
-    for spec in specs.into_iter().filter(|s| keep(&s.name)) {
-        let path = base.join(&spec.file);
-        let file = std::fs::File::open(&path)
-            .map_err(|e| CliError::input(format!("cannot open {}: {e}", path.display())))?;
-        exps.push(
-            sd_ident::Experiment::from_reader(spec, std::io::BufReader::new(file))
-                .map_err(|e| from_ident(manifest, e))?,
-        );
-    }
-    Ok(exps)
+    sd_ident::load_experiments(Path::new(manifest), keep).map_err(|e| from_ident(manifest, e))
 }
 
 /// Reads a model file.

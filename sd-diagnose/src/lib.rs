@@ -109,6 +109,19 @@ pub enum DiagnoseError {
     Numerical(String),
 }
 
+impl DiagnoseError {
+    /// A numerical failure on valid data; everything else is input to fix.
+    pub fn is_numerical(&self) -> bool {
+        match self {
+            DiagnoseError::Ident(e) => e.is_numerical(),
+            DiagnoseError::Model(e) => e.is_numerical(),
+            DiagnoseError::Multirate(e) => e.is_numerical(),
+            DiagnoseError::Numerical(_) => true,
+            DiagnoseError::Setup(_) => false,
+        }
+    }
+}
+
 /// Result alias of this crate.
 pub type Result<T> = std::result::Result<T, DiagnoseError>;
 

@@ -35,3 +35,15 @@ pub enum HinfError {
 
 /// Result alias of this crate.
 pub type Result<T> = std::result::Result<T, HinfError>;
+
+impl HinfError {
+    /// A numerical failure on valid input; "no stabilizing solution" is a property of the
+    /// problem given, not a numerical failure.
+    pub fn is_numerical(&self) -> bool {
+        match self {
+            HinfError::Model(m) => m.is_numerical(),
+            HinfError::Numerical(_) => true,
+            _ => false,
+        }
+    }
+}

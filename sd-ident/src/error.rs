@@ -28,5 +28,16 @@ pub enum IdentError {
     Numerical(String),
 }
 
+impl IdentError {
+    /// A numerical failure on valid input; everything else is input to fix.
+    pub fn is_numerical(&self) -> bool {
+        match self {
+            IdentError::Model(m) => m.is_numerical(),
+            IdentError::Numerical(_) => true,
+            _ => false,
+        }
+    }
+}
+
 /// Result alias of this crate.
 pub type Result<T> = std::result::Result<T, IdentError>;

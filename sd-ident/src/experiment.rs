@@ -58,6 +58,38 @@ pub struct Experiment {
     pub y: Vec<f64>,
 }
 
+/// The experiments of the manifest file `manifest` whose names pass `keep`, with their data
+/// files read relative to the manifest's folder.
+///
+/// # Errors
+/// [`IdentError::Format`] naming the file that cannot be read, the manifest's and the data
+/// files' format errors.
+pub fn load_experiments(
+    manifest: &std::path::Path,
+    keep: impl Fn(&str) -> bool,
+) -> Result<Vec<Experiment>> {
+    let unreadable = |path: &std::path::Path, e: std::io::Error| IdentError::Format {
+        file: path.display().to_string(),
+        detail: format!("cannot read: {e}"),
+    };
+    let text = std::fs::read_to_string(manifest).map_err(|e| unreadable(manifest, e))?;
+    let specs = parse_manifest(&text)?;
+    let base = manifest
+        .parent()
+        .map(|p| p.to_path_buf())
+        .unwrap_or_default();
+    let mut exps = Vec::new();
+    for spec in specs.into_iter().filter(|s| keep(&s.name)) {
+        let path = base.join(&spec.file);
+        let file = std::fs::File::open(&path).map_err(|e| unreadable(&path, e))?;
+        exps.push(Experiment::from_reader(
+            spec,
+            std::io::BufReader::new(file),
+        )?);
+    }
+    Ok(exps)
+}
+
 fn fmt_err(detail: String) -> IdentError {
     IdentError::Format {
         file: "manifest".into(),
@@ -287,19 +319,79 @@ impl Experiment {
         };
         let y = cols.pop().unwrap_or_default();
         let u = cols.pop().unwrap_or_default();
-        if let Some(p) = spec.period_samples {
-            let needed = p * (spec.skip_periods + 1);
-            if u.len() < needed {
-                return Err(IdentError::Data(format!(
-                    "{}: {} rows, but period_samples = {p} and skip_periods = {} need at least {needed}",
-                    spec.file,
-                    u.len(),
-                    spec.skip_periods
-                )));
-            }
-        }
+        check_periods(&spec, u.len())?;
         Ok(Experiment { spec, r, u, y })
     }
+
+    /// An experiment from recorded arrays (no files): `period` samples per period (None:
+    /// non-periodic), `skip_periods` transient periods, `r` the reference (None: open loop),
+    /// the role [`Role::Validation`].
+    ///
+    /// # Errors
+    /// [`IdentError::Data`] for arrays of different lengths, non-finite samples, a zero period
+    /// or fewer samples than `period · (skip_periods + 1)`; [`IdentError::InvalidArgument`] for
+    /// a sample rate that is not positive.
+    pub fn from_arrays(
+        name: &str,
+        sample_rate_hz: f64,
+        period: Option<usize>,
+        skip_periods: usize,
+        r: Option<Vec<f64>>,
+        u: Vec<f64>,
+        y: Vec<f64>,
+    ) -> Result<Self> {
+        if !(sample_rate_hz.is_finite() && sample_rate_hz > 0.0) {
+            return Err(IdentError::InvalidArgument(format!(
+                "sample rate {sample_rate_hz} Hz must be positive"
+            )));
+        }
+        if u.len() != y.len() || r.as_ref().is_some_and(|r| r.len() != u.len()) {
+            return Err(IdentError::Data(format!(
+                "{name}: r, u and y must have the same length (u {}, y {}{})",
+                u.len(),
+                y.len(),
+                r.as_ref()
+                    .map_or(String::new(), |r| format!(", r {}", r.len()))
+            )));
+        }
+        let all = u.iter().chain(&y).chain(r.iter().flatten());
+        if all.clone().any(|v| !v.is_finite()) {
+            return Err(IdentError::Data(format!(
+                "{name}: a sample is NaN or infinite"
+            )));
+        }
+        if period == Some(0) {
+            return Err(IdentError::Data(format!("{name}: a period of 0 samples")));
+        }
+        let spec = ExperimentSpec {
+            name: name.into(),
+            file: name.into(),
+            sample_rate_hz,
+            period_samples: period,
+            skip_periods,
+            reference: r.as_ref().map(|_| "r".into()),
+            input: "u".into(),
+            output: "y".into(),
+            role: Role::Validation,
+        };
+        check_periods(&spec, u.len())?;
+        Ok(Experiment { spec, r, u, y })
+    }
+}
+
+/// A periodic record must hold its transient periods and one steady period.
+fn check_periods(spec: &ExperimentSpec, rows: usize) -> Result<()> {
+    if let Some(p) = spec.period_samples {
+        let needed = p * (spec.skip_periods + 1);
+        if rows < needed {
+            return Err(IdentError::Data(format!(
+                "{}: {rows} rows, but period_samples = {p} and skip_periods = {} need at least \
+                 {needed}",
+                spec.file, spec.skip_periods
+            )));
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]

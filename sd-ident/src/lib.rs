@@ -11,6 +11,7 @@
 //!   rigid-body poles at z = 1 optionally fixed; order selection).
 
 pub mod error;
+pub mod estimate;
 pub mod experiment;
 pub mod fit;
 pub mod frf;
@@ -21,7 +22,10 @@ pub mod rng;
 pub mod tol;
 
 pub use error::{IdentError, Result};
-pub use experiment::{parse_manifest, read_columns, Experiment, ExperimentSpec, Role};
+pub use estimate::{frf_of_experiment, FrfRequest};
+pub use experiment::{
+    load_experiments, parse_manifest, read_columns, Experiment, ExperimentSpec, Role,
+};
 pub use fit::{
     final_prediction_error, fit, fit_with_progress, model_cost, select_order, FitOptions,
     FitProgress, FitResult, FitWarning, Weighting,

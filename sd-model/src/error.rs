@@ -95,6 +95,12 @@ pub enum ModelError {
 }
 
 impl ModelError {
+    /// A numerical failure on valid input (an iteration that did not converge), as opposed to
+    /// input that must be fixed: the CLI exits 1 for these and 2 for the rest, the Python
+    /// package raises `sdtoolkit.NumericalError` and `ValueError`.
+    pub fn is_numerical(&self) -> bool {
+        matches!(self, ModelError::NotConverged { .. })
+    }
     /// A [`ModelError::DimensionMismatch`] from anything printable.
     pub fn dim(what: impl Into<String>, expected: impl ToString, found: impl ToString) -> Self {
         ModelError::DimensionMismatch {

@@ -42,6 +42,14 @@ pub enum MultirateError {
 /// Result alias of this crate.
 pub type Result<T> = std::result::Result<T, MultirateError>;
 
+impl MultirateError {
+    /// A numerical failure on valid input ([`ModelError::is_numerical`]); everything else is
+    /// input to fix.
+    pub fn is_numerical(&self) -> bool {
+        matches!(self, MultirateError::Model(m) if m.is_numerical())
+    }
+}
+
 pub(crate) fn require_discrete(sys: &sd_model::StateSpace, op: &str) -> Result<f64> {
     sys.ts().ok_or_else(|| {
         MultirateError::Model(ModelError::WrongDomain {

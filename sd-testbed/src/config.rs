@@ -192,6 +192,37 @@ fn controller(t: &toml::Table, mass: f64, ts: f64) -> Result<StateSpace> {
     Ok(k)
 }
 
+/// The configuration `sdctl testbed` runs without `--config` (and `sdtoolkit.testbed()` without
+/// a config): closed-loop identification of the default stage at 5 kHz (the model experiment)
+/// and 1 kHz, five periods of one second each, input injection.
+pub const DEFAULT_CONFIG: &str = r#"
+[[experiment]]
+kind = "identification"
+name = "fast"
+rate_hz = 5000.0
+role = "model"
+pid_bandwidth_hz = 30.0
+pid_lowpass_hz = 1000.0
+period = 5000
+periods = 5
+transient_periods = 1
+f_min = 1.0
+f_max = 2400.0
+injection = "input"
+
+[[experiment]]
+kind = "identification"
+name = "slow"
+rate_hz = 1000.0
+pid_bandwidth_hz = 20.0
+period = 1000
+periods = 5
+transient_periods = 1
+f_min = 1.0
+f_max = 499.0
+injection = "input"
+"#;
+
 /// Parses a configuration (module documentation).
 ///
 /// # Errors

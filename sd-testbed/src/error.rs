@@ -24,5 +24,19 @@ pub enum TestbedError {
     Unstable(String),
 }
 
+impl TestbedError {
+    /// A numerical failure on valid input; everything else (configuration, an unstable loop)
+    /// is input to fix.
+    pub fn is_numerical(&self) -> bool {
+        match self {
+            TestbedError::Model(m) => m.is_numerical(),
+            TestbedError::Multirate(m) => m.is_numerical(),
+            TestbedError::Ident(m) => m.is_numerical(),
+            TestbedError::Hinf(m) => m.is_numerical(),
+            _ => false,
+        }
+    }
+}
+
 /// Result alias of this crate.
 pub type Result<T> = std::result::Result<T, TestbedError>;

@@ -412,6 +412,22 @@ pub fn manifest(experiments: &[ExperimentData]) -> String {
     toml::to_string(&doc).unwrap_or_default()
 }
 
+/// The files `sdctl testbed` (and `sdtoolkit.testbed(out=...)`) write, as (file name, text):
+/// each experiment's `<name>.csv`, the manifest `experiments.toml` and the continuous truth
+/// `truth.json` (model JSON).
+///
+/// # Errors
+/// The truth model cannot be written as JSON.
+pub fn output_files(data: &[ExperimentData], truth: &StateSpace) -> Result<Vec<(String, String)>> {
+    let mut files: Vec<(String, String)> = data
+        .iter()
+        .map(|d| (format!("{}.csv", d.name), d.csv()))
+        .collect();
+    files.push(("experiments.toml".into(), manifest(data)));
+    files.push(("truth.json".into(), sd_model::model_to_json_string(truth)?));
+    Ok(files)
+}
+
 /// The continuous truth (linear part) as a model, for export.
 pub fn truth_model(truth: &Truth) -> Result<StateSpace> {
     let m = truth.linear_model()?;

@@ -12,11 +12,11 @@ pub mod experiments;
 pub mod sim;
 pub mod truth;
 
-pub use config::{parse_config, run_config, TestbedConfig};
+pub use config::{parse_config, run_config, TestbedConfig, DEFAULT_CONFIG};
 pub use error::{Result, TestbedError};
 pub use experiments::{
-    manifest, run_identification, run_standstill, truth_model, ExperimentData, Identification,
-    Injection, Noise, Standstill,
+    manifest, output_files, run_identification, run_standstill, truth_model, ExperimentData,
+    Identification, Injection, Noise, Standstill,
 };
 pub use sim::{default_substeps, NonIdealities, PlantSim};
 pub use truth::{ModeSpec, Truth};

@@ -450,6 +450,17 @@ fn compare_c2d_freqresp(py: &Value, ctx: &Ctx, o: &Ours, e: &mut Entries) {
     e.freqresp["ratio_python_control_over_sdctl_process"] = json!(t_pf / o.t_fr_proc);
     e.freqresp["ratio_python_control_over_library"] = json!(t_pf / o.t_fr_lib);
     e.freqresp["max_rel_difference_sampled"] = json!(worst);
+    // the same calls through our Python package: its overhead over the library call
+    let sdt = &py["sdtoolkit"];
+    if let (Some(tc), Some(tf)) = (sdt["c2d_s"].as_f64(), sdt["freqresp_s"].as_f64()) {
+        e.c2d["python_sdtoolkit_s"] = json!(tc);
+        e.c2d["ratio_python_call_over_library"] = json!(tc / o.t_c2d);
+        e.freqresp["python_sdtoolkit_s"] = json!(tf);
+        e.freqresp["ratio_python_call_over_library"] = json!(tf / o.t_fr_lib);
+        e.freqresp["ratio_python_control_over_sdtoolkit"] = json!(t_pf / tf);
+    } else {
+        e.c2d["python_sdtoolkit"] = sdt.clone();
+    }
 }
 
 /// The downsample, DARE, loopshaping and FRF peers.

@@ -49,12 +49,7 @@ impl Args {
                 eprintln!("[diagnose {:6.2} s] {m}", start.elapsed().as_secs_f64())
             }
         })
-        .map_err(|e| match e {
-            sd_diagnose::DiagnoseError::Numerical(_) => {
-                CliError::numerical(format!("{manifest}: {e}"))
-            }
-            _ => CliError::input(format!("{manifest}: {e}")),
-        })?;
+        .map_err(|e| crate::io::from_diagnose(&manifest, e))?;
         let figs = crate::io::write_folder(&out, |dir| {
             sd_report::diagnosis::write_all(dir, &d, &manifest).map_err(|e| match e {
                 sd_report::ReportError::Json(_) => CliError::numerical(e.to_string()),

@@ -37,62 +37,12 @@ impl Args {
             .ok_or_else(|| {
                 CliError::input(format!("{manifest}: no experiment named `{experiment}`"))
             })?;
-        let fs = exp.spec.sample_rate_hz;
-        let ident = |e| from_ident(&experiment, e);
-        let (frd, warnings) = match exp.spec.period_samples {
-            Some(p) => {
-                let mut opt = sd_ident::PeriodicOptions::new(p, exp.spec.skip_periods);
-                if let Some(f) = excited_fraction {
-                    if !(f.is_finite() && f > 0.0 && f < 1.0) {
-                        return Err(CliError::input(format!(
-                            "--excited-fraction {f} must be in (0, 1)"
-                        )));
-                    }
-                    opt.excited_fraction = f;
-                }
-                let est = sd_ident::frf_periodic(fs, exp.r.as_deref(), &exp.u, &exp.y, &opt)
-                    .map_err(ident)?;
-                let warnings = est.warnings(!keep_low_snr);
-                let frd = if keep_low_snr {
-                    est.frd
-                } else {
-                    est.trusted_frd().map_err(ident)?
-                };
-                (frd, warnings)
-            }
-            None => {
-                let lo = sd_ident::LpmOptions::default();
-                match &exp.r {
-                    Some(r) => {
-                        let (frd, snr) = sd_ident::lpm_closed_loop_snr(fs, r, &exp.u, &exp.y, &lo)
-                            .map_err(ident)?;
-                        let warnings = sd_ident::snr_warnings(&frd, &snr, true, !keep_low_snr);
-                        let frd = if keep_low_snr {
-                            frd
-                        } else {
-                            sd_ident::trusted(&frd, &snr).map_err(ident)?
-                        };
-                        (frd, warnings)
-                    }
-                    None => {
-                        let n = exp.u.len();
-                        let x = nalgebra::DMatrix::from_column_slice(n, 1, &exp.u);
-                        let z = nalgebra::DMatrix::from_column_slice(n, 1, &exp.y);
-                        let frd = sd_ident::lpm(fs, &x, &z, &lo).map_err(ident)?.frd;
-                        (frd, Vec::new())
-                    }
-                }
-            }
+        let req = sd_ident::FrfRequest {
+            excited_fraction,
+            keep_low_snr,
         };
-        let mut warnings = warnings;
-        if let Some(w) = sd_ident::feedback_only(&exp.u, &exp.y).map_err(ident)? {
-            if !keep_low_snr {
-                return Err(CliError::input(format!(
-                    "{experiment}: {w} (--keep-low-snr writes the estimate anyway)"
-                )));
-            }
-            warnings.insert(0, w);
-        }
+        let (frd, warnings) =
+            sd_ident::frf_of_experiment(&exp, &req).map_err(|e| from_ident(&experiment, e))?;
         for w in &warnings {
             eprintln!("sdctl: warning: {experiment}: {w}");
         }

@@ -1,0 +1,78 @@
+//! The FRF of one recorded experiment, the way `sdctl frf` and the Python package estimate it:
+//! periodic records (the manifest gives `period`) by the period average of [`frf_periodic`]
+//! (closed loop through the reference when there is one), non-periodic ones by the local
+//! polynomial method ([`lpm_closed_loop_snr`] with a reference, [`lpm()`] without), with the
+//! data-quality warnings of [`crate::quality`]. Lines whose input is at its own noise level are
+//! dropped unless `keep_low_snr`; a record whose input is explained by its output alone (pure
+//! feedback, no excitation) is refused unless `keep_low_snr`.
+
+use crate::{
+    feedback_only, frf_periodic, lpm, lpm_closed_loop_snr, snr_warnings, trusted, DataWarning,
+    Experiment, IdentError, LpmOptions, PeriodicOptions, Result,
+};
+use sd_model::Frd;
+
+/// What [`frf_of_experiment`] may change from its defaults.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FrfRequest {
+    /// Lines count as excited where the input's power is above this fraction of the strongest
+    /// line's (periodic records; `None`: the default of [`PeriodicOptions::new`]).
+    pub excited_fraction: Option<f64>,
+    /// Keep lines (and records) whose input is at its noise level, with a warning.
+    pub keep_low_snr: bool,
+}
+
+/// The FRF of `exp` with its data-quality warnings (module documentation).
+///
+/// # Errors
+/// [`IdentError::InvalidArgument`] for an `excited_fraction` outside (0, 1), the estimators'
+/// errors, [`IdentError::Data`] for a record without excitation (unless `keep_low_snr`).
+pub fn frf_of_experiment(exp: &Experiment, req: &FrfRequest) -> Result<(Frd, Vec<DataWarning>)> {
+    let fs = exp.spec.sample_rate_hz;
+    let keep = req.keep_low_snr;
+    let (frd, mut warnings) = match exp.spec.period_samples {
+        Some(p) => {
+            let mut opt = PeriodicOptions::new(p, exp.spec.skip_periods);
+            if let Some(f) = req.excited_fraction {
+                if !(f.is_finite() && f > 0.0 && f < 1.0) {
+                    return Err(IdentError::InvalidArgument(format!(
+                        "excited fraction {f} must be in (0, 1)"
+                    )));
+                }
+                opt.excited_fraction = f;
+            }
+            let est = frf_periodic(fs, exp.r.as_deref(), &exp.u, &exp.y, &opt)?;
+            let warnings = est.warnings(!keep);
+            let frd = if keep { est.frd } else { est.trusted_frd()? };
+            (frd, warnings)
+        }
+        None => {
+            let lo = LpmOptions::default();
+            match &exp.r {
+                Some(r) => {
+                    let (frd, snr) = lpm_closed_loop_snr(fs, r, &exp.u, &exp.y, &lo)?;
+                    let warnings = snr_warnings(&frd, &snr, true, !keep);
+                    let frd = if keep { frd } else { trusted(&frd, &snr)? };
+                    (frd, warnings)
+                }
+                None => {
+                    let n = exp.u.len();
+                    let x = nalgebra::DMatrix::from_column_slice(n, 1, &exp.u);
+                    let z = nalgebra::DMatrix::from_column_slice(n, 1, &exp.y);
+                    (lpm(fs, &x, &z, &lo)?.frd, Vec::new())
+                }
+            }
+        }
+    };
+    if let Some(w) = feedback_only(&exp.u, &exp.y)? {
+        if !keep {
+            return Err(IdentError::Data(format!(
+                "{}: {w} (to keep the estimate anyway: `--keep-low-snr` in sdctl, `keep_low_snr=True` \
+                 in Python)",
+                exp.spec.name
+            )));
+        }
+        warnings.insert(0, w);
+    }
+    Ok((frd, warnings))
+}

@@ -1,0 +1,459 @@
+"""sdtoolkit: sampled-data control design for high-precision motion systems.
+
+The Python front of the sd-toolkit Rust crates: the same numbers as ``sdctl``, over numpy
+arrays, with python-control's names where the two overlap.
+
+Models are :class:`StateSpace` (``A``, ``B``, ``C``, ``D`` as float64 arrays, ``dt`` in seconds,
+``None`` for continuous time); measured frequency responses are :class:`Frd` (``freq_hz``,
+``response`` of shape ``(ny, nu, nf)``, ``variance`` of the same shape or ``None``). Both convert
+to and from python-control (``to_control()``, ``from_control()``) when it is installed; it is
+never required.
+
+Errors: input that must be fixed raises ``ValueError``; a numerical failure on valid input
+raises :class:`NumericalError` (an ``ArithmeticError``); both carry the library's one-line
+message. Long calls release the interpreter lock.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from typing import Any, Iterable, Optional, Sequence, Union
+
+import numpy as np
+
+from . import _native
+from ._native import NumericalError
+
+#: The virtual stage's default configuration (TOML): identification at 5 kHz (the model
+#: experiment) and 1 kHz, five periods of one second, input injection. Prepend a
+#: ``[nonideal]`` table (``hold_delay``, ``averaging``, ``clock_error``, ``quantization``) to
+#: give the stage rate-tied non-idealities.
+DEFAULT_TESTBED_CONFIG: str = _native.DEFAULT_TESTBED_CONFIG
+
+__all__ = [
+    "StateSpace",
+    "Frd",
+    "Result",
+    "NumericalError",
+    "DEFAULT_TESTBED_CONFIG",
+    "c2d",
+    "d2c",
+    "alias",
+    "downsample",
+    "freqresp",
+    "dare",
+    "care",
+    "loopshape",
+    "weight_pid",
+    "frf",
+    "frf_from_arrays",
+    "fit",
+    "analyze",
+    "diagnose",
+    "testbed",
+]
+
+
+def _matrix(x: Any, name: str, rows: Optional[int] = None, cols: Optional[int] = None) -> np.ndarray:
+    """A float64 2-D array (scalars and vectors promoted; empty shapes from rows/cols)."""
+    a = np.asarray(x, dtype=np.float64)
+    if a.size == 0:
+        return np.zeros((rows or 0, cols or 0))
+    if a.ndim == 0:
+        a = a.reshape(1, 1)
+    elif a.ndim == 1:
+        # a vector: a row for C, a column for B, as python-control reads them
+        a = a.reshape(1, -1) if name == "C" else a.reshape(-1, 1)
+    elif a.ndim != 2:
+        raise ValueError(f"{name} must be a matrix (2-D array), got {a.ndim} dimensions")
+    return np.ascontiguousarray(a)
+
+
+class StateSpace:
+    """A state-space model ``x' = A x + B u, y = C x + D u`` (``dt`` None: continuous).
+
+    Attributes ``A``, ``B``, ``C``, ``D`` (float64 arrays) and ``dt`` follow python-control.
+    Shapes are checked by the toolkit when the model is used.
+    """
+
+    def __init__(self, A: Any, B: Any, C: Any, D: Any, dt: Optional[float] = None):
+        a = _matrix(A, "A")
+        n = a.shape[0]
+        d = _matrix(D, "D")
+        self.A = a
+        self.B = _matrix(B, "B", n, d.shape[1])
+        self.C = _matrix(C, "C", d.shape[0], n)
+        self.D = d
+        if dt is not None and (dt is True or float(dt) == 0.0):
+            raise ValueError(
+                "dt must be a sample period in seconds, or None for continuous time "
+                "(python-control's dt=0 means continuous: pass None)"
+            )
+        self.dt = None if dt is None else float(dt)
+
+    @property
+    def nstates(self) -> int:
+        return self.A.shape[0]
+
+    @property
+    def ninputs(self) -> int:
+        return self.D.shape[1]
+
+    @property
+    def noutputs(self) -> int:
+        return self.D.shape[0]
+
+    def isdtime(self) -> bool:
+        return self.dt is not None
+
+    def _tuple(self):
+        return (self.A, self.B, self.C, self.D, self.dt)
+
+    def to_control(self):
+        """This model as ``control.StateSpace`` (python-control must be installed)."""
+        import control
+
+        return control.StateSpace(self.A, self.B, self.C, self.D, 0 if self.dt is None else self.dt)
+
+    @classmethod
+    def from_control(cls, sys) -> "StateSpace":
+        """A ``control.StateSpace`` (or anything with ``A, B, C, D, dt``) as a StateSpace."""
+        dt = getattr(sys, "dt", None)
+        if dt is True:
+            raise ValueError("the python-control model has dt=True (unspecified period): give it a period")
+        return cls(sys.A, sys.B, sys.C, sys.D, None if not dt else float(dt))
+
+    def to_json(self) -> str:
+        """The toolkit's model JSON (docs/formats.md), as ``sdctl`` reads it."""
+        return _native.model_to_json(self._tuple())
+
+    @classmethod
+    def from_json(cls, text: str) -> "StateSpace":
+        """A model from the toolkit's model JSON text (``{"type": "ss", ...}`` or ``"tf"``)."""
+        return _from_tuple(_native.model_from_json(text))
+
+    def __repr__(self) -> str:
+        t = "continuous" if self.dt is None else f"dt={self.dt:g} s"
+        return f"StateSpace({self.nstates} states, {self.ninputs} inputs, {self.noutputs} outputs, {t})"
+
+
+def _ss(sys: Any, name: str = "sys") -> StateSpace:
+    if isinstance(sys, StateSpace):
+        return sys
+    if all(hasattr(sys, k) for k in ("A", "B", "C", "D")):
+        return StateSpace.from_control(sys)
+    raise TypeError(f"{name} must be a sdtoolkit.StateSpace or a control.StateSpace, got {type(sys).__name__}")
+
+
+def _from_tuple(t) -> StateSpace:
+    return StateSpace(*t)
+
+
+class Frd:
+    """A measured (or computed) frequency response.
+
+    ``freq_hz`` (nf,), ``response`` complex ``(ny, nu, nf)``, ``variance`` ``(ny, nu, nf)`` or
+    None (the variance of each entry's estimate), ``dt`` the sample period of the data (None:
+    continuous), ``warnings`` the estimator's data-quality warnings.
+    """
+
+    def __init__(self, freq_hz: Any, response: Any, variance: Any = None, dt: Optional[float] = None,
+                 warnings: Sequence[str] = ()):
+        f = np.ascontiguousarray(np.asarray(freq_hz, dtype=np.float64).reshape(-1))
+        r = np.asarray(response, dtype=np.complex128)
+        if r.ndim == 1:
+            r = r.reshape(1, 1, -1)
+        if r.ndim != 3:
+            raise ValueError("response must be (nf,) or (ny, nu, nf)")
+        self.freq_hz = f
+        self.response = np.ascontiguousarray(r)
+        if variance is not None:
+            v = np.asarray(variance, dtype=np.float64)
+            variance = np.ascontiguousarray(v.reshape(1, 1, -1) if v.ndim == 1 else v)
+        self.variance = variance
+        self.dt = None if dt is None else float(dt)
+        self.warnings = list(warnings)
+
+    def to_control(self):
+        """This FRD as ``control.FrequencyResponseData`` (ω in rad/s)."""
+        import control
+
+        return control.FrequencyResponseData(self.response, 2 * np.pi * self.freq_hz,
+                                             dt=0 if self.dt is None else self.dt)
+
+    @classmethod
+    def from_control(cls, frd, variance: Any = None) -> "Frd":
+        """A ``control.FrequencyResponseData`` as an Frd (its ω in rad/s becomes Hz)."""
+        dt = getattr(frd, "dt", None)
+        r = np.asarray(frd.frdata if hasattr(frd, "frdata") else frd.fresp)
+        return cls(np.asarray(frd.omega) / (2 * np.pi), r, variance, None if not dt or dt is True else float(dt))
+
+    def to_json(self) -> str:
+        """The toolkit's FRD JSON (docs/formats.md), as ``sdctl`` reads it."""
+        return _native.frd_to_json(self.freq_hz, self.response, self.variance, self.dt)
+
+    @classmethod
+    def from_json(cls, text: str) -> "Frd":
+        """An FRD from the toolkit's FRD JSON text."""
+        return _frd_from_native(_native.frd_from_json(text), [])
+
+    def __repr__(self) -> str:
+        ny, nu, nf = self.response.shape
+        return f"Frd({ny}x{nu}, {nf} lines, variance {'yes' if self.variance is not None else 'no'})"
+
+
+def _frd_from_native(t, warnings) -> Frd:
+    f, r, v, dt = t
+    return Frd(f, r, v, dt, warnings)
+
+
+class Result:
+    """A result object: the fields of the toolkit's JSON output as attributes (and keys).
+
+    Nested objects are Results too, lists stay lists; ``to_dict()`` gives the plain data back.
+    """
+
+    def __init__(self, fields: dict):
+        self.__dict__["_fields"] = {k: _wrap(v) for k, v in fields.items()}
+
+    def __getattr__(self, k: str):
+        try:
+            return self.__dict__["_fields"][k]
+        except KeyError:
+            raise AttributeError(f"no field {k!r}; fields: {', '.join(self._fields)}") from None
+
+    def __getitem__(self, k: str):
+        return self._fields[k]
+
+    def __contains__(self, k: str) -> bool:
+        return k in self._fields
+
+    def keys(self):
+        return self._fields.keys()
+
+    def to_dict(self) -> dict:
+        return {k: _unwrap(v) for k, v in self._fields.items()}
+
+    def __repr__(self) -> str:
+        return "Result(" + ", ".join(self._fields) + ")"
+
+    def __dir__(self):
+        return list(self._fields) + ["to_dict", "keys"]
+
+
+def _wrap(v):
+    if isinstance(v, dict):
+        return Result(v)
+    if isinstance(v, list):
+        return [_wrap(x) for x in v]
+    return v
+
+
+def _unwrap(v):
+    if isinstance(v, Result):
+        return v.to_dict()
+    if isinstance(v, list):
+        return [_unwrap(x) for x in v]
+    return v
+
+
+# ---------------------------------------------------------------- models
+
+
+def c2d(*args, method: str = "zoh", hold_delay: float = 0.0, averaging: float = 0.0,
+        prewarp_hz: Optional[float] = None) -> StateSpace:
+    """Exact discretisation: ``c2d(sys, dt)`` or ``c2d(A, B, C, D, dt)``.
+
+    ``method`` "zoh" (exact zero-order hold), "foh" (triangle hold) or "tustin" (bilinear,
+    optionally prewarped at ``prewarp_hz``). ``hold_delay`` (fraction of the period the hold
+    switches late, may exceed 1) and ``averaging`` (the sampler returns the mean of the last
+    fraction of the period) give the rate-tied non-ideal ZOH.
+    """
+    if len(args) == 2:
+        sys, dt = _ss(args[0]), args[1]
+    elif len(args) == 5:
+        sys, dt = StateSpace(*args[:4]), args[4]
+    else:
+        raise TypeError("c2d(sys, dt) or c2d(A, B, C, D, dt)")
+    if sys.dt is not None:
+        raise ValueError("c2d takes a continuous model (dt is None)")
+    return _from_tuple(_native.c2d(sys._tuple(), float(dt), method, float(hold_delay), float(averaging),
+                                   prewarp_hz))
+
+
+def d2c(sys, near_hz: Union[float, Iterable[float], None] = None, max_hz: Optional[float] = None,
+        return_aliases: bool = False):
+    """The continuous model of a discrete one (inverse of exact ZOH).
+
+    A sampled mode has many continuous candidates (its aliases); the principal one is the
+    default and ``near_hz`` picks, per mode, the branch nearest each given frequency (e.g. 653
+    to turn a 347 Hz mode sampled at 1 kHz back into 653 Hz). With ``return_aliases`` the
+    result is ``(model, modes, picks)``: per mode its candidates up to ``max_hz`` (default 3 ×
+    the sample rate) as ``(freq_hz, damping)`` and the branches chosen.
+    """
+    s = _ss(sys)
+    near = [] if near_hz is None else [float(x) for x in np.atleast_1d(near_hz)]
+    t, modes, picks = _native.d2c(s._tuple(), near, max_hz)
+    out = _from_tuple(t)
+    if return_aliases:
+        return out, [Result(m) for m in modes], [Result(p) for p in picks]
+    return out
+
+
+def alias(freq_hz: float, rate_hz: float, max_hz: Optional[float] = None, factor: Optional[int] = None) -> Result:
+    """Where ``freq_hz`` appears when sampled at ``rate_hz`` (``alias_hz``, ``fold_index``,
+    ``mirrored``), the continuous frequencies up to ``max_hz`` (default 5 × the rate) that appear
+    there, and with ``factor`` F the frequencies of a model F times faster that fold onto it,
+    as ``(k, fast_hz, weight)`` with the slow hold's weight ``|H_F|/F``."""
+    d = _native.alias(float(freq_hz), float(rate_hz), max_hz, factor)
+    if "fast_folds" in d:
+        d["fast_folds"] = [{"k": k, "fast_hz": f, "weight": w} for k, f, w in d["fast_folds"]]
+    return Result(d)
+
+
+def downsample(sys, F: int, hold_delay: float = 0.0, averaging: float = 0.0) -> StateSpace:
+    """Lemma 6: the exact model at the rate F times slower (the slow hold and sampler applied to
+    the fast model, same state coordinates). ``hold_delay`` and ``averaging`` are fractions of
+    the slow period, multiples of 1/F."""
+    if isinstance(F, bool) or int(F) != F or F < 1:
+        raise ValueError(f"F = {F!r}: the rate factor must be a positive integer")
+    return _from_tuple(_native.downsample(_ss(sys)._tuple(), int(F), float(hold_delay), float(averaging)))
+
+
+def freqresp(sys, f_hz: Any, squeeze: bool = True, return_path: bool = False):
+    """The frequency response at ``f_hz`` (Hz): complex ``(ny, nu, nf)``, or ``(nf,)`` for a
+    SISO model when ``squeeze``. ``return_path`` adds which evaluator ran ("block_diagonal" O(n)
+    per point, "hessenberg" O(n²), "dense" O(n³))."""
+    f = np.ascontiguousarray(np.asarray(f_hz, dtype=np.float64).reshape(-1))
+    g, path = _native.freqresp(_ss(sys)._tuple(), f)
+    if squeeze and g.shape[0] == 1 and g.shape[1] == 1:
+        g = g[0, 0]
+    return (g, path) if return_path else g
+
+
+# ---------------------------------------------------------------- design and analysis
+
+
+def dare(A, B, Q, R, S=None) -> Result:
+    """The stabilising solution of the discrete algebraic Riccati equation
+    ``AᵀXA − X − (AᵀXB + S)(R + BᵀXB)⁻¹(BᵀXA + Sᵀ) + Q = 0``: ``X``, ``K`` (``u = −K x``),
+    the relative ``residual``, ``closed_loop`` (spectral radius of A − BK) and ``condition``.
+    No stabilising solution raises ValueError with the reason."""
+    m = [_matrix(x, n) for x, n in ((A, "A"), (B, "B"), (Q, "Q"), (R, "R"))]
+    s = None if S is None else _matrix(S, "S")
+    return Result(_native.dare(*m, s))
+
+
+def care(A, B, Q, R, S=None) -> Result:
+    """The stabilising solution of ``AᵀX + XA − (XB + S)R⁻¹(BᵀX + Sᵀ) + Q = 0`` (fields as
+    :func:`dare`, ``closed_loop`` the spectral abscissa)."""
+    m = [_matrix(x, n) for x, n in ((A, "A"), (B, "B"), (Q, "Q"), (R, "R"))]
+    s = None if S is None else _matrix(S, "S")
+    return Result(_native.care(*m, s))
+
+
+def loopshape(P, W1=None, W2=None, factor: float = 1.1, strictly_proper: bool = False) -> Result:
+    """McFarlane–Glover H∞ loopshaping of plant ``P`` with weights ``W1`` (pre) and ``W2``
+    (post): ``controller`` (the StateSpace to implement, ``W1 K∞ W2``), ``shaped_controller``,
+    ``shaped_plant``, ``gamma_min``, ``gamma`` (= factor·γ_min), ``achieved``,
+    ``stability_margin`` (1/achieved), ``closed_loop_stable``, ``closed_loop_radius``,
+    ``riccati`` (equation, residual, condition)."""
+    w1 = None if W1 is None else _ss(W1, "W1")._tuple()
+    w2 = None if W2 is None else _ss(W2, "W2")._tuple()
+    d = _native.loopshape(_ss(P, "P")._tuple(), w1, w2, float(factor), bool(strictly_proper))
+    for k in ("controller", "shaped_controller", "shaped_plant"):
+        d[k] = _from_tuple(d[k])
+    d["riccati"] = [{"equation": e, "residual": r, "condition": c} for e, r, c in d["riccati"]]
+    return Result(d)
+
+
+def weight_pid(bandwidth_hz: float, mass: float, dt: Optional[float] = None, integrator_ratio: float = 5.0,
+               lead_ratio: float = 3.0, lowpass_ratio: float = 0.0, lowpass_zeta: float = 0.7) -> StateSpace:
+    """A PID-like loopshaping weight for a rigid body of ``mass`` with crossover near
+    ``bandwidth_hz``: integrator at ω_c/integrator_ratio, lead between ω_c/lead_ratio and
+    ω_c·lead_ratio, an optional low-pass at ω_c·lowpass_ratio (0: none); discrete (Tustin) when
+    ``dt`` is given."""
+    return _from_tuple(_native.weight_pid(float(bandwidth_hz), float(mass), dt, float(integrator_ratio),
+                                          float(lead_ratio), float(lowpass_ratio), float(lowpass_zeta)))
+
+
+def analyze(P, K) -> Result:
+    """The loop of plant ``P`` and controller ``K`` (negative feedback), as ``sdctl analyze``:
+    ``stable``, ``closed_loop_radius``, ``bandwidth_hz``, ``crossover_hz``,
+    ``sensitivity_peak_db`` / ``_hz``, ``gain_margin_db``, ``phase_margin_deg``,
+    ``modulus_margin``."""
+    return Result(_native.analyze(_ss(P, "P")._tuple(), _ss(K, "K")._tuple()))
+
+
+# ---------------------------------------------------------------- data
+
+
+def frf(manifest: Union[str, os.PathLike], experiment: str, excited_fraction: Optional[float] = None,
+        keep_low_snr: bool = False) -> Frd:
+    """The FRF of one experiment of a manifest (docs/formats.md), as ``sdctl frf``: periodic
+    records by the period average (closed loop through the reference when there is one), others
+    by the local polynomial method; lines without excitation dropped unless ``keep_low_snr``."""
+    t, w = _native.frf(os.fspath(manifest), experiment, excited_fraction, bool(keep_low_snr))
+    return _frd_from_native(t, w)
+
+
+def frf_from_arrays(r, u, y, fs: float, period: Optional[int] = None, skip_periods: int = 0,
+                    excited_fraction: Optional[float] = None, keep_low_snr: bool = False) -> Frd:
+    """The FRF of recorded arrays at ``fs`` Hz: ``period`` samples per period (None: the
+    local polynomial method for non-periodic data), ``skip_periods`` transient periods, ``r`` the
+    reference (None: open loop ``Y/U``)."""
+    vec = lambda x: np.ascontiguousarray(np.asarray(x, dtype=np.float64).reshape(-1))
+    t, w = _native.frf_from_arrays(None if r is None else vec(r), vec(u), vec(y), float(fs),
+                                   None if period is None else int(period), int(skip_periods),
+                                   excited_fraction, bool(keep_low_snr))
+    return _frd_from_native(t, w)
+
+
+def fit(frd: Frd, order: int, rigid_body: int = 0, strictly_proper: bool = False, weighting: str = "variance",
+        min_damping: float = 0.0) -> Result:
+    """A discrete-time rational model of a SISO FRD (order up to ~60; SK iterations then
+    Levenberg–Marquardt on the variance-weighted cost; ``rigid_body`` poles fixed at z = 1):
+    ``model`` (StateSpace), ``cost``, ``median_rel_error``, ``line_cost``, ``poles``,
+    ``warnings``."""
+    if not isinstance(frd, Frd):
+        frd = Frd.from_control(frd)
+    if frd.dt is None:
+        raise ValueError("fit needs a discrete-time FRD (its dt fixes z = e^{jωT})")
+    d = _native.fit(frd.freq_hz, frd.response, frd.variance, frd.dt, int(order), int(rigid_body),
+                    bool(strictly_proper), weighting, float(min_damping))
+    d["model"] = _from_tuple(d["model"])
+    r = Result({k: v for k, v in d.items() if k not in ("line_cost", "poles")})
+    r._fields["line_cost"] = d["line_cost"]
+    r._fields["poles"] = d["poles"]
+    return r
+
+
+def diagnose(manifest: Union[str, os.PathLike], model=None, alpha: float = 0.01, max_order: int = 60,
+             out: Union[str, os.PathLike, None] = None) -> Result:
+    """Why a model misses experiments at other rates (``sdctl diagnose``): the fields of
+    ``diagnosis.json`` (docs/diagnosis.md) — ``verdict``, ``cause``, ``causes``, ``parameters``,
+    ``gain``, ``experiments``, ``evidence``, … . ``model`` (a StateSpace at the model
+    experiment's rate) replaces the fitted one; ``out`` also writes the report folder."""
+    m = None if model is None else _ss(model, "model")._tuple()
+    text = _native.diagnose(os.fspath(manifest), m, float(alpha), int(max_order),
+                            None if out is None else os.fspath(out))
+    return Result(json.loads(text))
+
+
+def testbed(config: Union[str, os.PathLike, None] = None, out: Union[str, os.PathLike, None] = None) -> Result:
+    """The virtual wafer stage (``sdctl testbed``). ``config``: a TOML file or TOML text (None:
+    identification at 5 kHz and 1 kHz). Returns ``experiments`` (name, rate_hz, period,
+    skip_periods, role, r, u, y arrays), ``truth`` (the continuous linear model) and, with
+    ``out``, ``manifest`` (the path of the experiments.toml written there with the CSVs and
+    truth.json)."""
+    text = None
+    if config is not None:
+        c = os.fspath(config)
+        text = open(c).read() if os.path.isfile(c) else c
+    o = None if out is None else os.fspath(out)
+    exps, truth = _native.testbed(text, o)
+    d = {"experiments": exps, "truth": None, "manifest": None if o is None else os.path.join(o, "experiments.toml")}
+    r = Result(d)
+    r._fields["truth"] = _from_tuple(truth)
+    return r

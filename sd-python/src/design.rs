@@ -1,0 +1,164 @@
+//! Design and analysis: `dare`, `care`, `loopshape`, `weight_pid`, `analyze`.
+
+use crate::{mat, np, py_err, sys_in, sys_out, SysIn, SysOut};
+use numpy::PyReadonlyArray2;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+/// A Riccati solution as a dict: `X`, `K` (the gain, `u = −K x`), the relative `residual`, the
+/// closed loop's spectral radius (DARE) or abscissa (CARE), the relative `condition` estimate.
+fn riccati<'py>(py: Python<'py>, r: &sd_hinf::RiccatiSolution) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("X", np(py, &r.x))?;
+    d.set_item("K", np(py, &r.gain))?;
+    d.set_item("residual", r.residual)?;
+    d.set_item("closed_loop", r.closed_loop)?;
+    d.set_item("condition", r.condition)?;
+    Ok(d)
+}
+
+type Mat<'py> = PyReadonlyArray2<'py, f64>;
+type M = nalgebra::DMatrix<f64>;
+
+/// One Riccati solver on the boundary's matrices, with the interpreter lock released.
+fn solve<'py>(
+    py: Python<'py>,
+    solver: fn(&M, &M, &M, &M, Option<&M>) -> sd_hinf::Result<sd_hinf::RiccatiSolution>,
+    [a, b, q, r]: [Mat<'py>; 4],
+    s: Option<Mat<'py>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let (a, b, q, r) = (mat(&a), mat(&b), mat(&q), mat(&r));
+    let s = s.as_ref().map(mat);
+    let sol = py
+        .detach(|| solver(&a, &b, &q, &r, s.as_ref()))
+        .map_err(py_err)?;
+    riccati(py, &sol)
+}
+
+/// The stabilising solution of `AᵀXA − X − (AᵀXB + S)(R + BᵀXB)⁻¹(BᵀXA + Sᵀ) + Q = 0`
+/// (structure-preserving doubling, Newton-refined). No solution raises `ValueError` with the
+/// reason.
+#[pyfunction]
+#[pyo3(signature = (a, b, q, r, s=None))]
+fn dare<'py>(
+    py: Python<'py>,
+    a: Mat<'py>,
+    b: Mat<'py>,
+    q: Mat<'py>,
+    r: Mat<'py>,
+    s: Option<Mat<'py>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    solve(py, sd_hinf::dare, [a, b, q, r], s)
+}
+
+/// The stabilising solution of `AᵀX + XA − (XB + S)R⁻¹(BᵀX + Sᵀ) + Q = 0` (ordered
+/// Hamiltonian Schur, Newton-refined).
+#[pyfunction]
+#[pyo3(signature = (a, b, q, r, s=None))]
+fn care<'py>(
+    py: Python<'py>,
+    a: Mat<'py>,
+    b: Mat<'py>,
+    q: Mat<'py>,
+    r: Mat<'py>,
+    s: Option<Mat<'py>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    solve(py, sd_hinf::care, [a, b, q, r], s)
+}
+
+/// McFarlane–Glover loopshaping of `plant` with pre-weight `w1` and post-weight `w2`: the
+/// controller to implement (`K = W1 K∞ W2`), the shaped controller and the figures of the
+/// design (γ_min, γ, achieved norm, closed-loop stability, Riccati residuals).
+#[pyfunction]
+#[pyo3(signature = (plant, w1, w2, factor, strictly_proper))]
+fn loopshape<'py>(
+    py: Python<'py>,
+    plant: SysIn<'py>,
+    w1: Option<SysIn<'py>>,
+    w2: Option<SysIn<'py>>,
+    factor: f64,
+    strictly_proper: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let p = sys_in(&plant)?;
+    let w1 = w1.as_ref().map(sys_in).transpose()?;
+    let w2 = w2.as_ref().map(sys_in).transpose()?;
+    let opt = sd_hinf::LoopshapeOptions {
+        factor,
+        strictly_proper,
+    };
+    let d = py
+        .detach(|| sd_hinf::loopshape(&p, w1.as_ref(), w2.as_ref(), &opt))
+        .map_err(py_err)?;
+    let out = PyDict::new(py);
+    out.set_item("controller", sys_out(py, &d.controller))?;
+    out.set_item("shaped_controller", sys_out(py, &d.shaped_controller))?;
+    out.set_item("shaped_plant", sys_out(py, &d.shaped_plant))?;
+    out.set_item("gamma_min", d.gamma_min)?;
+    out.set_item("gamma", d.gamma)?;
+    out.set_item("achieved", d.achieved)?;
+    out.set_item("stability_margin", 1.0 / d.achieved)?;
+    out.set_item("closed_loop_stable", d.closed_loop_stable)?;
+    out.set_item("closed_loop_radius", d.closed_loop_radius)?;
+    let ric: Vec<(String, f64, f64)> = d
+        .riccati
+        .iter()
+        .map(|r| (r.name.clone(), r.residual, r.condition))
+        .collect();
+    out.set_item("riccati", ric)?;
+    Ok(out)
+}
+
+/// The PID-like loopshaping weight of `sd_hinf::weights::pid` (crossover `bandwidth_hz`, a
+/// rigid body of `mass`; continuous when `dt` is None).
+#[pyfunction]
+#[pyo3(signature = (bandwidth_hz, mass, dt, integrator_ratio, lead_ratio, lowpass_ratio, lowpass_zeta))]
+fn weight_pid<'py>(
+    py: Python<'py>,
+    bandwidth_hz: f64,
+    mass: f64,
+    dt: Option<f64>,
+    integrator_ratio: f64,
+    lead_ratio: f64,
+    lowpass_ratio: f64,
+    lowpass_zeta: f64,
+) -> PyResult<SysOut<'py>> {
+    let opt = sd_hinf::weights::PidOptions {
+        integrator_ratio,
+        lead_ratio,
+        lowpass_ratio,
+        lowpass_zeta,
+    };
+    let w = sd_hinf::weights::pid(bandwidth_hz, mass, dt, &opt).map_err(py_err)?;
+    Ok(sys_out(py, &w))
+}
+
+/// The loop of plant `p` and controller `k` (negative feedback) as `sdctl analyze --json`
+/// reports it: stability, closed-loop radius, bandwidth, crossover, |S| peak, margins.
+#[pyfunction]
+fn analyze<'py>(py: Python<'py>, p: SysIn<'py>, k: SysIn<'py>) -> PyResult<Bound<'py, PyDict>> {
+    let (p, k) = (sys_in(&p)?, sys_in(&k)?);
+    let s = py
+        .detach(|| sd_analysis::ClosedLoop::new(&p, &k).and_then(|cl| cl.summary()))
+        .map_err(py_err)?;
+    let d = PyDict::new(py);
+    d.set_item("stable", s.stable)?;
+    d.set_item("closed_loop_radius", s.closed_loop_radius)?;
+    d.set_item("bandwidth_hz", s.bandwidth_hz)?;
+    d.set_item("crossover_hz", s.crossover_hz)?;
+    d.set_item("sensitivity_peak_db", s.sensitivity_peak_db)?;
+    d.set_item("sensitivity_peak_hz", s.sensitivity_peak_hz)?;
+    d.set_item("gain_margin_db", s.gain_margin_db)?;
+    d.set_item("phase_margin_deg", s.phase_margin_deg)?;
+    d.set_item("modulus_margin", s.modulus_margin)?;
+    Ok(d)
+}
+
+/// Registers this file's functions.
+pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(dare, m)?)?;
+    m.add_function(wrap_pyfunction!(care, m)?)?;
+    m.add_function(wrap_pyfunction!(loopshape, m)?)?;
+    m.add_function(wrap_pyfunction!(weight_pid, m)?)?;
+    m.add_function(wrap_pyfunction!(analyze, m)?)?;
+    Ok(())
+}

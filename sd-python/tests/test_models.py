@@ -1,0 +1,133 @@
+"""Models: c2d, d2c, alias, downsample, freqresp, JSON — each against `sdctl` (the Rust result)
+and, where python-control has the operation, against python-control."""
+
+import json
+
+import control as ct
+import numpy as np
+import pytest
+
+import sdtoolkit as sd
+
+EPS = np.finfo(float).eps
+# the same Rust code through sdctl and through Python: equal up to the last bits (the two
+# builds may dispatch different SIMD kernels), relative to the largest entry
+SAME = 1e3 * EPS
+
+
+def close(a, b, rel):
+    a, b = np.asarray(a), np.asarray(b)
+    assert a.shape == b.shape, (a.shape, b.shape)
+    scale = max(np.max(np.abs(b)), 1.0)
+    assert np.max(np.abs(a - b)) <= rel * scale, np.max(np.abs(a - b)) / scale
+
+
+def from_cli(text):
+    return sd.StateSpace.from_json(text)
+
+
+def test_c2d_matches_sdctl_and_python_control(stage, sdctl, tmp_path):
+    p = tmp_path / "p.json"
+    p.write_text(stage.to_json())
+    for dt in (1e-3, 2e-4):
+        ours = sd.c2d(stage, dt)
+        cli = from_cli(sdctl("c2d", p, "--ts", dt))
+        for m in "ABCD":
+            close(getattr(ours, m), getattr(cli, m), SAME)  # the same code, up to the last bits (SIMD dispatch)
+        ref = ct.c2d(stage.to_control(), dt, "zoh")
+        n = stage.nstates
+        for m in "ABCD":
+            close(getattr(ours, m), getattr(ref, m), 1e3 * n * EPS)
+        assert ours.dt == dt
+    # the five-argument form
+    a = sd.c2d(stage.A, stage.B, stage.C, stage.D, 1e-3)
+    close(a.A, sd.c2d(stage, 1e-3).A, SAME)
+
+
+def test_c2d_nonideal_and_tustin_match_sdctl(stage, sdctl, tmp_path):
+    p = tmp_path / "p.json"
+    p.write_text(stage.to_json())
+    ours = sd.c2d(stage, 1e-3, hold_delay=0.3, averaging=0.5)
+    cli = from_cli(sdctl("c2d", p, "--ts", 1e-3, "--hold-delay", 0.3, "--averaging", 0.5))
+    assert ours.nstates == stage.nstates + 2
+    for m in "ABCD":
+        close(getattr(ours, m), getattr(cli, m), SAME)
+    t = sd.c2d(stage, 1e-3, method="tustin", prewarp_hz=100.0)
+    ref = ct.c2d(stage.to_control(), 1e-3, "tustin", prewarp_frequency=2 * np.pi * 100.0)
+    f = np.array([1.0, 50.0, 100.0, 300.0])
+    g_ref = ref(np.exp(2j * np.pi * f * 1e-3))
+    close(sd.freqresp(t, f), g_ref, 1e-9)
+
+
+def test_d2c_inverts_c2d_and_finds_the_aliased_branch(stage):
+    fast = sd.c2d(stage, 1e-4)
+    back = sd.d2c(fast)
+    f = np.array([1.0, 200.0, 653.0, 1650.0, 2300.0])
+    close(sd.freqresp(back, f), sd.freqresp(stage, f), 1e-7)
+    # the 653 Hz mode sampled at 1 kHz sits at 347 Hz on the principal branch
+    slow = sd.c2d(sd.StateSpace(stage.A[:4, :4], stage.B[:4], stage.C[:, :4], stage.D), 1e-3)
+    c, modes, picks = sd.d2c(slow, near_hz=653.0, return_aliases=True)
+    assert any(abs(m.freq_hz - 347.0) < 0.5 for m in modes)
+    assert len(picks) == 1 and abs(picks[0].freq_hz - 653.0) < 1e-6 * 653
+    assert any(abs(f - 653.0) < 1e-6 * 653 for m in modes for f, _ in m.candidates)
+    close(sd.freqresp(c, [653.0]), sd.freqresp(stage.__class__(stage.A[:4, :4], stage.B[:4], stage.C[:, :4], stage.D), [653.0]), 1e-6)
+
+
+def test_alias_matches_sdctl(sdctl):
+    ours = sd.alias(653, 1000, factor=5)
+    cli = json.loads(sdctl("alias", "--freq-hz", 653, "--rate-hz", 1000, "--factor", 5, "--json"))
+    assert ours.alias_hz == cli["alias_hz"] == 347.0
+    assert ours.folding_frequencies_hz == cli["folding_frequencies_hz"]
+    assert [(t.k, t.fast_hz, t.weight) for t in ours.fast_folds] == [
+        (t["k"], t["fast_hz"], t["weight"]) for t in cli["fast_folds"]
+    ]
+
+
+def test_downsample_is_lemma6_and_matches_sdctl(stage, sdctl, tmp_path):
+    fast = sd.c2d(stage, 2e-4)
+    slow = sd.downsample(fast, 5)
+    direct = sd.c2d(stage, 1e-3)
+    n = stage.nstates
+    for m in "ABCD":
+        close(getattr(slow, m), getattr(direct, m), 1e4 * n * EPS)
+    p = tmp_path / "fast.json"
+    p.write_text(fast.to_json())
+    cli = from_cli(sdctl("downsample", p, "--factor", 5))
+    for m in "ABCD":
+        close(getattr(slow, m), getattr(cli, m), SAME)
+    with pytest.raises(ValueError, match="positive integer"):
+        sd.downsample(fast, 2.5)
+
+
+def test_freqresp_matches_sdctl_and_python_control(stage, sdctl, tmp_path):
+    d = sd.c2d(stage, 2e-4)
+    f = np.linspace(1.0, 2400.0, 500)
+    g, path = sd.freqresp(d, f, return_path=True)
+    assert g.shape == (500,) and path in ("block_diagonal", "hessenberg", "dense")
+    assert sd.freqresp(d, f, squeeze=False).shape == (1, 1, 500)
+    ref = d.to_control()(np.exp(2j * np.pi * f * 2e-4))
+    close(g, ref, 1e-8)
+    p = tmp_path / "d.json"
+    p.write_text(d.to_json())
+    cli = sd.Frd.from_json(sdctl("freqresp", p, "--grid", "1:2400:500"))
+    close(g, cli.response[0, 0], 1e-12)
+
+
+def test_json_and_python_control_round_trips(stage):
+    back = sd.StateSpace.from_json(stage.to_json())
+    for m in "ABCD":
+        close(getattr(back, m), getattr(stage, m), SAME)
+    assert back.dt is None
+    d = sd.c2d(stage, 1e-3)
+    c = sd.StateSpace.from_control(d.to_control())
+    assert c.dt == 1e-3
+    for m in "ABCD":
+        close(getattr(c, m), getattr(d, m), SAME)
+    frd = sd.Frd([1.0, 2.0], [1 + 1j, 0.5 - 0.1j], [1e-6, 2e-6], dt=1e-3)
+    f2 = sd.Frd.from_json(frd.to_json())
+    close(f2.response, frd.response, SAME)
+    close(f2.variance, frd.variance, SAME)
+    f3 = sd.Frd.from_control(frd.to_control())
+    close(f3.freq_hz, frd.freq_hz, 1e-15)
+    close(f3.response, frd.response, SAME)
+    assert f3.dt == 1e-3
