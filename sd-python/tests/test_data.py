@@ -47,3 +47,15 @@ def test_fit_matches_sdctl(stage_data, sdctl, tmp_path):
     assert r.model.nstates == 8 and r.model.dt == 1e-3
     assert len(r.line_cost) == len(frd.freq_hz) and len(r.poles) == 8
     assert np.all(np.abs(r.poles) <= 1.0 + 1e-12)
+
+
+def test_diagnose_matches_sdctl(stage_data, sdctl, tmp_path):
+    ours = sd.diagnose(stage_data.manifest, out=tmp_path / "py")
+    sdctl("diagnose", stage_data.manifest, "--out", tmp_path / "cli")
+    cli = json.loads((tmp_path / "cli" / "diagnosis.json").read_text())
+    written = json.loads((tmp_path / "py" / "diagnosis.json").read_text())
+    assert (tmp_path / "py" / "report.md").is_file()
+    assert ours.to_dict().keys() == cli.keys() == written.keys()
+    assert ours.verdict == cli["verdict"] and ours.cause == cli["cause"] == "averaging_sampler"
+    assert ours.parameters.window_frac == pytest.approx(cli["parameters"]["window_frac"], rel=1e-9)
+    assert ours.gain.ratio == pytest.approx(cli["gain"]["ratio"], rel=1e-9)

@@ -131,3 +131,13 @@ def test_json_and_python_control_round_trips(stage):
     close(f3.freq_hz, frd.freq_hz, 1e-15)
     close(f3.response, frd.response, SAME)
     assert f3.dt == 1e-3
+
+
+def test_d2c_matches_sdctl(stage, sdctl, tmp_path):
+    fast = sd.c2d(stage, 1e-4)
+    p = tmp_path / "fast.json"
+    p.write_text(fast.to_json())
+    cli = from_cli(sdctl("d2c", p))
+    ours = sd.d2c(fast)
+    for m in "ABCD":
+        close(getattr(ours, m), getattr(cli, m), 1e-9)
