@@ -67,9 +67,8 @@ pub fn frf_of_experiment(exp: &Experiment, req: &FrfRequest) -> Result<(Frd, Vec
     if let Some(w) = feedback_only(&exp.u, &exp.y)? {
         if !keep {
             return Err(IdentError::Data(format!(
-                "{}: {w} (to keep the estimate anyway: `--keep-low-snr` in sdctl, `keep_low_snr=True` \
-                 in Python)",
-                exp.spec.name
+                "{w} (to keep the estimate anyway: `--keep-low-snr` in sdctl, `keep_low_snr=True` \
+                 in Python)"
             )));
         }
         warnings.insert(0, w);

@@ -22,6 +22,16 @@ pub enum Role {
     Validation,
 }
 
+impl Role {
+    /// The manifest's spelling: `"model"` or `"validation"`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Role::Model => "model",
+            Role::Validation => "validation",
+        }
+    }
+}
+
 /// One `[[experiment]]` of a manifest.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ExperimentSpec {
@@ -88,6 +98,16 @@ pub fn load_experiments(
         )?);
     }
     Ok(exps)
+}
+
+/// The experiment named `name` of the manifest file `manifest` ([`load_experiments`]).
+///
+/// # Errors
+/// As [`load_experiments`]; [`IdentError::InvalidArgument`] when no experiment has that name.
+pub fn load_experiment(manifest: &std::path::Path, name: &str) -> Result<Experiment> {
+    load_experiments(manifest, |n| n == name)?
+        .pop()
+        .ok_or_else(|| IdentError::InvalidArgument(format!("no experiment named `{name}`")))
 }
 
 fn fmt_err(detail: String) -> IdentError {
@@ -354,8 +374,11 @@ impl Experiment {
                     .map_or(String::new(), |r| format!(", r {}", r.len()))
             )));
         }
-        let all = u.iter().chain(&y).chain(r.iter().flatten());
-        if all.clone().any(|v| !v.is_finite()) {
+        if u.iter()
+            .chain(&y)
+            .chain(r.iter().flatten())
+            .any(|v| !v.is_finite())
+        {
             return Err(IdentError::Data(format!(
                 "{name}: a sample is NaN or infinite"
             )));

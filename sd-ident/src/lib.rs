@@ -24,7 +24,8 @@ pub mod tol;
 pub use error::{IdentError, Result};
 pub use estimate::{frf_of_experiment, FrfRequest};
 pub use experiment::{
-    load_experiments, parse_manifest, read_columns, Experiment, ExperimentSpec, Role,
+    load_experiment, load_experiments, parse_manifest, read_columns, Experiment, ExperimentSpec,
+    Role,
 };
 pub use fit::{
     final_prediction_error, fit, fit_with_progress, model_cost, select_order, FitOptions,

@@ -91,13 +91,7 @@ fn frf<'py>(
     };
     let (frd, warnings) = py
         .detach(|| {
-            let exp = sd_ident::load_experiments(Path::new(manifest), |n| n == experiment)?
-                .pop()
-                .ok_or_else(|| {
-                    sd_ident::IdentError::InvalidArgument(format!(
-                        "{manifest}: no experiment named `{experiment}`"
-                    ))
-                })?;
+            let exp = sd_ident::load_experiment(Path::new(manifest), experiment)?;
             sd_ident::frf_of_experiment(&exp, &req)
         })
         .map_err(py_err)?;
@@ -256,7 +250,7 @@ fn testbed<'py>(
         d.set_item("rate_hz", e.rate_hz)?;
         d.set_item("period", e.period)?;
         d.set_item("skip_periods", e.skip_periods)?;
-        d.set_item("role", json_text(&e.role)?.trim_matches('"'))?;
+        d.set_item("role", e.role.as_str())?;
         d.set_item("r", e.r.clone().map(|r| r.into_pyarray(py)))?;
         d.set_item("u", e.u.clone().into_pyarray(py))?;
         d.set_item("y", e.y.clone().into_pyarray(py))?;

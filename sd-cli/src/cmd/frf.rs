@@ -32,11 +32,8 @@ impl Args {
             keep_low_snr,
             output,
         } = self;
-        let exp = crate::io::load_experiments(&manifest, |n| n == experiment)?
-            .pop()
-            .ok_or_else(|| {
-                CliError::input(format!("{manifest}: no experiment named `{experiment}`"))
-            })?;
+        let exp = sd_ident::load_experiment(std::path::Path::new(&manifest), &experiment)
+            .map_err(|e| from_ident(&manifest, e))?;
         let req = sd_ident::FrfRequest {
             excited_fraction,
             keep_low_snr,

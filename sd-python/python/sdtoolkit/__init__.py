@@ -423,10 +423,7 @@ def fit(frd: Frd, order: int, rigid_body: int = 0, strictly_proper: bool = False
     d = _native.fit(frd.freq_hz, frd.response, frd.variance, frd.dt, int(order), int(rigid_body),
                     bool(strictly_proper), weighting, float(min_damping))
     d["model"] = _from_tuple(d["model"])
-    r = Result({k: v for k, v in d.items() if k not in ("line_cost", "poles")})
-    r._fields["line_cost"] = d["line_cost"]
-    r._fields["poles"] = d["poles"]
-    return r
+    return Result(d)
 
 
 def diagnose(manifest: Union[str, os.PathLike], model=None, alpha: float = 0.01, max_order: int = 60,
@@ -453,7 +450,5 @@ def testbed(config: Union[str, os.PathLike, None] = None, out: Union[str, os.Pat
         text = open(c).read() if os.path.isfile(c) else c
     o = None if out is None else os.fspath(out)
     exps, truth = _native.testbed(text, o)
-    d = {"experiments": exps, "truth": None, "manifest": None if o is None else os.path.join(o, "experiments.toml")}
-    r = Result(d)
-    r._fields["truth"] = _from_tuple(truth)
-    return r
+    return Result({"experiments": exps, "truth": _from_tuple(truth),
+                   "manifest": None if o is None else os.path.join(o, "experiments.toml")})
