@@ -1393,3 +1393,110 @@ fn uncertainty_travels_to_the_slow_rate() {
         "did you mean `confidence`",
     );
 }
+
+/// `sdctl intersample --uncertainty`: the fast error of the 1 kHz loop around the 5 kHz model
+/// bounded over every plant inside the fast bound's weight (a bound at least the nominal
+/// density at every frequency, the slow margin above 1 for a low-bandwidth PID); a high-gain
+/// controller gets no bound and the text says why; a file without a weight and no
+/// `--weight-order`, or a downsampled (slow) bound, exit 2 naming the problem.
+#[test]
+fn intersample_under_uncertainty() {
+    let d = tmpdir("intersample_unc");
+    let data = d.join("data").to_string_lossy().into_owned();
+    assert!(sdctl(&["testbed", "--out", &data]).status.success());
+    let manifest = d.join("data").join("experiments.toml");
+    let manifest = manifest.to_string_lossy().into_owned();
+    let p = |n: &str| d.join(n).to_string_lossy().into_owned();
+    sdctl_ok(&[
+        "frf",
+        &manifest,
+        "--experiment",
+        "fast",
+        "-o",
+        &p("fast.json"),
+    ]);
+    #[rustfmt::skip]
+    sdctl_ok(&["fit", &p("fast.json"), "--order", "4", "--rigid-body", "2", "--strictly-proper", "-o", &p("m.json")]);
+    sdctl_ok(&[
+        "uncertainty",
+        &p("m.json"),
+        &p("fast.json"),
+        "-o",
+        &p("u0.json"),
+    ]);
+    #[rustfmt::skip]
+    sdctl_ok(&["uncertainty", &p("m.json"), &p("fast.json"), "--form", "multiplicative", "--weight-order", "8", "-o", &p("u.json")]);
+    #[rustfmt::skip]
+    sdctl_ok(&["weight", "pid", "--bandwidth-hz", "10", "--mass", "20", "--ts", "0.001", "-o", &p("k.json")]);
+    let m = p("m.json");
+    let run = |k: &str, u: &str, json: bool| {
+        let mut args = vec![
+            "intersample",
+            "--plant-fast",
+            &m,
+            "--controller",
+            k,
+            "--uncertainty",
+            u,
+            "--points",
+            "300",
+        ];
+        if json {
+            args.push("--json");
+        }
+        sdctl(&args)
+    };
+    let o = run(&p("k.json"), &p("u.json"), true);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let r = &v["robust"];
+    assert!(r["slow_margin"].as_f64().unwrap() > 1.0, "{r}");
+    let (nom, bound) = (
+        r["nominal_psd"].as_array().unwrap(),
+        r["bound_psd"].as_array().unwrap(),
+    );
+    assert_eq!(nom.len(), 300);
+    assert!(nom
+        .iter()
+        .zip(bound)
+        .all(|(a, b)| b.as_f64().unwrap() >= a.as_f64().unwrap()));
+    assert!(r["rms_bound"].as_f64().unwrap() >= r["rms_nominal"].as_f64().unwrap());
+    // the nominal density is the plain intersample command's
+    let rms = v["rms_fast"].as_f64().unwrap();
+    assert!(
+        (r["rms_nominal"].as_f64().unwrap() / rms - 1.0).abs() < 0.02,
+        "{v}"
+    );
+    let text = String::from_utf8_lossy(&run(&p("k.json"), &p("u.json"), false).stdout).into_owned();
+    assert!(
+        text.contains("at most") && text.contains("margin"),
+        "{text}"
+    );
+    // ×25: not robustly stable against the weight, no bound
+    let k = sd_model::read_model(std::fs::File::open(p("k.json")).unwrap()).unwrap();
+    let g = sd_model::StateSpace::gain(nalgebra::DMatrix::from_element(1, 1, 25.0), k.time());
+    let hot = sd_model::series(&k, &g.unwrap()).unwrap();
+    std::fs::write(p("hot.json"), sd_model::model_to_json_string(&hot).unwrap()).unwrap();
+    let o = run(&p("hot.json"), &p("u.json"), true);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(v["robust"]["slow_margin"].as_f64().unwrap() < 1.0, "{v}");
+    assert!(v["robust"]["rms_bound"].is_null());
+    let text =
+        String::from_utf8_lossy(&run(&p("hot.json"), &p("u.json"), false).stdout).into_owned();
+    assert!(text.contains("no intersample bound"), "{text}");
+    assert_input_error(&run(&p("k.json"), &p("u0.json"), false), "--weight-order");
+    #[rustfmt::skip]
+    sdctl_ok(&["downsample", &p("m.json"), "--factor", "5", "--uncertainty", &p("u.json"), "--uncertainty-out", &p("us.json"), "-o", &p("ms.json")]);
+    let o = sdctl(&[
+        "intersample",
+        "--plant-fast",
+        &p("m.json"),
+        "--controller",
+        &p("k.json"),
+        "--uncertainty",
+        &p("us.json"),
+        "--weight-order",
+        "6",
+    ]);
+    assert_input_error(&o, "fast plant's period");
+}

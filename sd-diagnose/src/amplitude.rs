@@ -12,17 +12,20 @@
 //!
 //! **Amplitude.** A mode's amplitude in an experiment is the rms of the measured output in the
 //! mode's band (`f(1 ± max(3ζ, 2 %))`), from the DFT of the steady record; a friction-damped
-//! rigid body's corner's is the output's rms velocity below three times the linear corner
-//! ([`mode_amplitude`]); the trend uses it relative to the model experiment's, `ρ = a/a_ref`.
-//! A level fit measures it around its fitted pole; a level the trends predict is measured
-//! self-consistently around the pole predicted at that amplitude
-//! ([`AmplitudeModel::amplitudes`]).
+//! rigid body's corner's is the output's rms velocity below `B` = three times the linear
+//! corner, over the square root of the share `(2/π)·atan(B/f_c)` a first-order velocity
+//! spectrum keeps below `B` at the level's corner `f_c` ([`mode_amplitude`]); the trend uses
+//! it relative to the model experiment's, `ρ = a/a_ref`. A level fit measures it around its
+//! fitted pole; a level the trends predict is measured self-consistently around the pole
+//! predicted at that amplitude ([`AmplitudeModel::amplitudes`]).
 //!
 //! **Trend.** Per mode and quantity `p(ρ) = p_ref + c·(ρ^k − 1)` by weighted least squares over
 //! the levels, with `k ∈ {2, 1, −1}` chosen by the weighted residual (with two levels, where
 //! every `k` fits exactly, `k = 2`: the backbone of a cubic stiffness, `ω² ≈ ω₀²(1 + ¾κA²)`).
-//! Coulomb friction gives `k = −1` in the damping (`c_eq = 4F/(πωA)`). A mode *moves* when
-//! its frequencies (or dampings) over the levels differ beyond their errors (χ² with
+//! A friction-damped corner `f_c = a + b·ρ^k` has `a, b ≥ 0` (non-negative least squares,
+//! [`trend_fit`]) and `k = −1` by default: Coulomb friction under a Gaussian-like velocity of
+//! rms σ acts as the viscous `c_eq = √(2/π)F_c/σ` (Bussgang). A mode *moves* when its
+//! frequencies (or dampings) over the levels differ beyond their errors (χ² with
 //! `levels − 1` degrees of freedom at the verdict's α, Bonferroni over the modes); modes that
 //! do not move keep their linear poles.
 //!
@@ -316,10 +319,11 @@ fn band(f: f64, z: f64) -> (f64, f64) {
 /// The amplitude a candidate is driven at in output record `y`: for a pair, the rms of `y`
 /// in the band of the pair `at` (its frequency at this level); for a friction-damped rigid
 /// body's corner, the rms *velocity* of `y` from its lowest line up to three times the linear
-/// corner (at most half the lowest pair's frequency): Coulomb friction `F·sign(v)` acts on a
-/// Gaussian velocity as the viscous damping `√(2/π)·F/σ_v` (its describing function), and
-/// the velocity of a damped rigid body is flat to its corner and falls as `1/f` above, so the
-/// band holds its rms at every amplitude where the corner falls.
+/// corner (at most half the lowest pair's frequency), over the square root of the share of
+/// the velocity's power the band holds at the corner `at`: Coulomb friction `F·sign(v)` acts
+/// on a Gaussian velocity as the viscous damping `√(2/π)·F/σ_v` (Bussgang), and the velocity
+/// of a damped rigid body is flat to its corner and falls as `1/f` above (`1/(1 + (f/f_c)²)`
+/// in power, whose share below `B` is `(2/π)·atan(B/f_c)`).
 fn mode_amplitude(basis: &ModalBasis, pm: usize, at: C, y: &Spectrum) -> f64 {
     if !basis.is_rigid_damping(pm) {
         return y.band_rms(band_of(at), false);
@@ -330,7 +334,12 @@ fn mode_amplitude(basis: &ModalBasis, pm: usize, at: C, y: &Spectrum) -> f64 {
         .filter(|&j| !basis.is_real(j))
         .map(|j| natural(poles[j], [[0.0; 2]; 2]).0)
         .fold(f64::INFINITY, f64::min);
-    y.band_rms((0.0, (3.0 * corner).min(0.5 * lowest_pair)), true)
+    let top = (3.0 * corner).min(0.5 * lowest_pair);
+    // the share of a first-order velocity spectrum `1/(1 + (f/f_c)²)` below `top`, at the
+    // corner `at` of this level: the band's rms over it is the whole velocity's
+    let fc = natural(at, [[0.0; 2]; 2]).0.max(f64::MIN_POSITIVE);
+    let share = (std::f64::consts::FRAC_2_PI * (top / fc).atan()).max(1e-3);
+    y.band_rms((0.0, top), true) / share.sqrt()
 }
 
 /// One level's modal fit (module documentation): the candidates' pole pairs free, from the
@@ -480,8 +489,9 @@ fn determined(fit: (f64, f64, f64, f64), lin: (f64, f64, f64, f64)) -> bool {
     let (f, z, sf, sz) = fit;
     let finite = f.is_finite() && z.is_finite() && sf.is_finite() && sz.is_finite();
     if is_real_pole(lin.1) {
-        // a real pole (a corner, ζ = 1) may move by a decade, known to half its value
-        finite && f > 0.1 * lin.0 && f < 10.0 * lin.0 && sf < 0.5 * f
+        // a real pole (a corner, ζ = 1) may move by two decades down (a friction corner
+        // falls as 1/amplitude) and one up, known to half its value
+        finite && f > 0.01 * lin.0 && f < 10.0 * lin.0 && sf < 0.5 * f
     } else {
         finite && (f / lin.0 - 1.0).abs() < 0.3 && sf < 0.5 * lin.1 * lin.0
     }
@@ -492,35 +502,67 @@ fn is_real_pole(z: f64) -> bool {
     z >= 1.0 - 1e-12
 }
 
-/// Weighted least squares of `p(ρ) = p_ref + c(ρ^k − 1)` over points `(ρ, p, σ)`: the trend
-/// and its weighted residual.
-fn trend_fit(pts: &[(f64, f64, f64)], k: i32) -> Option<(Trend, f64)> {
+/// Weighted least squares of `p(ρ) = a + b·ρ^k` over points `(ρ, p, σ)`, written as the
+/// trend `p_ref + c(ρ^k − 1)` (`p_ref = a + b`, `c = b`), and its weighted residual.
+///
+/// `nonneg` constrains `a, b ≥ 0` (non-negative least squares over the two columns: the
+/// unconstrained solution when feasible, else the better feasible one-column fit). That is a
+/// friction-damped corner's physics: `2πm·f = c_v + c_eq(ρ)`, a viscous part and an
+/// amplitude-dependent part that are both non-negative (Coulomb friction under a
+/// Gaussian-like velocity of rms σ has the equivalent damping `c_eq = √(2/π)·F_c/σ`, Bussgang;
+/// k = −1), so a corner can neither cross zero nor fall under a law that rises.
+fn trend_fit(pts: &[(f64, f64, f64)], k: i32, nonneg: bool) -> Option<(Trend, f64)> {
     let n = pts.len();
     if n < 2 {
         return None;
     }
-    let x = DMatrix::from_fn(n, 2, |i, c| {
-        let w = 1.0 / pts[i].2.max(f64::MIN_POSITIVE);
-        w * if c == 0 { 1.0 } else { pts[i].0.powi(k) - 1.0 }
-    });
-    let g = DVector::from_fn(n, |i, _| pts[i].1 / pts[i].2.max(f64::MIN_POSITIVE));
-    let ls = lstsq(&x, &g).ok()?;
-    let r = &g - &x * &ls.x;
-    let chi2 = r.norm_squared();
+    let w = |i: usize| 1.0 / pts[i].2.max(f64::MIN_POSITIVE);
+    let g = DVector::from_fn(n, |i, _| pts[i].1 * w(i));
+    // columns: 0 the constant a, 1 the amplitude term b·ρ^k
+    let solve = |cols: &[usize]| -> Option<([f64; 2], [[f64; 2]; 2], f64)> {
+        let x = DMatrix::from_fn(n, cols.len(), |i, j| {
+            w(i) * if cols[j] == 0 { 1.0 } else { pts[i].0.powi(k) }
+        });
+        let ls = lstsq(&x, &g).ok()?;
+        let chi2 = (&g - &x * &ls.x).norm_squared();
+        let (mut c, mut cov) = ([0.0; 2], [[0.0; 2]; 2]);
+        for (j, &cj) in cols.iter().enumerate() {
+            c[cj] = ls.x[j];
+            for (l, &cl) in cols.iter().enumerate() {
+                cov[cj][cl] = ls.cov[(j, l)];
+            }
+        }
+        Some((c, cov, chi2))
+    };
+    let (c, cov, chi2) = match solve(&[0, 1])? {
+        full if !nonneg || (full.0[0] >= 0.0 && full.0[1] >= 0.0) => full,
+        _ => [solve(&[1]), solve(&[0])]
+            .into_iter()
+            .flatten()
+            .filter(|(c, _, _)| c[0] >= 0.0 && c[1] >= 0.0)
+            .min_by(|x, y| x.2.total_cmp(&y.2))?,
+    };
+    let free = if nonneg {
+        c.iter().filter(|v| **v != 0.0).count().max(1)
+    } else {
+        2
+    };
     // the points' scatter beyond their errors widens the trend's
-    let scale = if n > 2 {
-        (chi2 / (n - 2) as f64).max(1.0)
+    let scale = if n > free {
+        (chi2 / (n - free) as f64).max(1.0)
     } else {
         1.0
     };
     Some((
         Trend {
             exponent: k,
-            at_reference: ls.x[0],
-            at_reference_std: (ls.cov[(0, 0)] * scale).sqrt(),
-            slope: ls.x[1],
-            slope_std: (ls.cov[(1, 1)] * scale).sqrt(),
-            covariance: ls.cov[(0, 1)] * scale,
+            at_reference: c[0] + c[1],
+            at_reference_std: ((cov[0][0] + 2.0 * cov[0][1] + cov[1][1]) * scale)
+                .max(0.0)
+                .sqrt(),
+            slope: c[1],
+            slope_std: (cov[1][1] * scale).sqrt(),
+            covariance: (cov[0][1] + cov[1][1]) * scale,
         },
         chi2,
     ))
@@ -530,14 +572,14 @@ fn trend_fit(pts: &[(f64, f64, f64)], k: i32) -> Option<(Trend, f64)> {
 /// friction-damped rigid body's corner, `c_eq ∝ 1/amplitude`) unless another exponent of
 /// [`EXPONENTS`] lowers the weighted residual by more than the `1 − alpha` quantile of χ²₁
 /// (the data must insist on a different law; with two points every exponent fits exactly and
-/// the default stays).
-fn best_trend(pts: &[(f64, f64, f64)], alpha: f64, default: i32) -> Option<Trend> {
-    let (first, c0) = trend_fit(pts, default)?;
+/// the default stays). `nonneg`: the corner's constrained form ([`trend_fit`]).
+fn best_trend(pts: &[(f64, f64, f64)], alpha: f64, default: i32, nonneg: bool) -> Option<Trend> {
+    let (first, c0) = trend_fit(pts, default, nonneg)?;
     let margin = normal_quantile(1.0 - alpha / 2.0).powi(2);
     let mut best = (first, c0);
     if pts.len() > 2 {
         for k in EXPONENTS.iter().filter(|k| **k != default) {
-            if let Some((t, c)) = trend_fit(pts, *k) {
+            if let Some((t, c)) = trend_fit(pts, *k, nonneg) {
                 if c < best.1 && c0 - c > margin {
                     best = (t, c);
                 }
@@ -698,7 +740,7 @@ impl AmplitudeModel {
             };
             // points the weighted fit cannot use (equal amplitudes, a zero error): the pole
             // keeps its linear value
-            let Some(ft) = best_trend(&fp, alpha, default) else {
+            let Some(ft) = best_trend(&fp, alpha, default, basis.is_rigid_damping(cand[m])) else {
                 trends.push(linear());
                 continue;
             };
@@ -711,7 +753,7 @@ impl AmplitudeModel {
                     ..fallback.clone()
                 }
             } else {
-                best_trend(&zp, alpha, EXPONENTS[0]).unwrap_or_else(|| Trend {
+                best_trend(&zp, alpha, EXPONENTS[0], false).unwrap_or_else(|| Trend {
                     at_reference: lin.1,
                     ..fallback.clone()
                 })
@@ -822,6 +864,21 @@ impl AmplitudeModel {
         let (fm, zm) = (self.trends[m].2, self.trends[m].3);
         let lin_pole = self.basis.poles()[pm];
         let direct = mode_amplitude(&self.basis, pm, lin_pole, &rec.y);
+        if self.basis.is_rigid_damping(pm) && fm && direct > 0.0 {
+            // the corner's band share depends on the corner at this amplitude: a fixed
+            // point (the share changes slowly with the corner, so a few steps settle it)
+            let a_ref = self.reference[m].max(f64::MIN_POSITIVE);
+            let mut a = direct;
+            for _ in 0..20 {
+                let next = mode_amplitude(&self.basis, pm, self.pole_at(m, a / a_ref), &rec.y);
+                let done = (next / a - 1.0).abs() < 1e-6;
+                a = next;
+                if done {
+                    break;
+                }
+            }
+            return a;
+        }
         if !(fm || zm) || self.basis.is_real(pm) || direct <= 0.0 {
             return direct;
         }
@@ -1107,7 +1164,7 @@ mod tests {
             .iter()
             .map(|&r: &f64| (r, 100.0 + 0.05 * (r * r - 1.0), 0.01))
             .collect();
-        let t = best_trend(&pts, 0.01, 2).unwrap();
+        let t = best_trend(&pts, 0.01, 2, false).unwrap();
         assert_eq!(t.exponent, 2);
         assert!((t.slope - 0.05).abs() < 1e-9 && (t.at_reference - 100.0).abs() < 1e-9);
         assert_eq!(t.direction(3.0), 1);

@@ -413,6 +413,10 @@ fn decide(
         }
         return nonlinearity(data, j, ch, &nonlinear, progress);
     }
+    let seen = distorted_levels(data, ch);
+    if !seen.is_empty() {
+        return nonlinearity(data, j, ch, &seen, progress);
+    }
     if s_free.lines == 0 {
         // only other levels, and they agree
         let v = if s_model.passes() {
@@ -479,6 +483,32 @@ fn decide(
 fn distorted(est: &Estimate, alpha: f64) -> Option<bool> {
     let ev = distortion_evidence("", est.distortion.as_ref()?, alpha);
     (!ev.is_empty()).then(|| ev.iter().any(|e| !e.passed))
+}
+
+/// Other excitation levels at the model experiment's rate that the model-free level test
+/// cannot resolve (it carries the model experiment's FRF variance too) but whose simulation by
+/// the model fails at the verdict's level, each showing nonlinear distortion at its
+/// non-excited lines, while the model describes its own experiment (within the noise, or its
+/// misfit there is distortion too): the disagreement comes with distortion, which drift does
+/// not bring. Both tests at `α` on a linear stage: a false alarm needs both, about `α²`.
+fn distorted_levels(data: &Data<'_>, ch: &Checks) -> Vec<(usize, Statistic)> {
+    let a = ch.alpha_test;
+    let own = statistic([(ch.fast_model.as_slice(), data.fast.inflation)], a);
+    if !(own.passes() || distorted(&data.fast, a) == Some(true)) {
+        return Vec::new();
+    }
+    data.vals
+        .iter()
+        .enumerate()
+        .filter(|(_, v)| v.factor == 1 && !v.same_level() && distorted(&v.whole, a) == Some(true))
+        .map(|(i, v)| {
+            (
+                i,
+                statistic([(ch.model[i].as_slice(), v.whole.inflation)], a),
+            )
+        })
+        .filter(|(_, s)| !s.passes())
+        .collect()
 }
 
 /// Same-level experiments at the model experiment's rate that agree with it model-free but
@@ -720,6 +750,77 @@ fn without_unneeded_slow_poles(
     Ok(basis)
 }
 
+/// One basis the levels may be modelled on, with its candidates and every level's fit.
+struct Variant {
+    basis: ModalBasis,
+    cand: Vec<usize>,
+    fits: Vec<LevelFit>,
+}
+
+/// The other corners a friction-damped rigid body may have: where several real poles below
+/// the modes could be the corner (a fit at the friction's strongest level may spend one on
+/// the friction's distortion, slower or faster than the corner), the bases with the second,
+/// third… as the corner ([`ModalBasis::with_damped_rigid_body_at`]), each without the slow
+/// poles the model experiment does not need, with their level fits. Which one models the
+/// levels is decided on the levels a model is fitted on ([`choose`]).
+fn other_corners(
+    j: &Judged<'_>,
+    data: &Data<'_>,
+    levels: &[Level<'_>],
+    alpha: f64,
+) -> Result<Vec<Variant>> {
+    let near_zero = std::f64::consts::TAU * data.fast.frd.freq_hz().first().copied().unwrap_or(0.0);
+    let basis = &j.modal.basis;
+    let mut out = Vec::new();
+    for nth in 1..basis.corner_choices(near_zero) {
+        let Some(b) = basis.with_damped_rigid_body_at(near_zero, nth)? else {
+            continue;
+        };
+        let trial = without_unneeded_slow_poles(&b, data.h, &levels[0], alpha)?;
+        if let Some((cand, fits)) = level_fits(&trial, data, levels) {
+            out.push(Variant {
+                basis: trial,
+                cand,
+                fits,
+            });
+        }
+    }
+    Ok(out)
+}
+
+/// Of `variants`, the one whose amplitude model, fitted on the levels `on` (indices into
+/// `levels`), describes those same levels best (the pooled statistic of its predictions
+/// over all their lines): a structural choice made on the training levels only. Every
+/// variant fits each level about as well with free residues; the amplitude model shares the
+/// model experiment's residues across levels, so only the basis whose moving pole carries
+/// the amplitude dependence describes them all. The first variant where none can be fitted.
+fn choose(variants: &[Variant], levels: &[Level<'_>], on: &[usize], h: f64, alpha: f64) -> usize {
+    if variants.len() < 2 {
+        return 0;
+    }
+    let score = |v: &Variant| -> Option<f64> {
+        let lv: Vec<&Level<'_>> = on.iter().map(|&q| &levels[q]).collect();
+        let fits: Vec<&LevelFit> = on.iter().map(|&q| &v.fits[q]).collect();
+        let m = AmplitudeModel::fit(&v.basis, h, &v.cand, &lv, &fits, alpha).ok()?;
+        let lines: Vec<(Vec<Line>, f64)> = lv
+            .iter()
+            .map(|l| m.lines(l).map(|x| (x, l.est.inflation)))
+            .collect::<Result<_>>()
+            .ok()?;
+        let s = statistic(lines.iter().map(|(l, c)| (l.as_slice(), *c)), alpha).value;
+        s.is_finite().then_some(s)
+    };
+    let scores: Vec<Option<f64>> = variants.iter().map(score).collect();
+    (0..variants.len())
+        .filter(|&i| scores[i].is_some())
+        .min_by(|&a, &b| {
+            scores[a]
+                .unwrap_or(f64::INFINITY)
+                .total_cmp(&scores[b].unwrap_or(f64::INFINITY))
+        })
+        .unwrap_or(0)
+}
+
 /// The basis with its two slowest real poles read as a friction-damped rigid body
 /// ([`ModalBasis::with_slow_poles_as_damped_rigid_body`]), when it still describes the model
 /// experiment `reference` within [`SLOW_POLE_SLACK`] times the larger of the verdict's
@@ -852,15 +953,26 @@ fn nonlinearity(
     let Some((basis, (cand, fits))) = tried else {
         return Ok(per_level(data, found, (relative_levels, check), alpha));
     };
+    let mut variants = vec![Variant {
+        basis: basis.clone(),
+        cand,
+        fits,
+    }];
+    if damped.is_damped() && levels.len() >= 3 {
+        variants.extend(other_corners(j, data, &levels, alpha)?);
+    }
+    let every: Vec<usize> = (0..levels.len()).collect();
+    let chosen = choose(&variants, &levels, &every, data.h, alpha);
+    let Variant { basis, cand, fits } = &variants[chosen];
     let all: Vec<&Level<'_>> = levels.iter().collect();
     let fit_refs: Vec<&LevelFit> = fits.iter().collect();
-    let model = AmplitudeModel::fit(basis, data.h, &cand, &all, &fit_refs, alpha)?;
+    let model = AmplitudeModel::fit(basis, data.h, cand, &all, &fit_refs, alpha)?;
     progress("amplitude model: levels left out in turn");
     let (gain, loo, held) = if levels.len() >= 3 {
-        levels_left_out(data, ch, &levels, &fits, &at, (basis, &cand, alpha))?
+        levels_left_out(data, ch, &levels, &at, (&variants, chosen, alpha))?
     } else {
         (
-            later_periods(data, j, &levels, &fits, (basis, &cand), alpha)?,
+            later_periods(data, j, &levels, fits, (basis, cand), alpha)?,
             Vec::new(),
             BTreeMap::new(),
         )
@@ -900,9 +1012,8 @@ fn levels_left_out(
     data: &Data<'_>,
     ch: &Checks,
     levels: &[Level<'_>],
-    fits: &[LevelFit],
     at: &[Option<usize>],
-    (basis, cand, alpha): (&ModalBasis, &[usize], f64),
+    (variants, chosen, alpha): (&[Variant], usize, f64),
 ) -> Result<(Gain, LeftOut, BTreeMap<String, HeldOut>)> {
     let (mut before, mut after, mut held) = (Vec::new(), Vec::new(), Vec::new());
     let mut per = BTreeMap::new();
@@ -917,14 +1028,14 @@ fn levels_left_out(
             .filter(|(m, _)| *m != k)
             .map(|(_, l)| l)
             .collect();
-        let tf: Vec<&LevelFit> = fits
-            .iter()
-            .enumerate()
-            .filter(|(m, _)| *m != k)
-            .map(|(_, f)| f)
-            .collect();
+        // the basis chosen on the training levels alone ([`choose`])
+        let on: Vec<usize> = (0..levels.len()).filter(|m| *m != k).collect();
+        let fold = choose(variants, levels, &on, data.h, alpha);
+        let Variant { basis, cand, fits } = &variants[fold];
+        let tf: Vec<&LevelFit> = on.iter().map(|&q| &fits[q]).collect();
         let m = AmplitudeModel::fit(basis, data.h, cand, &train, &tf, alpha)?;
-        loo[k] = Some(m.predicted(lv));
+        // per-candidate predictions only where the fold's basis is the final one's
+        loo[k] = (fold == chosen).then(|| m.predicted(lv));
         let c = lv.est.inflation;
         let bands = m.moving_bands(lv);
         let (a, b) = (

@@ -93,6 +93,31 @@ impl ModalBasis {
     /// the amplitude model assumes. Unchanged when the model has rigid-body poles or no such
     /// pair of real poles.
     pub(crate) fn with_damped_rigid_body(&self, near_zero: f64) -> Result<Self> {
+        Ok(self
+            .with_damped_rigid_body_at(near_zero, 0)?
+            .unwrap_or_else(|| self.clone()))
+    }
+
+    /// The number of real poles [`ModalBasis::with_damped_rigid_body_at`] may take as the
+    /// corner: at or above `near_zero`, below the lowest pair (0 where the model has two
+    /// rigid-body poles or no integrator).
+    pub(crate) fn corner_choices(&self, near_zero: f64) -> usize {
+        (0..4)
+            .take_while(|&n| {
+                self.with_damped_rigid_body_at(near_zero, n)
+                    .is_ok_and(|b| b.is_some())
+            })
+            .count()
+    }
+
+    /// [`ModalBasis::with_damped_rigid_body`] with the `nth` real pole at or above
+    /// `near_zero` (slowest first) as the corner, the others kept as real poles; `None` where
+    /// there is no such pole below the lowest pair, or no block to make.
+    pub(crate) fn with_damped_rigid_body_at(
+        &self,
+        near_zero: f64,
+        nth: usize,
+    ) -> Result<Option<Self>> {
         let mut real = self.real.clone();
         real.sort_by(|a, b| b.total_cmp(a));
         // pole pairs below `near_zero` are integrators for the data too
@@ -103,16 +128,21 @@ impl ModalBasis {
             .collect();
         // an undamped rigid body already (two poles at z = 1), or no integrator at all
         if self.rigid >= 2 || (self.rigid == 0 && near.is_empty() && low.is_empty()) {
-            return Ok(self.clone());
+            return Ok(None);
         }
-        // the corner: the first real pole at or above `near_zero`, below the modes
-        let Some(k) = (0..real.len()).find(|&k| real[k].abs() >= near_zero) else {
-            return Ok(self.clone());
+        // the corner: the nth real pole at or above `near_zero`, below the modes
+        let first = (0..real.len()).find(|&k| real[k].abs() >= near_zero);
+        let Some(k) = first.map(|f| f + nth).filter(|&k| k < real.len()) else {
+            return Ok(None);
         };
         if real[k].abs() >= lowest_pair {
-            return Ok(self.clone());
+            return Ok(None);
         }
-        Self::build((2, real[k].abs()), &real[k + 1..], &pairs)
+        let rest: Vec<f64> = (first.unwrap_or(k)..real.len())
+            .filter(|&q| q != k)
+            .map(|q| real[q])
+            .collect();
+        Self::build((2, real[k].abs()), &rest, &pairs).map(Some)
     }
 
     /// The basis with a friction-damped rigid body where a fit of the model experiment shows

@@ -15,6 +15,8 @@
 //! - [`robust_stability`]: the largest scaling of the bound a loop tolerates (small gain on
 //!   the lines and, with the weight, between them), the worst-case sensitivity, and a
 //!   destabilising plant inside the bound when there is one ([`robust`]).
+//! - [`robust_intersample`]: the fast-rate (intersample) error of a slow loop around the fast
+//!   plant, bounded over every plant inside the fast-rate weight ([`mod@intersample`]).
 //! - [`chordal_gap`]: the largest chordal distance between a model and a measured FRF (the
 //!   ν-gap to the measured plant when the winding condition holds, [`gap`]), against which a
 //!   loopshaping design's margin `ε = 1/γ` is read.
@@ -27,6 +29,7 @@ pub mod bound;
 pub mod downsample;
 pub mod error;
 pub mod gap;
+pub mod intersample;
 pub mod json;
 pub mod robust;
 pub mod weight;
@@ -35,6 +38,7 @@ pub use bound::{coverage, from_data, per_line_confidence, sigma_factor, Bound, C
 pub use downsample::{downsample, downsample_nonideal, Downsampled};
 pub use error::{Result, UncertaintyError};
 pub use gap::{chordal, chordal_gap, ChordalGap};
+pub use intersample::{robust_intersample, RobustIntersample};
 pub use json::{carries, embed, from_json_str, to_json_string, weight_from_json_str};
 pub use robust::{
     destabilising, loading_per_line, robust_stability, worst_case_plant, Destabilising, Robust,

@@ -75,8 +75,20 @@ fn random_unit(rng: &mut Rng, ts: f64) -> StateSpace {
     sd_model::series(&r, &g).unwrap()
 }
 
-#[test]
-fn robust_stability_holds_on_plants_inside_the_bound() {
+/// `P = P̂(1 + s·W·R)` with `R` from [`random_unit`] and `0.05 ≤ |s| ≤ 1`: `|P − P̂| ≤ |P̂ W|`
+/// at every frequency, inside the relative weight `W` (P̂ realised once: a sum `P̂ + P̂WR`
+/// would carry the rigid body's integrators twice, one copy beyond the loop's reach).
+fn inside_relative(rng: &mut Rng, w: &StateSpace, p: &StateSpace) -> StateSpace {
+    let time = SampleTime::discrete(2e-4).unwrap();
+    let unit = random_unit(rng, 2e-4);
+    let s = rng.range(0.05, 1.0) * if rng.uniform() < 0.5 { -1.0 } else { 1.0 };
+    let gain = |v: f64| StateSpace::gain(nalgebra::DMatrix::from_element(1, 1, v), time).unwrap();
+    let rel = sd_model::series(&sd_model::series(&unit, w).unwrap(), &gain(s)).unwrap();
+    sd_model::series(&sd_model::parallel(&gain(1.0), &rel).unwrap(), p).unwrap()
+}
+
+/// The stage, its low-order model at 5 kHz and the model's relative weight (order 8).
+fn stage_model_weight() -> (Truth, StateSpace, sd_uncertainty::Weight) {
     let truth = Truth::default();
     let fast_frd = closed_loop_frf(&truth, 5000.0, NonIdealities::default(), 21);
     let p_fast = rigid_body_and_one_mode(&fast_frd);
@@ -84,6 +96,92 @@ fn robust_stability_holds_on_plants_inside_the_bound() {
     // a relative weight: the relative bound is flat where the model is good (a few %) and
     // large at the modes it misses; the additive one spans five decades
     let w_fast = overbound(&b_fast.with_form(Form::Multiplicative), 8).unwrap();
+    (truth, p_fast, w_fast)
+}
+
+/// The intersample bound (`sd_uncertainty::robust_intersample`): its nominal density is the
+/// multirate loop's (`MultirateLoop::error_spectrum_fast`, computed another way: the harmonic
+/// transfer without the split of `1 − g`), and no plant inside the fast weight has a fast
+/// error density above the bound at any frequency (200 plants, each density computed from the
+/// perturbed plant's own multirate loop). Controller: the 1 kHz PID at 20 Hz, robustly stable
+/// against the downsampled weight. Seeds as above.
+#[test]
+fn intersample_bound_holds_on_plants_inside_the_weight() {
+    let (truth, p_fast, w_fast) = stage_model_weight();
+    let k = sd_hinf::weights::pid(20.0, truth.mass, Some(1e-3), &Default::default()).unwrap();
+    let h = 2e-4;
+    let (pd, pn) = (2.0 * h * 0.05f64.powi(2), 2.0 * h * 3e-10f64.powi(2));
+    let (phi_d, phi_n) = (move |_: f64| pd, move |_: f64| pn);
+    let r = sd_uncertainty::robust_intersample(
+        &p_fast,
+        &k,
+        5,
+        (&w_fast.model, Form::Multiplicative),
+        &phi_d,
+        &phi_n,
+        400,
+    )
+    .unwrap();
+    let bound = r
+        .bound_psd
+        .clone()
+        .expect("the 20 Hz PID is robustly stable");
+    println!(
+        "slow margin {:.3}; fast error rms nominal {:.4e} m, bound {:.4e} m; bound/nominal \
+         density at most {:.2} ({:.1} Hz)",
+        r.slow_margin,
+        r.rms_nominal,
+        r.rms_bound.unwrap(),
+        r.worst_ratio.unwrap(),
+        r.worst_hz.unwrap()
+    );
+    assert!(r.slow_margin > 1.0);
+    let lp = sd_multirate::MultirateLoop::new(&p_fast, &k, 5).unwrap();
+    let nominal = lp.error_spectrum_fast(&r.fast_hz, &phi_d, &phi_n).unwrap();
+    for (a, b) in nominal.iter().zip(&r.nominal_psd) {
+        assert!(
+            (a - b).abs() <= 1e-8 * a.abs().max(b.abs()),
+            "nominal {a} vs {b}"
+        );
+    }
+    let mut rng = Rng::new(1000);
+    let (mut closest, mut rms_max) = (0.0f64, 0.0f64);
+    for _ in 0..200 {
+        let plant = inside_relative(&mut rng, &w_fast.model, &p_fast);
+        let lp = sd_multirate::MultirateLoop::new(&plant, &k, 5).unwrap();
+        assert!(
+            lp.spectral_radius().unwrap() < 1.0,
+            "a plant inside the weight is unstable"
+        );
+        let psd = lp.error_spectrum_fast(&r.fast_hz, &phi_d, &phi_n).unwrap();
+        for ((x, b), f) in psd.iter().zip(&bound).zip(&r.fast_hz) {
+            assert!(
+                *x <= b * (1.0 + 1e-9),
+                "{f} Hz: density {x} above the bound {b}"
+            );
+            closest = closest.max(x / b);
+        }
+        let rms = r
+            .fast_hz
+            .windows(2)
+            .zip(psd.windows(2))
+            .map(|(f, p)| 0.5 * (p[0] + p[1]) * (f[1] - f[0]))
+            .sum::<f64>()
+            .sqrt();
+        rms_max = rms_max.max(rms);
+    }
+    println!(
+        "200 plants inside the weight: density at most {closest:.3} of the bound; largest rms \
+         {rms_max:.4e} m (bound {:.4e} m, nominal {:.4e} m)",
+        r.rms_bound.unwrap(),
+        r.rms_nominal
+    );
+    assert!(rms_max <= r.rms_bound.unwrap());
+}
+
+#[test]
+fn robust_stability_holds_on_plants_inside_the_bound() {
+    let (truth, p_fast, w_fast) = stage_model_weight();
     // the slow bound: |P̂_f·W_f| through Lemma 6 on the 1 kHz lines of the 0.5 Hz grid
     let slow_lines: Vec<f64> = (1..1000).map(|k| 0.5 * k as f64).collect();
     let fast_lines: Vec<f64> = (1..5000).map(|k| 0.5 * k as f64).collect();
@@ -130,25 +228,7 @@ fn robust_stability_holds_on_plants_inside_the_bound() {
             let mut rng = Rng::new(0);
             let mut worst_radius = 0.0f64;
             for _ in 0..200 {
-                let unit = random_unit(&mut rng, 2e-4);
-                let s = rng.range(0.05, 1.0) * if rng.uniform() < 0.5 { -1.0 } else { 1.0 };
-                let g = StateSpace::gain(
-                    nalgebra::DMatrix::from_element(1, 1, s),
-                    SampleTime::discrete(2e-4).unwrap(),
-                )
-                .unwrap();
-                // P = P̂(1 + s·W·R): |P − P̂| ≤ |P̂ W| on every frequency, inside the fast
-                // bound on every line (P̂ realised once: a sum P̂ + P̂WR would carry the rigid
-                // body's integrators twice, one copy beyond the loop's reach)
-                let rel =
-                    sd_model::series(&sd_model::series(&unit, &w_fast.model).unwrap(), &g).unwrap();
-                let one = StateSpace::gain(
-                    nalgebra::DMatrix::from_element(1, 1, 1.0),
-                    SampleTime::discrete(2e-4).unwrap(),
-                )
-                .unwrap();
-                let plant =
-                    sd_model::series(&sd_model::parallel(&one, &rel).unwrap(), &p_fast).unwrap();
+                let plant = inside_relative(&mut rng, &w_fast.model, &p_fast);
                 let slow_plant = sd_multirate::downsample(&plant, 5).unwrap();
                 let (radius, stable) = sd_analysis::ClosedLoop::new(&slow_plant, &k)
                     .unwrap()

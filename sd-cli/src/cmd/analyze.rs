@@ -1,6 +1,6 @@
 //! `sdctl analyze`.
 
-use crate::cmd::uncertainty::{from_unc, read_bound};
+use crate::cmd::uncertainty::{from_unc, read_bound_and_weight};
 use crate::io::{emit, from_analysis, read_model, read_text, CliError};
 use serde_json::json;
 
@@ -111,18 +111,7 @@ fn robust(
     weight_order: Option<usize>,
     out: Option<&str>,
 ) -> Result<sd_uncertainty::Robust, CliError> {
-    let bound = read_bound(path)?;
-    let mut weight =
-        sd_uncertainty::weight_from_json_str(&read_text(path)?).map_err(|e| from_unc(path, e))?;
-    if weight.is_none() {
-        if let Some(n) = weight_order {
-            weight = Some(
-                sd_uncertainty::overbound(&bound, n)
-                    .map_err(|e| from_unc("--weight-order", e))?
-                    .model,
-            );
-        }
-    }
+    let (bound, weight) = read_bound_and_weight(path, weight_order)?;
     let r = sd_uncertainty::robust_stability(p, k, &bound, weight.as_ref())
         .map_err(|e| from_unc(path, e))?;
     if let Some(out) = out {

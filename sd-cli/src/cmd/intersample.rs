@@ -1,5 +1,6 @@
 //! `sdctl intersample`.
 
+use crate::cmd::uncertainty::{from_unc, read_bound_and_weight};
 use crate::io::{emit, from_analysis, read_model, CliError};
 use serde_json::json;
 
@@ -21,6 +22,14 @@ pub(crate) struct Args {
     /// Frequency points per band.
     #[arg(long, default_value_t = 2000)]
     pub(crate) points: usize,
+    /// Uncertainty JSON of the fast plant (from `sdctl uncertainty` on the fast FRF, at the
+    /// plant's period): the fast error bounded over every plant inside its overbounding
+    /// weight, with the slow loop's robust stability margin against it.
+    #[arg(long)]
+    pub(crate) uncertainty: Option<String>,
+    /// Fit an overbounding weight of this order when the uncertainty file has none.
+    #[arg(long)]
+    pub(crate) weight_order: Option<usize>,
     #[arg(help = crate::commands::JSON_HELP, long)]
     pub(crate) json: bool,
 }
@@ -34,6 +43,8 @@ impl Args {
             force_rms,
             sensor_rms,
             points,
+            uncertainty,
+            weight_order,
             json,
         } = self;
         let p = read_model(&plant_fast)?;
@@ -65,6 +76,22 @@ impl Args {
         );
         let r = sd_analysis::intersample(&p, &k, ratio.round() as usize, &|_| pd, &|_| pn, points)
             .map_err(|e| from_analysis("intersample", e))?;
+        if uncertainty.is_none() && weight_order.is_some() {
+            return Err(CliError::input("--weight-order needs --uncertainty"));
+        }
+        let robust = uncertainty
+            .as_deref()
+            .map(|path| {
+                robust(
+                    &p,
+                    &k,
+                    ratio.round() as usize,
+                    (path, weight_order),
+                    (pd, pn),
+                    points,
+                )
+            })
+            .transpose()?;
         let argmax = |f: &[f64], v: &[f64]| {
             (0..v.len())
                 .max_by(|&a, &b| v[a].total_cmp(&v[b]))
@@ -85,16 +112,73 @@ impl Args {
                 "fast_hz": r.fast_hz, "fast_psd": r.fast_psd,
                 "slow_hz": r.slow_hz, "slow_psd": r.slow_psd,
                 "control_sensitivity": r.control_sensitivity,
+                "robust": robust,
             });
             emit(&v.to_string(), None)
         } else {
-            emit(
-            &format!(
+            let mut text = format!(
                 "predicted error rms: fast rate {:.4e}, at the samples {:.4e}\ndominant frequency: fast {:.2} Hz, slow {:.2} Hz\n|K S| peaks at {:.2} Hz",
                 r.rms_fast, r.rms_slow, df, ds, dk
-            ),
-            None,
-        )
+            );
+            if let Some(rb) = &robust {
+                text.push('\n');
+                text.push_str(&robust_text(rb));
+            }
+            emit(&text, None)
         }
+    }
+}
+
+/// The fast error bounded over the uncertainty file `path` (its weight, or one fitted of the
+/// given order), with white densities `(pd, pn)`.
+fn robust(
+    p: &sd_model::StateSpace,
+    k: &sd_model::StateSpace,
+    factor: usize,
+    (path, weight_order): (&str, Option<usize>),
+    (pd, pn): (f64, f64),
+    points: usize,
+) -> Result<sd_uncertainty::RobustIntersample, CliError> {
+    let (bound, weight) = read_bound_and_weight(path, weight_order)?;
+    let weight = weight.ok_or_else(|| {
+        CliError::input(format!(
+            "{path} carries no overbounding weight, which the intersample bound needs between \
+             the lines: give --weight-order N (4 to 8 is typical)"
+        ))
+    })?;
+    sd_uncertainty::robust_intersample(
+        p,
+        k,
+        factor,
+        (&weight, bound.form),
+        &|_| pd,
+        &|_| pn,
+        points,
+    )
+    .map_err(|e| from_unc(path, e))
+}
+
+/// The robust lines of the text output.
+fn robust_text(r: &sd_uncertainty::RobustIntersample) -> String {
+    let head = format!(
+        "uncertainty ({}): slow-loop robust stability margin {:.3} (> 1: every plant inside the \
+         weight is stabilised)",
+        match r.form {
+            sd_uncertainty::Form::Additive => "additive",
+            sd_uncertainty::Form::Multiplicative => "multiplicative",
+        },
+        r.slow_margin
+    );
+    match (r.rms_bound, r.worst_hz, r.worst_ratio) {
+        (Some(b), Some(f), Some(x)) => format!(
+            "{head}\nfast error rms over every plant inside the weight: at most {b:.4e} (nominal \
+             {:.4e}); the bound is furthest above the nominal density at {f:.2} Hz ({:.1} dB)",
+            r.rms_nominal,
+            10.0 * x.log10()
+        ),
+        _ => format!(
+            "{head}\nno intersample bound: a plant inside the weight may destabilise the loop \
+             (see `sdctl analyze --uncertainty` on the downsampled bound for one)"
+        ),
     }
 }

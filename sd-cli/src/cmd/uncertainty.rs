@@ -51,6 +51,27 @@ pub(crate) fn read_bound(path: &str) -> Result<sd_uncertainty::Bound, CliError> 
     sd_uncertainty::from_json_str(&read_text(path)?).map_err(|e| from_unc(path, e))
 }
 
+/// The bound of the uncertainty file `path` and its overbounding weight: the file's, else one
+/// fitted of `weight_order` when given, else none.
+pub(crate) fn read_bound_and_weight(
+    path: &str,
+    weight_order: Option<usize>,
+) -> Result<(sd_uncertainty::Bound, Option<sd_model::StateSpace>), CliError> {
+    let bound = read_bound(path)?;
+    let mut weight =
+        sd_uncertainty::weight_from_json_str(&read_text(path)?).map_err(|e| from_unc(path, e))?;
+    if weight.is_none() {
+        if let Some(n) = weight_order {
+            weight = Some(
+                sd_uncertainty::overbound(&bound, n)
+                    .map_err(|e| from_unc("--weight-order", e))?
+                    .model,
+            );
+        }
+    }
+    Ok((bound, weight))
+}
+
 impl Args {
     /// Runs the command.
     pub(crate) fn run(self) -> Result<(), CliError> {
