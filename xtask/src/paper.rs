@@ -1038,12 +1038,12 @@ fn report_md(r: &Results<'_>) -> Result<String, String> {
             (Some(b), Some(a), Some(g)) => format!("On held-out periods ({}) the discrepancy statistic (1 = noise level) goes from {b:.1} for the plain modal model to {a:.2} with the extension: a gain of ×{g:.0}.", d.gain.held_out.join(", ")),
             _ => format!("The gain could not be measured on held-out data: {}.", d.gain.why.as_deref().unwrap_or("no held-out data")),
         });
-    uncertainty_md(&mut md, r.unc);
+    uncertainty_md(&mut md, r.unc, r.stand);
     Ok(md)
 }
 
 /// The "Uncertainty" section of `report.md`, from this run's numbers.
-fn uncertainty_md(md: &mut String, u: &crate::uncertainty::Uncertain) {
+fn uncertainty_md(md: &mut String, u: &crate::uncertainty::Uncertain, stand: &[Run]) {
     let _ = write!(md, "\n## Uncertainty (beyond the paper)\n\nThe fit's error bound from the 5 kHz data ({:.0} % per line: residual + κσ) covers the true 5 kHz plant on {:.1} % of the lines. Taken to 1 kHz through Lemma 6 (each slow line sums its five fold frequencies weighted by the hold), it covers the measured 1 kHz FRF on {:.1} % of the lines",
         100.0 * crate::uncertainty::CONFIDENCE, 100.0 * u.coverage_fast, 100.0 * u.coverage_slow);
     match u.coverage_slow_extended {
@@ -1063,6 +1063,17 @@ fn uncertainty_md(md: &mut String, u: &crate::uncertainty::Uncertain) {
         let _ = writeln!(md, "Robust stability against the plain bound (multiplicative, 1/max b·|T|; > 1 robustly stable): {n1} {:.2} (limited at {:.1} Hz), {n2} {:.2} (at {:.1} Hz); the aliased band (300–400 Hz) alone leaves {n1} {:.1} and {n2} {:.1}, {:.1}× {} for the loopshaping controller (Controller 1).",
             r1.margin_lines, r1.worst_line_hz, r2.margin_lines, r2.worst_line_hz, a1, a2,
             if a1 >= a2 { a1 / a2 } else { a2 / a1 }, if a1 >= a2 { "more" } else { "less" });
+    }
+    for c in &u.robust {
+        let r = &c.intersample;
+        let measured = stand.iter().find(|x| x.name == c.name).map(|x| x.wf.rms());
+        let _ = match r.rms_bound {
+            Some(b) => writeln!(md, "\nIntersample under uncertainty, {}: the 5 kHz standstill error around the 5 kHz fit has rms {:.3e} m; over every plant inside the fast bound's weight it is at most {:.3e} m ({:.1}× the nominal; the slow loop tolerates {:.2}× the weight). The virtual stage's standstill run (ideal sampling) measured {}.",
+                c.name, r.rms_nominal, b, b / r.rms_nominal, r.slow_margin,
+                measured.map_or("nothing".to_string(), |m| format!("{m:.3e} m, {} the bound", if m <= b { "inside" } else { "above" }))),
+            None => writeln!(md, "\nIntersample under uncertainty, {}: nominal rms {:.3e} m; no bound, since the slow loop tolerates only {:.2}× the fast weight (a plant inside it may destabilise the loop).",
+                c.name, r.rms_nominal, r.slow_margin),
+        };
     }
 }
 
@@ -1215,6 +1226,14 @@ mod tests {
                 c["robust_stability_margin"].as_f64().expect("margin") > 0.0,
                 "{c}"
             );
+            // the intersample bound, where the slow loop tolerates the fast weight, is above
+            // the nominal
+            let nominal = c["intersample_rms_nominal"].as_f64().expect("nominal");
+            assert!(nominal > 0.0, "{c}");
+            if c["intersample_slow_margin"].as_f64().expect("slow margin") > 1.0 {
+                let bound = c["intersample_rms_bound"].as_f64().expect("bound");
+                assert!(bound >= nominal, "{c}");
+            }
         }
         // the reduced run's low-order fit may not carry the extension to the noise level on
         // held-out periods: then the cause is `unexplained` with the averaging sampler as the
