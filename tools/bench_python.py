@@ -1,5 +1,6 @@
 """Peer timings for `cargo xtask bench`: the same operations on the same inputs in
-python-control / scipy. Usage: python3 tools/bench_python.py CASES.json  (prints JSON).
+python-control / scipy. Usage: python3 tools/bench_python.py CASES.json  (prints JSON), or
+python3 tools/bench_python.py --scaling SCALING.json (the scaling table's peers).
 
 CASES.json: {"c2d": {"model": path, "ts": h, "repeats": k},
              "freqresp": {"model": path, "fmin": .., "fmax": .., "n": .., "log": bool, "repeats": k},
@@ -28,6 +29,49 @@ def median_time(fn, repeats):
         t0 = time.perf_counter(); out = fn(); ts.append(time.perf_counter() - t0)
     return float(np.median(ts)), out
 
+
+def frf_average(u, y, p, skip):
+    """The plain periodic FRF: mean spectra over whole periods after `skip`, G = Ȳ/Ū."""
+    m = len(u) // p - skip
+    U = np.fft.fft(u[skip * p:(skip + m) * p].reshape(m, p), axis=1)
+    Y = np.fft.fft(y[skip * p:(skip + m) * p].reshape(m, p), axis=1)
+    Um, Ym = U.mean(0), Y.mean(0)
+    lines = np.arange(1, p // 2)
+    G = Ym[lines] / Um[lines]
+    var = (np.var(Y[:, lines], axis=0, ddof=1) / np.abs(Um[lines]) ** 2) / m
+    return G, var
+
+
+def scaling(path):
+    """The peers of `cargo xtask bench`'s scaling table (xtask/src/scaling.rs): per model size
+    c2d (scipy), Lemma 6 by matrix power (numpy), freqresp per point (python-control), DARE
+    (scipy); per record length the numpy period average."""
+    import scipy.linalg
+    sc = json.load(open(path))
+    out = {"c2d": [], "downsample": [], "freqresp_per_point": [], "dare": [], "frf": []}
+    hz = np.geomspace(0.1, 2500.0, sc["points"])
+    for m in sc["models"]:
+        reps = 3 if m["n"] <= 120 else 1
+        (a, b, cc, d), _ = load(m["ct"])
+        out["c2d"].append(median_time(lambda: scipy.signal.cont2discrete((a, b, cc, d), 2e-4, method="zoh"), reps)[0])
+        (a, b, cc, d), ts = load(m["dt"])
+        n, nu = a.shape[0], b.shape[1]
+        blk = np.zeros((n + nu, n + nu)); blk[:n, :n] = a; blk[:n, n:] = b; blk[n:, n:] = np.eye(nu)
+        out["downsample"].append(median_time(lambda: np.linalg.matrix_power(blk, 5), reps)[0])
+        sys_d = control.ss(a, b, cc, d, ts)
+        t, _ = median_time(lambda: control.frequency_response(sys_d, 2 * np.pi * hz), 1)
+        out["freqresp_per_point"].append(t / len(hz))
+        q, r = cc.T @ cc, np.eye(nu)
+        out["dare"].append(median_time(lambda: scipy.linalg.solve_discrete_are(a, b, q, r), reps)[0])
+    for rec in sc["records"]:
+        u = np.fromfile(rec["u"], dtype="<f8"); y = np.fromfile(rec["y"], dtype="<f8")
+        out["frf"].append(median_time(lambda: frf_average(u, y, rec["period"], 1), 3)[0])
+    print(json.dumps(out))
+
+
+if sys.argv[1] == "--scaling":
+    scaling(sys.argv[2])
+    sys.exit(0)
 
 cases = json.load(open(sys.argv[1]))
 res = {"versions": {"control": control.__version__, "scipy": scipy.__version__, "numpy": np.__version__}}
@@ -109,16 +153,6 @@ if ls:
 fr = cases.get("frf")
 if fr:
     u = np.fromfile(fr["u"], dtype="<f8"); y = np.fromfile(fr["y"], dtype="<f8")
-    p = fr["period"]; skip = fr["skip"]
-    def est():
-        m = len(u) // p - skip
-        U = np.fft.fft(u[skip * p:(skip + m) * p].reshape(m, p), axis=1)
-        Y = np.fft.fft(y[skip * p:(skip + m) * p].reshape(m, p), axis=1)
-        Um, Ym = U.mean(0), Y.mean(0)
-        lines = np.arange(1, p // 2)
-        G = Ym[lines] / Um[lines]
-        var = (np.var(Y[:, lines], axis=0, ddof=1) / np.abs(Um[lines]) ** 2) / m
-        return G, var
-    t, (G, var) = median_time(est, fr["repeats"])
+    t, (G, var) = median_time(lambda: frf_average(u, y, fr["period"], fr["skip"]), fr["repeats"])
     res["frf_numpy_periodic_average"] = {"median_s": t, "lines": int(len(G))}
 print(json.dumps(res))

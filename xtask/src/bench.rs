@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-fn time_it<T>(repeats: usize, mut f: impl FnMut() -> T) -> (f64, T) {
+pub(crate) fn time_it<T>(repeats: usize, mut f: impl FnMut() -> T) -> (f64, T) {
     let t0 = Instant::now();
     let mut out = f();
     let mut ts = vec![t0.elapsed().as_secs_f64()];
@@ -31,12 +31,12 @@ fn python_peers_available() -> bool {
 }
 
 /// A `String` error from anything displayable.
-fn err<E: std::fmt::Display>(x: E) -> String {
+pub(crate) fn err<E: std::fmt::Display>(x: E) -> String {
     x.to_string()
 }
 
 /// Writes a model as JSON.
-fn write_model(path: &Path, m: &StateSpace) -> Result<(), String> {
+pub(crate) fn write_model(path: &Path, m: &StateSpace) -> Result<(), String> {
     std::fs::write(path, sd_model::model_to_json_string(m).map_err(err)?).map_err(err)
 }
 
@@ -251,14 +251,15 @@ fn bench_fit(ctx: &Ctx) -> Result<Value, String> {
     )
 }
 
-/// A 70 000-sample identification experiment on the virtual stage at `rate` (PID-like
-/// controller, full multisine, input injection).
-fn identification(
+/// An identification experiment of about `samples` samples on the virtual stage at `rate`
+/// (PID-like controller, full multisine, input injection).
+pub(crate) fn identification(
     rate: f64,
     period: usize,
     seed: u64,
     ni: sd_testbed::NonIdealities,
     role: sd_ident::Role,
+    samples: usize,
 ) -> Result<sd_testbed::Identification, String> {
     let opt = sd_hinf::weights::PidOptions {
         lowpass_ratio: if rate > 2000.0 { 1000.0 / 30.0 } else { 0.0 },
@@ -281,7 +282,7 @@ fn identification(
         name: format!("e{seed}"),
         controller: k,
         excitation,
-        periods: 70_000 / period,
+        periods: samples / period,
         transient_periods: 1,
         injection: sd_testbed::Injection::Input,
         noise: sd_testbed::Noise {
@@ -306,7 +307,7 @@ fn bench_testbed_diagnose(ctx: &Ctx) -> Result<(Value, Value), String> {
         ..Default::default()
     };
     let truth = sd_testbed::Truth::default();
-    let id_fast = identification(5000.0, 10_000, 1, avg, sd_ident::Role::Model)?;
+    let id_fast = identification(5000.0, 10_000, 1, avg, sd_ident::Role::Model, 70_000)?;
     let (t_tb, data_fast) = time_it(ctx.reps, || {
         sd_testbed::run_identification(&truth, &id_fast)
     });
@@ -317,7 +318,7 @@ fn bench_testbed_diagnose(ctx: &Ctx) -> Result<(Value, Value), String> {
     nl.coulomb_velocity = 1e-4;
     let (t_nl, _) = time_it(few, || sd_testbed::run_identification(&nl, &id_fast));
     let run = |rate, period, seed| -> Result<sd_testbed::ExperimentData, String> {
-        let id = identification(rate, period, seed, avg, sd_ident::Role::Validation)?;
+        let id = identification(rate, period, seed, avg, sd_ident::Role::Validation, 70_000)?;
         sd_testbed::run_identification(&truth, &id).map_err(err)
     };
     let exps = vec![
@@ -578,9 +579,10 @@ pub fn run(quick: bool) -> Result<(), String> {
         e.testbed,
         e.diagnose,
     ];
+    let scaling = crate::scaling::table(&root, &ctx.dir, quick, !python.is_null())?;
     finish(
         &ctx.dir,
-        json!({"quick": quick, "python": python, "entries": entries}),
+        json!({"quick": quick, "python": python, "entries": entries, "scaling": scaling}),
     )
 }
 

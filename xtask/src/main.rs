@@ -9,6 +9,7 @@
 
 mod bench;
 mod paper;
+mod scaling;
 mod uncertainty;
 
 use std::process::ExitCode;
