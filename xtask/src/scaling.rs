@@ -350,7 +350,7 @@ mod tests {
     fn stage_of_n_states() {
         for n in SIZES {
             let s = stage_n(n).expect("stage");
-            assert_eq!(s.nx(), n);
+            assert_eq!(s.n(), n);
         }
     }
 }
