@@ -94,7 +94,7 @@ struct BySize {
     dare: Vec<f64>,
     loopshape: Vec<f64>,
     fit: Vec<f64>,
-    files: Vec<(usize, String, String)>,
+    files: Files,
 }
 
 /// Times every state-dimension operation at every size of [`SIZES`].
@@ -176,13 +176,16 @@ fn fit_time(pd: &StateSpace, n: usize, quick: bool) -> Result<f64, String> {
     Ok(if r.is_ok() { t } else { f64::NAN })
 }
 
+/// Written files of the peer: `(size, first path, second path)`.
+type Files = Vec<(usize, String, String)>;
+
 /// Our times against record length: periodic FRF estimation (period 1000) and a diagnosis of
 /// three virtual-stage experiments of that length each; the signals for the peer.
 fn by_length(
     dir: &Path,
     lengths: &[usize],
     quick: bool,
-) -> Result<(Vec<f64>, Vec<f64>, Vec<(usize, String, String)>), String> {
+) -> Result<(Vec<f64>, Vec<f64>, Files), String> {
     let (mut frf, mut diag, mut files) = (Vec::new(), Vec::new(), Vec::new());
     let truth = sd_testbed::Truth::default();
     let avg = sd_testbed::NonIdealities {
@@ -227,7 +230,7 @@ fn by_length(
 }
 
 /// The peers' times on the same inputs (`tools/bench_python.py --scaling`), when importable.
-fn peers(root: &Path, dir: &Path, s: &BySize, lens: &[(usize, String, String)]) -> Option<Value> {
+fn peers(root: &Path, dir: &Path, s: &BySize, lens: &Files) -> Option<Value> {
     let cases = json!({
         "models": s.files.iter().map(|(n, ct, dt)| json!({"n": n, "ct": ct, "dt": dt})).collect::<Vec<_>>(),
         "points": POINTS,
