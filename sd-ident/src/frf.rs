@@ -218,14 +218,15 @@ pub fn frf_periodic(
     let (p, m) = (opt.period, steady_periods(fs, r, u, y, opt)?);
     let start = opt.skip_periods * p;
     let len = m * p;
+    // one plan for every record (each its own FFT: packing two real records into one complex
+    // FFT mixes their roundoff, and y in metres beside u in newtons loses digits)
+    let fft = FftPlanner::<f64>::new().plan_fft_forward(len);
     let long = |x: &[f64]| -> Vec<C> {
         let mut buf: Vec<C> = x[start..start + len]
             .iter()
             .map(|&v| C::new(v, 0.0))
             .collect();
-        FftPlanner::<f64>::new()
-            .plan_fft_forward(len)
-            .process(&mut buf);
+        fft.process(&mut buf);
         buf
     };
     let ul = long(u);
