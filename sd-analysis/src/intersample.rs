@@ -27,11 +27,15 @@ pub struct Intersample {
     pub rms_slow: f64,
 }
 
-fn integrate(f: &[f64], p: &[f64]) -> f64 {
-    f.windows(2)
-        .zip(p.windows(2))
+/// `sqrt(∫ Φ df)` of a one-sided density `psd` sampled at `freq_hz` (trapezoidal rule over
+/// the grid; rms in the density's units).
+pub fn rms_of_density(freq_hz: &[f64], psd: &[f64]) -> f64 {
+    freq_hz
+        .windows(2)
+        .zip(psd.windows(2))
         .map(|(x, y)| 0.5 * (y[0] + y[1]) * (x[1] - x[0]))
-        .sum()
+        .sum::<f64>()
+        .sqrt()
 }
 
 /// Predicts the intersample behaviour of `k` (slow) around `p_fast` with one-sided disturbance
@@ -67,8 +71,8 @@ pub fn intersample(
         })
         .collect::<Result<Vec<f64>>>()?;
     Ok(Intersample {
-        rms_fast: integrate(&fast_hz, &fast_psd).sqrt(),
-        rms_slow: integrate(&slow_hz, &slow_psd).sqrt(),
+        rms_fast: rms_of_density(&fast_hz, &fast_psd),
+        rms_slow: rms_of_density(&slow_hz, &slow_psd),
         fast_hz,
         fast_psd,
         slow_hz,

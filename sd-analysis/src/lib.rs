@@ -18,7 +18,7 @@ pub mod tol;
 
 pub use closed_loop::{ClosedLoop, Margins, Responses, Summary};
 pub use error::{AnalysisError, Result};
-pub use intersample::{intersample, Intersample};
+pub use intersample::{intersample, rms_of_density, Intersample};
 pub use sd_multirate::MultirateSimulation;
 pub use spectra::{cps, periodogram, rms, welch, Spectrum, Window};
 pub use standstill::{standstill, standstill_multirate, Standstill};

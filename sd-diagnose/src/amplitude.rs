@@ -328,18 +328,28 @@ fn mode_amplitude(basis: &ModalBasis, pm: usize, at: C, y: &Spectrum) -> f64 {
     if !basis.is_rigid_damping(pm) {
         return y.band_rms(band_of(at), false);
     }
+    let top = corner_top(basis, pm);
+    y.band_rms((0.0, top), true) / corner_share(top, at).sqrt()
+}
+
+/// The top of a friction corner's velocity band: three times the linear corner, at most half
+/// the lowest pair's frequency (Hz).
+fn corner_top(basis: &ModalBasis, pm: usize) -> f64 {
     let poles = basis.poles();
     let corner = natural(poles[pm], [[0.0; 2]; 2]).0;
     let lowest_pair = (0..poles.len())
         .filter(|&j| !basis.is_real(j))
         .map(|j| natural(poles[j], [[0.0; 2]; 2]).0)
         .fold(f64::INFINITY, f64::min);
-    let top = (3.0 * corner).min(0.5 * lowest_pair);
-    // the share of a first-order velocity spectrum `1/(1 + (f/f_c)²)` below `top`, at the
-    // corner `at` of this level: the band's rms over it is the whole velocity's
+    (3.0 * corner).min(0.5 * lowest_pair)
+}
+
+/// The share `(2/π)·atan(top/f_c)` of a first-order velocity spectrum `1/(1 + (f/f_c)²)`
+/// below `top` at the corner `at` of a level: the band's power over it is the whole
+/// velocity's.
+fn corner_share(top: f64, at: C) -> f64 {
     let fc = natural(at, [[0.0; 2]; 2]).0.max(f64::MIN_POSITIVE);
-    let share = (std::f64::consts::FRAC_2_PI * (top / fc).atan()).max(1e-3);
-    y.band_rms((0.0, top), true) / share.sqrt()
+    (std::f64::consts::FRAC_2_PI * (top / fc).atan()).max(1e-3)
 }
 
 /// One level's modal fit (module documentation): the candidates' pole pairs free, from the
@@ -596,10 +606,10 @@ const RESPONSE_SPREAD: f64 = 2.0;
 /// Whether a pair's amplitude ratios follow its force ratios (`(force, amplitude)` per level,
 /// each relative to the model experiment): the response per force in the mode's band (around
 /// its fitted pole) stays within [`RESPONSE_SPREAD`] over the levels. A stiffness
-/// nonlinearity moves the resonance a few per cent and keeps its peak: on the development
-/// levels the spread of moving pairs was at most 1.23 (periodic) and 1.36 in 97 % of rising
-/// records' pieces. A level fit that wandered to another feature, or a band the noise
-/// dominates, breaks the proportion (3 to 24 where seen), and its "trend" is no amplitude law.
+/// nonlinearity moves the resonance a few per cent and keeps its peak, so its response per
+/// force hardly changes; a level fit that wandered to another feature, or a band the noise
+/// dominates, breaks the proportion, and its "trend" is no amplitude law. The factor 2 was set
+/// on development seeds (`diagnose_levels` header); the level tests check its outcome.
 fn proportional(per_force: &[(f64, f64)]) -> bool {
     let (lo, hi) = per_force
         .iter()
@@ -883,20 +893,24 @@ impl AmplitudeModel {
     /// experiment's (measured without the model), times the response per force of the fitted
     /// level nearest in force, estimates the amplitude; the solution nearest it (in `ln ρ`)
     /// is taken when within a factor [`FORCE_AGREEMENT`], else the force's estimate itself.
-    /// A pole that does not move, or a friction corner's, whose band does not depend on the
-    /// pole, is measured directly.
+    /// A pole that does not move is measured directly; a moving friction corner's band is
+    /// fixed, and only its share of the velocity ([`mode_amplitude`]) follows the corner
+    /// predicted at that amplitude (a fixed point).
     fn amplitude_of(&self, m: usize, rec: &Records) -> f64 {
         let pm = self.cand[m];
         let (fm, zm) = (self.trends[m].2, self.trends[m].3);
         let lin_pole = self.basis.poles()[pm];
         let direct = mode_amplitude(&self.basis, pm, lin_pole, &rec.y);
+        let a_ref = self.reference[m].max(f64::MIN_POSITIVE);
         if self.basis.is_rigid_damping(pm) && fm && direct > 0.0 {
-            // the corner's band share depends on the corner at this amplitude: a fixed
-            // point (the share changes slowly with the corner, so a few steps settle it)
-            let a_ref = self.reference[m].max(f64::MIN_POSITIVE);
+            // the corner's band share depends on the corner at this amplitude: a fixed point
+            // on the band's rms, measured once (the share changes slowly with the corner, so
+            // a few steps settle it)
+            let top = corner_top(&self.basis, pm);
+            let band = rec.y.band_rms((0.0, top), true);
             let mut a = direct;
             for _ in 0..20 {
-                let next = mode_amplitude(&self.basis, pm, self.pole_at(m, a / a_ref), &rec.y);
+                let next = band / corner_share(top, self.pole_at(m, a / a_ref)).sqrt();
                 let done = (next / a - 1.0).abs() < 1e-6;
                 a = next;
                 if done {
@@ -908,7 +922,6 @@ impl AmplitudeModel {
         if !(fm || zm) || self.basis.is_real(pm) || direct <= 0.0 {
             return direct;
         }
-        let a_ref = self.reference[m].max(f64::MIN_POSITIVE);
         let f_lin = natural(lin_pole, [[0.0; 2]; 2]).0;
         // ln(g(ρ)/ρ) at ln ρ, where the pole stays within MAX_SHIFT of the linear one
         let d = |ln_rho: f64| -> Option<f64> {

@@ -810,15 +810,12 @@ fn choose(variants: &[Variant], levels: &[Level<'_>], on: &[usize], h: f64, alph
         let s = statistic(lines.iter().map(|(l, c)| (l.as_slice(), *c)), alpha).value;
         s.is_finite().then_some(s)
     };
-    let scores: Vec<Option<f64>> = variants.iter().map(score).collect();
-    (0..variants.len())
-        .filter(|&i| scores[i].is_some())
-        .min_by(|&a, &b| {
-            scores[a]
-                .unwrap_or(f64::INFINITY)
-                .total_cmp(&scores[b].unwrap_or(f64::INFINITY))
-        })
-        .unwrap_or(0)
+    // a variant that cannot be fitted scores +∞; ties (and all unfitted) keep the first
+    let scores: Vec<f64> = variants
+        .iter()
+        .map(|v| score(v).unwrap_or(f64::INFINITY))
+        .collect();
+    (1..variants.len()).fold(0, |best, i| if scores[i] < scores[best] { i } else { best })
 }
 
 /// The basis with its two slowest real poles read as a friction-damped rigid body

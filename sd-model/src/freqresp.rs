@@ -424,9 +424,9 @@ impl StateSpace {
             // a static gain (nalgebra's LU of a 0×0 matrix panics)
             return Ok(to_complex(self.d()));
         }
-        // faer's blocked partial-pivoting LU (the evaluator's accuracy check makes up to
-        // 2·(clusters + 64) of these references: at 240 states nalgebra's unblocked LU made
-        // the set-up the whole cost of a 2000-point response)
+        // faer's blocked partial-pivoting LU: the evaluator's accuracy check makes up to
+        // 2·(clusters + 64) of these references, the set-up cost that `cargo xtask bench`
+        // reports as the scaling row `freqresp_setup`
         use faer::linalg::solvers::Solve;
         let (a, b) = (self.a(), self.b());
         let m = faer::Mat::<C>::from_fn(n, n, |i, j| {

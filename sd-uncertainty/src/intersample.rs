@@ -39,6 +39,7 @@
 use crate::bound::Form;
 use crate::error::{Result, UncertaintyError};
 use num_complex::Complex64 as C;
+use sd_analysis::rms_of_density;
 use sd_model::{FreqRespEvaluator, SampleTime, StateSpace};
 use sd_multirate::{hold_weight, MultirateLoop};
 use std::f64::consts::TAU;
@@ -177,13 +178,6 @@ impl Eval {
     }
 }
 
-fn integrate(f: &[f64], p: &[f64]) -> f64 {
-    f.windows(2)
-        .zip(p.windows(2))
-        .map(|(x, y)| 0.5 * (y[0] + y[1]) * (x[1] - x[0]))
-        .sum()
-}
-
 /// The fast error of the loop `(p_fast, k)` (slow period `factor·h`) and its bound over every
 /// plant inside `weight` (`|Δ| ≤ |W|`, in `form`'s units, at the fast rate), for one-sided
 /// densities `phi_d` (force) and `phi_n` (sensor), on `points` linear frequencies up to the
@@ -250,8 +244,8 @@ pub fn robust_intersample(
     });
     Ok(RobustIntersample {
         form,
-        rms_nominal: integrate(&fast_hz, &nominal_psd).sqrt(),
-        rms_bound: bound_psd.as_ref().map(|b| integrate(&fast_hz, b).sqrt()),
+        rms_nominal: rms_of_density(&fast_hz, &nominal_psd),
+        rms_bound: bound_psd.as_ref().map(|b| rms_of_density(&fast_hz, b)),
         worst_hz: worst.map(|w| w.1),
         worst_ratio: worst.map(|w| w.0),
         fast_hz,

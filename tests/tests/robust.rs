@@ -161,14 +161,7 @@ fn intersample_bound_holds_on_plants_inside_the_weight() {
             );
             closest = closest.max(x / b);
         }
-        let rms = r
-            .fast_hz
-            .windows(2)
-            .zip(psd.windows(2))
-            .map(|(f, p)| 0.5 * (p[0] + p[1]) * (f[1] - f[0]))
-            .sum::<f64>()
-            .sqrt();
-        rms_max = rms_max.max(rms);
+        rms_max = rms_max.max(sd_analysis::rms_of_density(&r.fast_hz, &psd));
     }
     println!(
         "200 plants inside the weight: density at most {closest:.3} of the bound; largest rms \

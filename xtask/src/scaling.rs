@@ -9,7 +9,7 @@
 //! (ζ 0.5–2 %, residues alternating in sign), the physical-coordinate realisation of
 //! [`sd_model::stage::stage_model`], at 5 kHz after an exact ZOH.
 
-use crate::bench::{err, identification, time_it, write_model};
+use crate::bench::{err, identification, noisy_frd, time_it, write_model};
 use sd_model::stage::{stage_model, Mode};
 use sd_model::{c2d, grid, Discretization, StateSpace};
 use serde_json::{json, Value};
@@ -164,18 +164,7 @@ fn fit_time(pd: &StateSpace, n: usize, quick: bool) -> Result<f64, String> {
     if quick && n > 120 {
         return Ok(f64::NAN);
     }
-    let f: Vec<f64> = (1..=2500).map(|k| k as f64 * 0.999).collect();
-    let truth = pd.freqresp(&f).map_err(err)?;
-    let mut rng = sd_ident::rng::SplitMix::new(n as u64);
-    let (mut resp, mut var) = (Vec::new(), Vec::new());
-    for g in truth.response() {
-        let g = g[(0, 0)];
-        let s = 0.01 * g.norm();
-        let e = num_complex::Complex64::new(rng.normal(), rng.normal()) * (s / 2f64.sqrt());
-        resp.push(nalgebra::DMatrix::from_element(1, 1, g + e));
-        var.push(nalgebra::DMatrix::from_element(1, 1, s * s));
-    }
-    let frd = sd_model::Frd::new(f, resp, Some(var), truth.time()).map_err(err)?;
+    let frd = noisy_frd(pd, n as u64)?;
     let opt = sd_ident::FitOptions {
         order: n,
         rigid_body: 2,

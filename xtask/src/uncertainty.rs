@@ -63,17 +63,15 @@ fn truth_coverage(truth: &StateSpace, b: &Bound) -> Result<f64, String> {
     Ok(coverage(b, &p).map_err(s)?.fraction)
 }
 
-/// The fast error of `k` around `p_fast` bounded over the relative weight of the fast bound
-/// `b`, for the standstill runs' disturbances (force 0.05 N and sensor 0.3 nm rms per 5 kHz
-/// sample, white).
+/// The fast error of `k` around `p_fast` (period `h`) bounded over the relative weight `w` of
+/// the fast bound, for the standstill runs' disturbances (force 0.05 N and sensor 0.3 nm rms
+/// per 5 kHz sample, white).
 fn intersample(
     p_fast: &StateSpace,
     k: &StateSpace,
-    b: &Bound,
+    w: &sd_uncertainty::Weight,
+    h: f64,
 ) -> Result<sd_uncertainty::RobustIntersample, String> {
-    let w =
-        sd_uncertainty::overbound(&b.with_form(Form::Multiplicative), WEIGHT_ORDER).map_err(s)?;
-    let h = b.ts;
     let (pd, pn) = (2.0 * h * 0.05f64.powi(2), 2.0 * h * 0.3e-9f64.powi(2));
     sd_uncertainty::robust_intersample(
         p_fast,
@@ -161,6 +159,9 @@ pub fn uncertainty(
                 .map(|x| x.1)
                 .fold(0.0, f64::max))
     };
+    // the fast bound's relative weight, for the intersample bound of every controller
+    let w_fast =
+        sd_uncertainty::overbound(&b.with_form(Form::Multiplicative), WEIGHT_ORDER).map_err(s)?;
     let mut out = Vec::new();
     for (name, k) in controllers {
         let plain_r = robust(p_down, k, &plain)?;
@@ -177,7 +178,7 @@ pub fn uncertainty(
                 .transpose()?,
             plain: plain_r,
             extended: ext_r,
-            intersample: intersample(p_fast, k, &b)?,
+            intersample: intersample(p_fast, k, &w_fast, b.ts)?,
         });
     }
     let nu_gap = sd_uncertainty::chordal_gap(p_design, &slow_frd, Some(w1)).map_err(s)?;

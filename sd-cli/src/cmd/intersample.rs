@@ -47,6 +47,9 @@ impl Args {
             weight_order,
             json,
         } = self;
+        if uncertainty.is_none() && weight_order.is_some() {
+            return Err(CliError::input("--weight-order needs --uncertainty"));
+        }
         let p = read_model(&plant_fast)?;
         let k = read_model(&controller)?;
         let (h, t) = match (p.ts(), k.ts()) {
@@ -70,27 +73,16 @@ impl Args {
                 )));
             }
         }
+        let factor = ratio.round() as usize;
         let (pd, pn) = (
             2.0 * h * force_rms * force_rms,
             2.0 * h * sensor_rms * sensor_rms,
         );
-        let r = sd_analysis::intersample(&p, &k, ratio.round() as usize, &|_| pd, &|_| pn, points)
+        let r = sd_analysis::intersample(&p, &k, factor, &|_| pd, &|_| pn, points)
             .map_err(|e| from_analysis("intersample", e))?;
-        if uncertainty.is_none() && weight_order.is_some() {
-            return Err(CliError::input("--weight-order needs --uncertainty"));
-        }
         let robust = uncertainty
             .as_deref()
-            .map(|path| {
-                robust(
-                    &p,
-                    &k,
-                    ratio.round() as usize,
-                    (path, weight_order),
-                    (pd, pn),
-                    points,
-                )
-            })
+            .map(|path| robust(&p, &k, factor, (path, weight_order), (pd, pn), points))
             .transpose()?;
         let argmax = |f: &[f64], v: &[f64]| {
             (0..v.len())
@@ -105,7 +97,7 @@ impl Args {
         );
         if json {
             let v = json!({
-                "factor": ratio.round() as usize,
+                "factor": factor,
                 "rms_fast": r.rms_fast, "rms_slow": r.rms_slow,
                 "dominant_hz_fast": df, "dominant_hz_slow": ds,
                 "control_sensitivity_peak_hz": dk,
