@@ -168,6 +168,38 @@ pub(crate) fn describes(
     Ok(statistic([(lines.as_slice(), lv.est.inflation)], alpha))
 }
 
+/// The statistic of a level's own modal fit on its lines inside `bands` (all lines when
+/// there are none): the candidates at the poles `fit` found on this level, the residues
+/// fitted to it. What the amplitude model's class reaches with the level's own data — the
+/// floor a prediction of the level from the others can approach (a fit has seen the lines it
+/// is judged on, so the floor is optimistic).
+pub(crate) fn level_floor(
+    (basis, cand): (&ModalBasis, &[usize]),
+    fit: &LevelFit,
+    h: f64,
+    lv: &Level<'_>,
+    bands: &[(f64, f64)],
+    alpha: f64,
+) -> Result<f64> {
+    let mut poles = basis.poles();
+    for (m, &pm) in cand.iter().enumerate() {
+        let (f, z, _, _) = fit.modal[m];
+        poles[pm] = if basis.is_real(pm) {
+            C::new(-TAU * f, 0.0)
+        } else {
+            pair_of(f, z)
+        };
+    }
+    let b = basis.with_poles(&poles)?;
+    let phi = b.responses(h, NonIdeal::ideal(), lv.est.frd.freq_hz())?;
+    let res = Residues::fit(&lv.est.frd, &phi)?;
+    let lines: Vec<Line> = predicted_lines(lv.est, &phi, &res)
+        .into_iter()
+        .filter(|l| bands.is_empty() || bands.iter().any(|(lo, hi)| l.f >= *lo && l.f <= *hi))
+        .collect();
+    Ok(statistic([(lines.as_slice(), lv.est.inflation)], alpha).value)
+}
+
 /// An estimate's lines against the prediction `Σ r_j φ_j` with the residues' variance.
 fn predicted_lines(est: &Estimate, phi: &[Vec<C>], res: &Residues) -> Vec<Line> {
     let np = res.n_params();

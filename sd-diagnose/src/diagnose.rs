@@ -1,7 +1,9 @@
 //! The diagnosis as named stages (crate documentation): data → FRFs → model → consistency
 //! checks → hypotheses → validation → findings.
 
-use crate::amplitude::{candidates, describes, fit_level, kinds, AmplitudeModel, Level, LevelFit};
+use crate::amplitude::{
+    candidates, describes, fit_level, kinds, level_floor, AmplitudeModel, Level, LevelFit,
+};
 use crate::data::{
     earlier_label, estimate, held_out_label, level, parts, rate_factor, Estimate, Part,
 };
@@ -1043,6 +1045,7 @@ fn levels_left_out(
             statistic([(a.as_slice(), c)], alpha).value,
             statistic([(b.as_slice(), c)], alpha).value,
         );
+        let own = level_floor((basis, cand), &fits[k], data.h, lv, &bands, alpha)?;
         // beyond the fitted amplitudes of a moving mode; or, where nothing moves on the
         // training levels, beyond their excitation levels
         let (lo, hi) = (0..levels.len())
@@ -1059,6 +1062,7 @@ fn levels_left_out(
                 before: sb,
                 after: sa,
                 ratio: sb / sa,
+                floor: own,
                 lines: a.len(),
                 extrapolated,
             },

@@ -680,6 +680,11 @@ pub struct HeldOut {
     pub after: f64,
     /// before / after.
     pub ratio: f64,
+    /// The experiment's own fit in the extension's model class on the same lines (its moving
+    /// poles and residues fitted to it): the floor a prediction can approach. `after` near it
+    /// means the prediction does as well as a fit to the held-out data itself; `before /
+    /// floor` is the largest ratio the model class allows.
+    pub floor: f64,
     /// Lines compared.
     pub lines: usize,
     /// The experiment's amplitude lay beyond those the extension was fitted on.

@@ -5,7 +5,9 @@
 //!
 //! A held-out level counts as *visible* when the linear model's statistic on it (in the moving
 //! mode's band, the gain's metric) is at least [`VISIBLE`]: there the extension must gain at
-//! least 3. Seeds: development `0..20` (and `100..125`, `150..170`, `300..325`, `350..386`,
+//! least 3, or predict the level within [`FLOOR_SLACK`] of the level's own fit in the model
+//! class (`HeldOut::floor`: a level whose own fit cannot reach a third of the linear model's
+//! statistic caps every prediction's gain). Seeds: development `0..20` (and `100..125`, `150..170`, `300..325`, `350..386`,
 //! `400..425`, `450..466`, `800..825`, `850..866`, `1100..1125`, `1150..1166`, `1200..1225`,
 //! `1250..1266`, `1300..1325`, `1350..1366`, `1400..1425`, `1450..1466`, `1500..1525`,
 //! `1550..1566`, reported by earlier versions); the default run `50..53` (non-periodic
@@ -22,6 +24,36 @@ use sd_tests::diagcases::{
 
 /// The linear model's held-out statistic from which a level's nonlinearity counts as visible.
 const VISIBLE: f64 = 5.0;
+/// A visible level's prediction that gains less than 3 still counts when its statistic is
+/// within this factor of the level's own fit in the model class (`HeldOut::floor`): the
+/// class cannot do better on that level with the level's own data, so the prediction from
+/// the other levels is not what falls short. Set on seed 1519 (`1500..1525`, level 2 of a
+/// friction stage: before 5.22, own fit 1.92, prediction 1.95).
+const FLOOR_SLACK: f64 = 1.1;
+
+/// One held-out level's figures (`sd_diagnose::HeldOut`).
+#[derive(Debug)]
+struct LevelGain {
+    name: String,
+    before: f64,
+    after: f64,
+    /// The level's own fit in the model class on the same lines.
+    floor: f64,
+    /// Its amplitude lay beyond the levels the model was fitted on.
+    extrapolated: bool,
+}
+
+impl LevelGain {
+    fn gain(&self) -> f64 {
+        self.before / self.after
+    }
+
+    /// Visible and gaining less than 3 while its prediction is worse than the model class
+    /// reaches on it ([`FLOOR_SLACK`]).
+    fn weak(&self) -> bool {
+        self.before >= VISIBLE && self.gain() < 3.0 && self.after > FLOOR_SLACK * self.floor
+    }
+}
 const REPORT_SEEDS: std::ops::Range<u64> = 1600..1625;
 const CI_SEEDS: std::ops::Range<u64> = 50..53;
 /// Reported seeds of the non-periodic forms (separate noise records, one rising record).
@@ -51,9 +83,8 @@ struct Outcome {
     corner: Option<CornerTrend>,
     /// Pooled held-out gain.
     gain: Option<f64>,
-    /// Per held-out level: name, before, after, and whether its amplitude lay beyond the
-    /// levels the model was fitted on (extrapolated).
-    levels: Vec<(String, f64, f64, bool)>,
+    /// Per held-out level.
+    levels: Vec<LevelGain>,
     /// Relative error of the predicted frequency shift at each held-out level.
     shift_errors: Vec<f64>,
     seconds: f64,
@@ -63,7 +94,7 @@ impl Outcome {
     /// Whether any held-out level shows the nonlinearity above noise (the linear model's
     /// statistic there at least [`VISIBLE`]).
     fn visible(&self) -> bool {
-        self.levels.iter().any(|l| l.1 >= VISIBLE)
+        self.levels.iter().any(|l| l.before >= VISIBLE)
     }
 
     /// The kind named (`hardening`/`softening`), or — where no held-out level shows the
@@ -216,7 +247,13 @@ fn run(seed: u64, effect: LevelEffect, levels: &[f64], form: Form) -> Option<Out
             .iter()
             .filter_map(|x| {
                 let h = x.held_out?;
-                Some((x.name.clone(), h.before, h.after, h.extrapolated))
+                Some(LevelGain {
+                    name: x.name.clone(),
+                    before: h.before,
+                    after: h.after,
+                    floor: h.floor,
+                    extrapolated: h.extrapolated,
+                })
             })
             .collect(),
         shift_errors: shift_errors(&d, case.mode_hz),
@@ -233,7 +270,14 @@ fn run(seed: u64, effect: LevelEffect, levels: &[f64], form: Form) -> Option<Out
         out.gain.map(|g| (g * 10.0).round() / 10.0),
         out.levels
             .iter()
-            .map(|(n, b, a, x)| format!("{n} {b:.2}→{a:.2}{}", if *x { " (extrapolated)" } else { "" }))
+            .map(|l| format!(
+                "{} {:.2}→{:.2} (own fit {:.2}){}",
+                l.name,
+                l.before,
+                l.after,
+                l.floor,
+                if l.extrapolated { " (extrapolated)" } else { "" }
+            ))
             .collect::<Vec<_>>(),
         out.shift_errors
             .iter()
@@ -289,8 +333,8 @@ fn visible_gains(out: &[&Outcome]) -> (Vec<f64>, Vec<f64>) {
     let vis = |extra: bool| -> Vec<f64> {
         out.iter()
             .flat_map(|o| o.levels.iter())
-            .filter(|l| l.1 >= VISIBLE && l.3 == extra)
-            .map(|l| l.1 / l.2)
+            .filter(|l| l.before >= VISIBLE && l.extrapolated == extra)
+            .map(LevelGain::gain)
             .collect()
     };
     (vis(false), vis(true))
@@ -308,7 +352,8 @@ fn gain_line(g: &[f64]) -> String {
 }
 
 /// Prints the summary; returns (wrong, visible levels inside the fitted amplitudes with a
-/// gain below 3, cubic and friction cases). A level beyond the others' amplitudes (the top level,
+/// gain below 3 and a prediction worse than [`FLOOR_SLACK`] times their own fit, cubic and
+/// friction cases). A level beyond the others' amplitudes (the top level,
 /// left out) is an extrapolation, reported apart.
 fn summarize(out: &[Outcome]) -> (usize, usize) {
     let wrong = out.iter().filter(|o| !o.right()).count();
@@ -376,8 +421,30 @@ fn summarize(out: &[Outcome]) -> (usize, usize) {
             gain_line(&cvis_x),
         );
     }
-    // every visible level inside the fitted amplitudes, cubic or friction, must gain 3
-    let weak = vis.iter().chain(&cvis).filter(|g| **g < 3.0).count();
+    // every visible level inside the fitted amplitudes, cubic or friction, must gain 3 or
+    // be predicted as well as the model class fits it ([`FLOOR_SLACK`])
+    let inside: Vec<&LevelGain> = nl
+        .iter()
+        .chain(&coulomb)
+        .flat_map(|o| o.levels.iter())
+        .filter(|l| l.before >= VISIBLE && !l.extrapolated)
+        .collect();
+    let at_floor: Vec<String> = inside
+        .iter()
+        .filter(|l| l.gain() < 3.0 && !l.weak())
+        .map(|l| {
+            format!(
+                "{} {:.2}→{:.2} (own fit {:.2})",
+                l.name, l.before, l.after, l.floor
+            )
+        })
+        .collect();
+    println!(
+        "visible levels gaining < 3 but predicted within {FLOOR_SLACK}× their own fit (the \
+         model class's floor): {} {at_floor:?}",
+        at_floor.len()
+    );
+    let weak = inside.iter().filter(|l| l.weak()).count();
     (wrong, weak)
 }
 
