@@ -1500,3 +1500,46 @@ fn intersample_under_uncertainty() {
     ]);
     assert_input_error(&o, "fast plant's period");
 }
+
+/// `sdctl fit` of a 2×2 FRD: one set of poles for the four entries; two rank-one pairs are
+/// realised in four states; a rank above min(ny, nu) is bad input.
+#[test]
+fn fit_mimo_common_poles() {
+    let d = tmpdir("fit_mimo");
+    // two lightly damped pairs (0.98 e^{±j0.3}, 0.95 e^{±j1.1}) with rank-one residues
+    let (r1, i1) = (0.98 * 0.3f64.cos(), 0.98 * 0.3f64.sin());
+    let (r2, i2) = (0.95 * 1.1f64.cos(), 0.95 * 1.1f64.sin());
+    let model = format!(
+        r#"{{"type":"ss","ts":0.001,"a":[[{r1},{i1},0,0],[{n1},{r1},0,0],[0,0,{r2},{i2}],[0,0,{n2},{r2}]],
+        "b":[[1,0.5],[0.2,-0.3],[0.4,1],[-0.6,0.1]],"c":[[1,0.3,0.5,-0.2],[-0.4,1,0.8,0.6]],"d":[[0.01,0],[0,0.02]]}}"#,
+        n1 = -i1,
+        n2 = -i2
+    );
+    let m = write(&d, "m.json", &model);
+    let frd = d.join("g.json").to_string_lossy().into_owned();
+    sdctl_ok(&["freqresp", &m, "--grid", "1:450:200", "-o", &frd]);
+    let o = sdctl_ok(&["fit", &frd, "--order", "4", "--json"]);
+    let f: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(f["states"], 4, "{f}");
+    assert_eq!(
+        f["model"]["b"].as_array().unwrap()[0]
+            .as_array()
+            .unwrap()
+            .len(),
+        2
+    );
+    let modes = f["modes"].as_array().unwrap();
+    assert_eq!(modes.len(), 2);
+    assert!(modes.iter().all(|m| m["rank"] == 1), "{modes:?}");
+    // noise-free data: the relative error is at round-off
+    assert!(f["median_rel_error"].as_f64().unwrap() < 1e-8, "{f}");
+    assert!(String::from_utf8_lossy(&o.stderr).contains("2x2, order 4 (poles common"));
+    assert_input_error(
+        &sdctl(&["fit", &frd, "--order", "4", "--rank", "3"]),
+        "rank 3",
+    );
+    assert_input_error(
+        &sdctl(&["fit", &frd, "--order", "4", "--rank", "two"]),
+        "not a rank",
+    );
+}

@@ -36,7 +36,7 @@
 use crate::data::Estimate;
 use crate::lemma6::{compare, Pred};
 use crate::modal::{ModalBasis, Residues};
-use crate::stats::{normal_quantile, statistic, threshold, Line};
+use crate::stats::{statistic, threshold, Line};
 use crate::{
     CornerTrend, DampingTrend, DiagnoseError, FreqTrend, ModePoint, MovingMode, PoleKind, Result,
     Trend,
@@ -45,6 +45,7 @@ use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64 as C;
 use sd_ident::Experiment;
 use sd_model::linalg::lstsq;
+use sd_model::normal_quantile;
 use sd_model::StateSpace;
 use sd_multirate::NonIdeal;
 use std::f64::consts::TAU;

@@ -11,7 +11,7 @@ use crate::findings::{bands, dominant_fold, responses, time_domain};
 use crate::hypotheses::{penalised, Family, Fitted, Modal, StdErrors, Target};
 use crate::lemma6::{compare, Pair, Pred};
 use crate::modal::{ModalBasis, Residues};
-use crate::stats::{normal_quantile, statistic, Line, Statistic};
+use crate::stats::{statistic, Line, Statistic};
 use crate::{
     joined, merged_parameters, Cause, CornerTrend, Curves, DampingTrend, DiagnoseError,
     DiagnoseOptions, Diagnosis, DriftCheck, DriftSign, Evidence, EvidenceKind, ExperimentReport,
@@ -20,6 +20,7 @@ use crate::{
 };
 use num_complex::Complex64 as C;
 use sd_ident::{DistortionReport, Experiment, Role};
+use sd_model::normal_quantile;
 use sd_model::{SampleTime, StateSpace};
 use sd_multirate::{downsample, NonIdeal};
 use std::collections::BTreeMap;

@@ -167,58 +167,7 @@ pub(crate) fn statistic<'a>(sets: impl IntoIterator<Item = LineSet<'a>>, alpha: 
 /// The `1 − alpha` quantile of `Gamma(k, 1)/k` (module documentation).
 pub(crate) fn threshold(k: f64, alpha: f64) -> f64 {
     let nu = 2.0 * k.max(0.5);
-    let z = normal_quantile(1.0 - alpha.clamp(1e-12, 0.5));
-    let a = 2.0 / (9.0 * nu);
-    let q = nu * (1.0 - a + z * a.sqrt()).max(0.0).powi(3);
-    q / nu
-}
-
-/// Standard normal quantile (Acklam's rational approximation, relative error below 1.2e-9).
-pub(crate) fn normal_quantile(p: f64) -> f64 {
-    const A: [f64; 6] = [
-        -3.969_683_028_665_376e1,
-        2.209_460_984_245_205e2,
-        -2.759_285_104_469_687e2,
-        1.383_577_518_672_69e2,
-        -3.066_479_806_614_716e1,
-        2.506_628_277_459_239,
-    ];
-    const B: [f64; 5] = [
-        -5.447_609_879_822_406e1,
-        1.615_858_368_580_409e2,
-        -1.556_989_798_598_866e2,
-        6.680_131_188_771_972e1,
-        -1.328_068_155_288_572e1,
-    ];
-    const CC: [f64; 6] = [
-        -7.784_894_002_430_293e-3,
-        -3.223_964_580_411_365e-1,
-        -2.400_758_277_161_838,
-        -2.549_732_539_343_734,
-        4.374_664_141_464_968,
-        2.938_163_982_698_783,
-    ];
-    const D: [f64; 4] = [
-        7.784_695_709_041_462e-3,
-        3.224_671_290_700_398e-1,
-        2.445_134_137_142_996,
-        3.754_408_661_907_416,
-    ];
-    let p = p.clamp(1e-300, 1.0 - 1e-16);
-    let tail = |q: f64| {
-        (((((CC[0] * q + CC[1]) * q + CC[2]) * q + CC[3]) * q + CC[4]) * q + CC[5])
-            / ((((D[0] * q + D[1]) * q + D[2]) * q + D[3]) * q + 1.0)
-    };
-    if p < 0.02425 {
-        tail((-2.0 * p.ln()).sqrt())
-    } else if p > 1.0 - 0.02425 {
-        -tail((-2.0 * (1.0 - p).ln()).sqrt())
-    } else {
-        let q = p - 0.5;
-        let r = q * q;
-        (((((A[0] * r + A[1]) * r + A[2]) * r + A[3]) * r + A[4]) * r + A[5]) * q
-            / (((((B[0] * r + B[1]) * r + B[2]) * r + B[3]) * r + B[4]) * r + 1.0)
-    }
+    sd_model::chi2_quantile(1.0 - alpha.clamp(1e-12, 0.5), nu) / nu
 }
 
 /// Correlation inflation `c = Σ_d ρ(d)²` of estimates from a local polynomial of degree `r`
@@ -256,20 +205,6 @@ pub(crate) fn lpm_inflation(n: usize, degree: usize) -> f64 {
 #[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn normal_quantiles() {
-        // reference values (scipy.stats.norm.ppf)
-        for (p, z) in [
-            (0.5, 0.0),
-            (0.99, 2.326_347_874_040_841),
-            (0.999, 3.090_232_306_167_813),
-            (0.01, -2.326_347_874_040_841),
-            (0.975, 1.959_963_984_540_054),
-        ] {
-            assert!((normal_quantile(p) - z).abs() < 1e-8, "{p}");
-        }
-    }
 
     #[test]
     fn gamma_thresholds() {

@@ -264,18 +264,19 @@ impl Pf {
     }
 }
 
-struct Data {
-    z: Vec<C>,
-    g: Vec<C>,
-    w: Vec<f64>,
-    ts: f64,
-    min_damping: f64,
+/// One SISO data set of a fit: the points `z_k`, the responses and their weights.
+pub(crate) struct Data {
+    pub(crate) z: Vec<C>,
+    pub(crate) g: Vec<C>,
+    pub(crate) w: Vec<f64>,
+    pub(crate) ts: f64,
+    pub(crate) min_damping: f64,
 }
 
 impl Data {
     /// A free pole made admissible: reflected into the unit disc ([`reflect`]) and, for a
     /// complex pole below the damping floor, moved onto it at the same natural frequency.
-    fn constrain(&self, p: C) -> C {
+    pub(crate) fn constrain(&self, p: C) -> C {
         let p = reflect(p);
         if self.min_damping <= 0.0 || p.im.abs() <= 1e-12 * p.norm() || p.norm() == 0.0 {
             return p;
@@ -291,7 +292,7 @@ impl Data {
     }
 }
 
-fn reflect(p: C) -> C {
+pub(crate) fn reflect(p: C) -> C {
     let m = p.norm();
     if m > 1.0 {
         p / (m * m) // 1/p̄ = p/|p|²
@@ -342,7 +343,7 @@ fn free_basis(real: &[f64], pairs: &[C], z: C, out: &mut Vec<C>) {
     }
 }
 
-fn rigid_basis(m: usize, z: C, out: &mut Vec<C>) {
+pub(crate) fn rigid_basis(m: usize, z: C, out: &mut Vec<C>) {
     let mut q = C::new(1.0, 0.0);
     for _ in 0..m {
         q /= z - 1.0;
@@ -351,7 +352,14 @@ fn rigid_basis(m: usize, z: C, out: &mut Vec<C>) {
 }
 
 /// One row of the numerator basis at `z`: free poles, rigid-body terms, feedthrough.
-fn numerator_basis(real: &[f64], pairs: &[C], m: usize, feed: bool, z: C, row: &mut Vec<C>) {
+pub(crate) fn numerator_basis(
+    real: &[f64],
+    pairs: &[C],
+    m: usize,
+    feed: bool,
+    z: C,
+    row: &mut Vec<C>,
+) {
     row.clear();
     free_basis(real, pairs, z, row);
     rigid_basis(m, z, row);
@@ -457,7 +465,7 @@ fn relocate(
 }
 
 /// Sorts eigenvalues into reflected real poles and upper-half-plane pair representatives.
-fn split_poles(ev: &[C], data: &Data) -> Result<(Vec<f64>, Vec<C>)> {
+pub(crate) fn split_poles(ev: &[C], data: &Data) -> Result<(Vec<f64>, Vec<C>)> {
     let mut real = Vec::new();
     let mut pairs = Vec::new();
     for &e in ev {
@@ -476,7 +484,7 @@ fn split_poles(ev: &[C], data: &Data) -> Result<(Vec<f64>, Vec<C>)> {
     Ok((real, pairs))
 }
 
-fn starting_poles(freq_hz: &[f64], ts: f64, nf: usize) -> (Vec<f64>, Vec<C>) {
+pub(crate) fn starting_poles(freq_hz: &[f64], ts: f64, nf: usize) -> (Vec<f64>, Vec<C>) {
     let npairs = nf / 2;
     let fmax = freq_hz.iter().cloned().fold(0.0, f64::max).min(0.499 / ts);
     let fmin_data = freq_hz
@@ -667,7 +675,12 @@ fn lm(
 }
 
 fn weights(frd: &Frd, w: Weighting) -> Result<Vec<f64>> {
-    let g: Vec<C> = frd.response().iter().map(|m| m[(0, 0)]).collect();
+    weights_entry(frd, w, (0, 0))
+}
+
+/// The weights of entry `(a, b)` of an FRD ([`Weighting`]).
+pub(crate) fn weights_entry(frd: &Frd, w: Weighting, (a, b): (usize, usize)) -> Result<Vec<f64>> {
+    let g: Vec<C> = frd.response().iter().map(|m| m[(a, b)]).collect();
     let rel = || {
         g.iter()
             .map(|v| 1.0 / v.norm().max(f64::MIN_POSITIVE))
@@ -678,7 +691,7 @@ fn weights(frd: &Frd, w: Weighting) -> Result<Vec<f64>> {
         Weighting::Relative => rel(),
         Weighting::Variance => match frd.variance() {
             Some(var) => {
-                let v: Vec<f64> = var.iter().map(|m| m[(0, 0)]).collect();
+                let v: Vec<f64> = var.iter().map(|m| m[(a, b)]).collect();
                 if v.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
                     return Err(IdentError::Data(
                         "the FRD variance must be positive at every line for variance weighting; \
@@ -691,6 +704,24 @@ fn weights(frd: &Frd, w: Weighting) -> Result<Vec<f64>> {
             None => rel(),
         },
     })
+}
+
+/// The settings' own checks: the damping floor in `[0, 1)`, `1 ≤ order`, `rigid_body ≤ 2`
+/// and `rigid_body ≤ order`.
+pub(crate) fn check_options(opt: &FitOptions) -> Result<()> {
+    if !(opt.min_damping.is_finite() && (0.0..1.0).contains(&opt.min_damping)) {
+        return Err(IdentError::InvalidArgument(format!(
+            "min_damping {} must be in [0, 1)",
+            opt.min_damping
+        )));
+    }
+    if opt.rigid_body > 2 || opt.order < opt.rigid_body || opt.order == 0 {
+        return Err(IdentError::InvalidArgument(format!(
+            "order {} with {} rigid-body poles: need 1 ≤ order, rigid_body ≤ 2 and rigid_body ≤ order",
+            opt.order, opt.rigid_body
+        )));
+    }
+    Ok(())
 }
 
 /// Fits a discrete-time model to a SISO FRD (module documentation).
@@ -718,23 +749,12 @@ pub fn fit_with_progress(
     };
     if frd.shape() != (1, 1) {
         return Err(IdentError::InvalidArgument(format!(
-            "fit is SISO; the FRD is {}x{} (fit each entry)",
+            "fit is SISO; the FRD is {}x{} (fit_common_poles fits one set of poles to every entry)",
             frd.shape().0,
             frd.shape().1
         )));
     }
-    if !(opt.min_damping.is_finite() && (0.0..1.0).contains(&opt.min_damping)) {
-        return Err(IdentError::InvalidArgument(format!(
-            "min_damping {} must be in [0, 1)",
-            opt.min_damping
-        )));
-    }
-    if opt.rigid_body > 2 || opt.order < opt.rigid_body || opt.order == 0 {
-        return Err(IdentError::InvalidArgument(format!(
-            "order {} with {} rigid-body poles: need 1 ≤ order, rigid_body ≤ 2 and rigid_body ≤ order",
-            opt.order, opt.rigid_body
-        )));
-    }
+    check_options(opt)?;
     let nf = opt.order - opt.rigid_body;
     let nparams = 2 * nf + opt.rigid_body + usize::from(opt.feedthrough);
     if 2 * frd.len() <= nparams {

@@ -9,11 +9,14 @@
 //! - [`fit()`]: discrete-time rational fitting up to order ~60 (SK iterations in a partial-fraction
 //!   basis, then Levenberg–Marquardt on the variance-weighted cost; stability by reflection;
 //!   rigid-body poles at z = 1 optionally fixed; order selection).
+//! - [`fit_common_poles`]: one set of poles for every entry of a MIMO FRD, residue matrices of
+//!   the rank the data support, a minimal modal realisation.
 
 pub mod error;
 pub mod estimate;
 pub mod experiment;
 pub mod fit;
+pub mod fit_mimo;
 pub mod frf;
 pub mod lpm;
 pub mod multisine;
@@ -30,6 +33,10 @@ pub use experiment::{
 pub use fit::{
     final_prediction_error, fit, fit_with_progress, model_cost, select_order, FitOptions,
     FitProgress, FitResult, FitWarning, Weighting,
+};
+pub use fit_mimo::{
+    fit_common_poles, fit_common_poles_with_progress, MimoFitOptions, MimoFitResult, MimoMode,
+    ResidueRank,
 };
 pub use frf::{
     frf_periodic, DistortionReport, FrfEstimate, PeriodicOptions, MIN_INPUT_SNR, NL_NEIGHBOURS,

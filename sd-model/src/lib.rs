@@ -29,6 +29,7 @@ pub mod keys;
 pub mod linalg;
 pub mod norms;
 pub mod poles;
+pub mod quantile;
 pub mod reduce;
 pub mod sim;
 pub mod ss;
@@ -49,6 +50,7 @@ pub use json::{
 };
 pub use norms::HinfNorm;
 pub use num_complex::Complex64;
+pub use quantile::{chi2_quantile, normal_quantile};
 pub use reduce::BalancedTruncation;
 pub use sim::{median, rms, rms_of, Simulation};
 pub use ss::StateSpace;

@@ -31,8 +31,15 @@ pub(crate) struct Args {
     /// onto it at the same natural frequency during the fit.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub(crate) min_damping: f64,
+    /// A MIMO FRD's residue ranks (one set of poles for every entry): `select` (the rank the
+    /// data support, a χ² test at 1 % per pole; default), `full`, or a number (every pole).
+    #[arg(long, default_value = "select", value_parser = parse_rank)]
+    pub(crate) rank: sd_ident::ResidueRank,
     /// Write a JSON object instead of the model: `model` (model JSON), `cost`,
-    /// `median_rel_error`, `lines` (each line's `freq_hz` and `cost` term) and `warnings`.
+    /// `median_rel_error`, and for a SISO FRD `lines` (each line's `freq_hz` and `cost` term)
+    /// and `warnings`; for a MIMO FRD `full_rank_cost`, `entry_cost` (ny × nu), `states` and
+    /// `modes` (per free pole `freq_hz`, `damping`, `singular_values`, `rank`,
+    /// `output_direction`, `input_direction`).
     #[arg(long)]
     pub(crate) json: bool,
     #[arg(help = crate::commands::OUTPUT_HELP, short, long)]
@@ -49,6 +56,7 @@ impl Args {
             strictly_proper,
             weighting,
             min_damping,
+            rank,
             json,
             output,
         } = self;
@@ -66,6 +74,9 @@ impl Args {
             min_damping,
             ..Default::default()
         };
+        if data.shape() != (1, 1) {
+            return run_mimo(&frd, &data, opt, rank, json, output.as_deref());
+        }
         let r = sd_ident::fit_with_progress(&data, &opt, &mut |p| {
             eprintln!(
                 "[fit] {} iteration {:>3}: cost {:.6e}",
@@ -106,6 +117,72 @@ impl Args {
             output.as_deref(),
         )
     }
+}
+
+/// `--rank`: `select`, `full` or a positive number.
+fn parse_rank(s: &str) -> Result<sd_ident::ResidueRank, String> {
+    match s {
+        "select" => Ok(sd_ident::ResidueRank::Select),
+        "full" => Ok(sd_ident::ResidueRank::Full),
+        n => match n.parse::<usize>() {
+            Ok(k) if k > 0 => Ok(sd_ident::ResidueRank::Fixed(k)),
+            _ => Err(format!(
+                "`{n}` is not a rank: use select, full or a positive number"
+            )),
+        },
+    }
+}
+
+/// A MIMO FRD: one set of poles for every entry ([`sd_ident::fit_common_poles`]).
+fn run_mimo(
+    name: &str,
+    data: &sd_model::Frd,
+    fit: sd_ident::FitOptions,
+    rank: sd_ident::ResidueRank,
+    json: bool,
+    output: Option<&str>,
+) -> Result<(), CliError> {
+    let opt = sd_ident::MimoFitOptions {
+        fit,
+        rank,
+        ..Default::default()
+    };
+    let r = sd_ident::fit_common_poles_with_progress(data, &opt, &mut |p| {
+        eprintln!(
+            "[fit] {} iteration {:>3}: cost {:.6e}",
+            p.stage, p.iteration, p.cost
+        );
+    })
+    .map_err(|e| from_ident(name, e))?;
+    let (ny, nu) = data.shape();
+    eprintln!(
+        "[fit] {ny}x{nu}, order {} (poles common to every entry): cost {:.6e} (free residues {:.6e}), {} states, \
+         residue ranks {:?}, median relative error {:.3} %",
+        opt.fit.order,
+        r.cost,
+        r.full_rank_cost,
+        r.model.n(),
+        r.modes.iter().map(|m| m.rank).collect::<Vec<_>>(),
+        100.0 * r.median_rel_error
+    );
+    if !json {
+        return emit(&model_json(&r.model)?, output);
+    }
+    let bad = |e: serde_json::Error| CliError::numerical(format!("fit JSON: {e}"));
+    let model: serde_json::Value = serde_json::from_str(&model_json(&r.model)?).map_err(bad)?;
+    let entry_cost: Vec<Vec<f64>> = (0..ny)
+        .map(|a| (0..nu).map(|b| r.entry_cost[(a, b)]).collect())
+        .collect();
+    let out = serde_json::json!({
+        "model": model,
+        "cost": r.cost,
+        "full_rank_cost": r.full_rank_cost,
+        "entry_cost": entry_cost,
+        "median_rel_error": r.median_rel_error,
+        "states": r.model.n(),
+        "modes": r.modes,
+    });
+    emit(&serde_json::to_string_pretty(&out).map_err(bad)?, output)
 }
 
 /// The three lines with the largest cost terms, as "f Hz (share %)".

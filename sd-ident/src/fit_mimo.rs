@@ -1,0 +1,1239 @@
+//! A common-pole fit of a MIMO FRD: one set of poles for every entry, residue matrices of the
+//! rank the data support, realised in modal form with the fewest states.
+//!
+//! **Model** (the partial fractions of [`crate::fit`], with matrix residues):
+//! `Ĝ(z) = Σ_i R_i/(z − p_i) + Σ_{l=1}^{m} C_l/(z − 1)^l + D`, `R_i`, `C_l`, `D` ∈ ℂ^{ny×nu}
+//! (`R_i` real for a real pole, conjugate for the pair's other pole). Every entry `(a, b)` has
+//! its own weights `w_k^{ab}` (the FRD's per-entry variance, relative or uniform,
+//! [`Weighting`]); the cost is `V = Σ_{ab} Σ_k (w_k^{ab})² |G_k^{ab} − Ĝ^{ab}(z_k)|²`.
+//!
+//! **Step 1, vector fitting with a common denominator** (Gustavsen & Semlyen 1999;
+//! Deschrijver, Mrozowski, Dhaene & De Zutter, IEEE MWCL 18(6), 2008, "fast VF"): one
+//! `σ(z) = 1 + Σ c̃_i φ_i(z)` for every entry, each entry with its own numerator. Per entry the
+//! QR factorisation of `[Φ, −G Φ_free, G]` (weighted) leaves in its trailing block the
+//! equations of `c̃` with the entry's numerator eliminated; those blocks of all entries are
+//! stacked and solved together, and the zeros of σ are the new poles (reflected into the unit
+//! disc, the damping floor applied, as in the SISO fit).
+//!
+//! **Step 2, Levenberg–Marquardt by variable projection** (Golub & Pereyra 1973; Kaufman's
+//! Jacobian, BIT 15, 1975): only the poles are iterated; for given poles every entry's
+//! residues are the weighted least-squares solution. The Gauss–Newton equations of the poles
+//! come, per entry, from the QR factorisation of `[Φ, (∂Φ/∂θ) r, G]`: its trailing block is
+//! the linearised residual with the residues eliminated. Marquardt's damping, scaled by the
+//! column norms.
+//!
+//! **Step 3, residue ranks.** Each free pole's residue matrix `R = Σ s_l u_l v_lᴴ` (SVD). With
+//! variance weights the residues' covariance is known (each entry's least squares), and the
+//! smaller singular values are tested: `Σ_{l>k} s_l² / var(s_{k+1})` against the χ² quantile
+//! of `2(ny − k)(nu − k)` (pairs; half that for a real pole) degrees of freedom at `alpha`.
+//! The chosen ranks are then imposed by alternating least squares (outputs' factors given the
+//! inputs', and back) on the weighted cost, the poles fixed. [`ResidueRank::Fixed`] imposes a
+//! rank on every pole; [`ResidueRank::Full`] keeps the free residues.
+//!
+//! **Realisation.** A real pole of rank k: k states (`B = S Vᵀ`, `C = U`); a pair of rank k:
+//! 2k states per `[[α, −β], [β, α]]` block (`B = [Re b; Im b]`, `C = [2 Re c, −2 Im c]` for
+//! each rank-one term `c b/(z − p)`); the rigid body `m·nu` states (per input a Jordan chain
+//! at z = 1). A 2×2 structure with rank-one modes has a quarter of the states of four SISO
+//! fits of the same order.
+
+use crate::error::{IdentError, Result};
+use crate::fit::{
+    numerator_basis, reflect, split_poles, starting_poles, weights_entry, Data, FitOptions,
+    FitProgress, Weighting,
+};
+use faer::Mat;
+use nalgebra::DMatrix;
+use num_complex::Complex64 as C;
+use sd_model::linalg::convert::eigenvalues;
+use sd_model::{Frd, SampleTime, StateSpace};
+use std::f64::consts::PI;
+
+/// The rank of each free pole's residue matrix.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case", tag = "kind", content = "rank")]
+pub enum ResidueRank {
+    /// Free residues (the realisation still uses each residue's numerical rank).
+    Full,
+    /// The rank the data support (module documentation, step 3); full rank without variance
+    /// weights.
+    Select,
+    /// This rank for every free pole (at most `min(ny, nu)`).
+    Fixed(usize),
+}
+
+/// Settings of a common-pole fit.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MimoFitOptions {
+    /// Order (free poles plus rigid-body poles, counted once for all entries), weighting,
+    /// iterations, damping floor: as the SISO fit.
+    pub fit: FitOptions,
+    /// Residue ranks.
+    pub rank: ResidueRank,
+    /// False-alarm probability of each rank test ([`ResidueRank::Select`]).
+    pub alpha: f64,
+}
+
+impl Default for MimoFitOptions {
+    fn default() -> Self {
+        MimoFitOptions {
+            fit: FitOptions::default(),
+            rank: ResidueRank::Select,
+            alpha: 0.01,
+        }
+    }
+}
+
+/// One free pole of a common-pole fit.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct MimoMode {
+    /// Natural frequency `|s|/2π` of `s = ln(p)/T` (Hz).
+    pub freq_hz: f64,
+    /// Damping ratio `−Re s/|s|` (1 for a real pole).
+    pub damping: f64,
+    /// Singular values of the free residue matrix, largest first.
+    pub singular_values: Vec<f64>,
+    /// The rank used.
+    pub rank: usize,
+    /// Output direction `u₁` of the largest singular value (magnitudes, unit norm).
+    pub output_direction: Vec<f64>,
+    /// Input direction `v₁` (magnitudes, unit norm).
+    pub input_direction: Vec<f64>,
+}
+
+/// A common-pole fit.
+#[derive(Debug, Clone)]
+pub struct MimoFitResult {
+    /// The modal realisation at the FRD's sample time (ny outputs, nu inputs).
+    pub model: StateSpace,
+    /// Cost V with the ranks used.
+    pub cost: f64,
+    /// Cost with free (full-rank) residues at the same poles.
+    pub full_rank_cost: f64,
+    /// Each entry's part of `cost` (ny × nu).
+    pub entry_cost: DMatrix<f64>,
+    /// Cost after each SK and accepted LM iteration (full-rank residues).
+    pub history: Vec<FitProgress>,
+    /// The free poles (upper half-plane representative of each pair) and the rigid-body poles.
+    pub poles: Vec<C>,
+    /// Per free pole (real poles first, then pairs): frequency, damping, ranks.
+    pub modes: Vec<MimoMode>,
+    /// Median of `|G − Ĝ|/|G|` over every entry and line.
+    pub median_rel_error: f64,
+}
+
+/// The weighted data of every entry, sharing `z`.
+struct Entries {
+    /// One SISO data set per entry, row-major (`a·nu + b`).
+    data: Vec<Data>,
+    ny: usize,
+    nu: usize,
+    /// The FRD has per-entry variances.
+    has_variance: bool,
+}
+
+/// Residues of one entry: per free basis column, rigid, feedthrough (as
+/// [`numerator_basis`] orders them), and their covariance.
+struct EntryFit {
+    x: Vec<f64>,
+    cov: DMatrix<f64>,
+}
+
+/// The weighted least squares of every entry's numerator for given poles.
+fn entry_residues(
+    e: &Entries,
+    real: &[f64],
+    pairs: &[C],
+    m: usize,
+    feed: bool,
+) -> Result<Vec<EntryFit>> {
+    e.data
+        .iter()
+        .map(|d| {
+            let a = weighted_basis(d, real, pairs, m, feed);
+            let b: Vec<f64> =
+                d.g.iter()
+                    .zip(&d.w)
+                    .flat_map(|(g, w)| [w * g.re, w * g.im])
+                    .collect();
+            let ls = sd_model::linalg::lstsq_faer(a.as_ref(), &b).map_err(|err| {
+                IdentError::Numerical(format!("the residues' least squares failed: {err}"))
+            })?;
+            Ok(EntryFit {
+                x: ls.x.iter().copied().collect(),
+                cov: ls.cov,
+            })
+        })
+        .collect()
+}
+
+/// The weighted numerator basis of one entry (2K × columns, real and imaginary rows).
+fn weighted_basis(d: &Data, real: &[f64], pairs: &[C], m: usize, feed: bool) -> Mat<f64> {
+    let mut row = Vec::new();
+    numerator_basis(real, pairs, m, feed, d.z[0], &mut row);
+    let ncol = row.len();
+    let mut a = Mat::<f64>::zeros(2 * d.z.len(), ncol);
+    for (i, (&z, &w)) in d.z.iter().zip(&d.w).enumerate() {
+        numerator_basis(real, pairs, m, feed, z, &mut row);
+        for (j, v) in row.iter().enumerate() {
+            a[(2 * i, j)] = w * v.re;
+            a[(2 * i + 1, j)] = w * v.im;
+        }
+    }
+    a
+}
+
+/// Evaluates an entry's numerator coefficients `x` at `z`.
+fn eval(x: &[f64], real: &[f64], pairs: &[C], m: usize, feed: bool, z: C, row: &mut Vec<C>) -> C {
+    numerator_basis(real, pairs, m, feed, z, row);
+    row.iter().zip(x).map(|(v, c)| v * *c).sum()
+}
+
+/// Every entry's weighted cost for residues `xs`.
+fn entry_costs(
+    e: &Entries,
+    xs: &[Vec<f64>],
+    real: &[f64],
+    pairs: &[C],
+    m: usize,
+    feed: bool,
+) -> Vec<f64> {
+    let mut row = Vec::new();
+    e.data
+        .iter()
+        .zip(xs)
+        .map(|(d, x)| {
+            d.z.iter()
+                .zip(&d.g)
+                .zip(&d.w)
+                .map(|((&z, &g), &w)| {
+                    (w * (eval(x, real, pairs, m, feed, z, &mut row) - g)).norm_sqr()
+                })
+                .sum()
+        })
+        .collect()
+}
+
+/// The trailing `rows × (cols)` block of the R factor of `[a | extra]` (columns of `a` first):
+/// the equations of the `extra` columns with `a`'s unknowns eliminated.
+fn trailing_block(a: &Mat<f64>, extra: &Mat<f64>) -> Mat<f64> {
+    let (k, na, ne) = (a.nrows(), a.ncols(), extra.ncols());
+    let mut aug = Mat::<f64>::zeros(k, na + ne);
+    aug.as_mut().submatrix_mut(0, 0, k, na).copy_from(a);
+    aug.as_mut().submatrix_mut(0, na, k, ne).copy_from(extra);
+    let r = aug.qr().thin_R().to_owned();
+    let rows = ne.min(k.saturating_sub(na));
+    Mat::from_fn(rows, ne, |i, j| r[(na + i, na + j)])
+}
+
+/// One common-denominator pole relocation (module documentation, step 1).
+fn relocate_common(
+    e: &Entries,
+    real: &[f64],
+    pairs: &[C],
+    m: usize,
+    feed: bool,
+) -> Result<(Vec<f64>, Vec<C>)> {
+    let nf = real.len() + 2 * pairs.len();
+    let mut blocks = Vec::with_capacity(e.data.len());
+    let mut row = Vec::new();
+    for d in &e.data {
+        let a = weighted_basis(d, real, pairs, m, feed);
+        let mut extra = Mat::<f64>::zeros(2 * d.z.len(), nf + 1);
+        for (i, ((&z, &g), &w)) in d.z.iter().zip(&d.g).zip(&d.w).enumerate() {
+            numerator_basis(real, pairs, m, feed, z, &mut row);
+            for (j, v) in row[..nf].iter().enumerate() {
+                let t = -g * v * w;
+                extra[(2 * i, j)] = t.re;
+                extra[(2 * i + 1, j)] = t.im;
+            }
+            extra[(2 * i, nf)] = w * g.re;
+            extra[(2 * i + 1, nf)] = w * g.im;
+        }
+        blocks.push(trailing_block(&a, &extra));
+    }
+    let rows: usize = blocks.iter().map(|b| b.nrows()).sum();
+    let mut s = Mat::<f64>::zeros(rows, nf);
+    let mut rhs = vec![0.0; rows];
+    let mut at = 0;
+    for b in &blocks {
+        for i in 0..b.nrows() {
+            for j in 0..nf {
+                s[(at + i, j)] = b[(i, j)];
+            }
+            rhs[at + i] = b[(i, nf)];
+        }
+        at += b.nrows();
+    }
+    let ls = sd_model::linalg::lstsq_faer(s.as_ref(), &rhs).map_err(|err| {
+        IdentError::Numerical(format!("the common pole relocation failed: {err}"))
+    })?;
+    let ct: Vec<f64> = ls.x.iter().copied().collect();
+    sigma_zeros(real, pairs, &ct, &e.data[0])
+}
+
+/// The zeros of `σ = 1 + Σ c̃_i φ_i`: `eig(A − b c̃ᵀ)` in the real block realisation of the basis.
+fn sigma_zeros(real: &[f64], pairs: &[C], ct: &[f64], d: &Data) -> Result<(Vec<f64>, Vec<C>)> {
+    let nf = ct.len();
+    let mut am = DMatrix::<f64>::zeros(nf, nf);
+    let mut bv = vec![0.0; nf];
+    let mut idx = 0;
+    for &p in real {
+        am[(idx, idx)] = p;
+        bv[idx] = 1.0;
+        idx += 1;
+    }
+    for &p in pairs {
+        am[(idx, idx)] = p.re;
+        am[(idx, idx + 1)] = p.im;
+        am[(idx + 1, idx)] = -p.im;
+        am[(idx + 1, idx + 1)] = p.re;
+        bv[idx] = 2.0;
+        idx += 2;
+    }
+    for i in 0..nf {
+        for j in 0..nf {
+            am[(i, j)] -= bv[i] * ct[j];
+        }
+    }
+    let ev = eigenvalues(&am)?;
+    split_poles(&ev, d)
+}
+
+/// The pole parameters: real poles, then `(Re, Im)` of each pair.
+fn pole_params(real: &[f64], pairs: &[C]) -> Vec<f64> {
+    real.iter()
+        .copied()
+        .chain(pairs.iter().flat_map(|p| [p.re, p.im]))
+        .collect()
+}
+
+/// The poles of parameters `v` ([`pole_params`]), made admissible.
+fn poles_of(v: &[f64], nr: usize, d: &Data) -> (Vec<f64>, Vec<C>) {
+    let real = v[..nr]
+        .iter()
+        .map(|&p| reflect(C::new(p, 0.0)).re)
+        .collect();
+    let pairs = v[nr..]
+        .chunks(2)
+        .map(|c| d.constrain(C::new(c[0], c[1])))
+        .collect();
+    (real, pairs)
+}
+
+/// One entry's weighted `∂(Φ x)/∂θ` (2K × poles' parameters) and its data column.
+fn pole_derivatives(d: &Data, x: &[f64], real: &[f64], pairs: &[C]) -> Mat<f64> {
+    let np = real.len() + 2 * pairs.len();
+    let jj = C::new(0.0, 1.0);
+    let mut out = Mat::<f64>::zeros(2 * d.z.len(), np + 1);
+    for (i, ((&z, &g), &w)) in d.z.iter().zip(&d.g).zip(&d.w).enumerate() {
+        let mut put = |c: usize, v: C| {
+            out[(2 * i, c)] = w * v.re;
+            out[(2 * i + 1, c)] = w * v.im;
+        };
+        for (q, &p) in real.iter().enumerate() {
+            let u = 1.0 / (z - p);
+            put(q, x[q] * u * u);
+        }
+        for (q, &a) in pairs.iter().enumerate() {
+            let off = real.len() + 2 * q;
+            let (c1, c2) = (x[off], x[off + 1]);
+            let (u, v) = (1.0 / (z - a), 1.0 / (z - a.conj()));
+            let (s, t) = (u * u + v * v, u * u - v * v);
+            put(off, c1 * s + c2 * jj * t);
+            put(off + 1, c1 * jj * t - c2 * s);
+        }
+        put(np, g);
+    }
+    out
+}
+
+/// The common poles' state during the iterations.
+struct PoleFit {
+    real: Vec<f64>,
+    pairs: Vec<C>,
+    fits: Vec<EntryFit>,
+    cost: f64,
+}
+
+impl PoleFit {
+    fn at(e: &Entries, real: Vec<f64>, pairs: Vec<C>, m: usize, feed: bool) -> Result<Self> {
+        let fits = entry_residues(e, &real, &pairs, m, feed)?;
+        let xs: Vec<Vec<f64>> = fits.iter().map(|f| f.x.clone()).collect();
+        let cost = entry_costs(e, &xs, &real, &pairs, m, feed).iter().sum();
+        Ok(PoleFit {
+            real,
+            pairs,
+            fits,
+            cost,
+        })
+    }
+}
+
+/// Levenberg–Marquardt on the poles by variable projection (module documentation, step 2).
+fn lm_common(
+    e: &Entries,
+    mut cur: PoleFit,
+    opt: &FitOptions,
+    history: &mut Vec<FitProgress>,
+    progress: &mut dyn FnMut(&FitProgress),
+) -> Result<PoleFit> {
+    let (m, feed) = (opt.rigid_body, opt.feedthrough);
+    let np = cur.real.len() + 2 * cur.pairs.len();
+    if np == 0 {
+        return Ok(cur);
+    }
+    let mut lambda: f64 = 1e-3;
+    let mut accepted = 0;
+    for _ in 0..opt.lm_iterations {
+        let mut blocks = Vec::with_capacity(e.data.len());
+        for (d, f) in e.data.iter().zip(&cur.fits) {
+            let a = weighted_basis(d, &cur.real, &cur.pairs, m, feed);
+            blocks.push(trailing_block(
+                &a,
+                &pole_derivatives(d, &f.x, &cur.real, &cur.pairs),
+            ));
+        }
+        let rows: usize = blocks.iter().map(|b| b.nrows()).sum();
+        let mut j = Mat::<f64>::zeros(rows + np, np);
+        let mut rhs = vec![0.0; rows + np];
+        let mut at = 0;
+        for b in &blocks {
+            for i in 0..b.nrows() {
+                for c in 0..np {
+                    j[(at + i, c)] = b[(i, c)];
+                }
+                rhs[at + i] = b[(i, np)];
+            }
+            at += b.nrows();
+        }
+        let dn: Vec<f64> = (0..np)
+            .map(|c| (0..rows).map(|r| j[(r, c)].powi(2)).sum::<f64>().sqrt())
+            .collect();
+        let theta = pole_params(&cur.real, &cur.pairs);
+        let mut improved = false;
+        for _ in 0..12 {
+            for c in 0..np {
+                j[(rows + c, c)] = lambda.sqrt() * dn[c].max(f64::MIN_POSITIVE);
+            }
+            let Ok(step) = sd_model::linalg::lstsq_faer(j.as_ref(), &rhs) else {
+                lambda *= 10.0;
+                continue;
+            };
+            let trial: Vec<f64> = theta
+                .iter()
+                .zip(step.x.iter())
+                .map(|(t, s)| t + s)
+                .collect();
+            let (real, pairs) = poles_of(&trial, cur.real.len(), &e.data[0]);
+            let cand = PoleFit::at(e, real, pairs, m, feed);
+            match cand {
+                Ok(c) if c.cost.is_finite() && c.cost < cur.cost => {
+                    let rel = (cur.cost - c.cost) / cur.cost;
+                    cur = c;
+                    lambda = (lambda / 3.0).max(1e-12);
+                    improved = true;
+                    accepted += 1;
+                    let p = FitProgress {
+                        stage: "lm",
+                        iteration: accepted,
+                        cost: cur.cost,
+                    };
+                    progress(&p);
+                    history.push(p);
+                    if rel < crate::tol::LM_STOP {
+                        return Ok(cur);
+                    }
+                    break;
+                }
+                _ => lambda *= 4.0,
+            }
+        }
+        if !improved {
+            break;
+        }
+    }
+    Ok(cur)
+}
+
+/// A free pole's columns in an entry's coefficients: `(first column, pair?)`.
+fn pole_columns(nr: usize, npairs: usize) -> Vec<(usize, bool)> {
+    (0..nr)
+        .map(|q| (q, false))
+        .chain((0..npairs).map(|q| (nr + 2 * q, true)))
+        .collect()
+}
+
+/// The residue matrix of the free pole at `(col, pair)` (ny × nu; real for a real pole).
+fn residue_matrix(xs: &[Vec<f64>], ny: usize, nu: usize, (col, pair): (usize, bool)) -> DMatrix<C> {
+    DMatrix::from_fn(ny, nu, |a, b| {
+        let x = &xs[a * nu + b];
+        C::new(x[col], if pair { x[col + 1] } else { 0.0 })
+    })
+}
+
+/// The rank the data support for one free pole's residues (module documentation, step 3).
+fn supported_rank(
+    fits: &[EntryFit],
+    ny: usize,
+    nu: usize,
+    (col, pair): (usize, bool),
+    alpha: f64,
+) -> usize {
+    let xs: Vec<Vec<f64>> = fits.iter().map(|f| f.x.clone()).collect();
+    let r = residue_matrix(&xs, ny, nu, (col, pair));
+    let svd = r.clone().svd(true, true);
+    let (Some(u), Some(vt)) = (svd.u.as_ref(), svd.v_t.as_ref()) else {
+        return ny.min(nu);
+    };
+    let s = &svd.singular_values;
+    let full = ny.min(nu);
+    for k in 1..full {
+        // variance of s_{k+1} from the residues' covariance: δs = Re(u_{k+1}ᴴ δR v_{k+1})
+        let var: f64 = (0..ny)
+            .flat_map(|a| (0..nu).map(move |b| (a, b)))
+            .map(|(a, b)| {
+                let g = u[(a, k)].conj() * vt[(k, b)].conj();
+                let cov = &fits[a * nu + b].cov;
+                if pair {
+                    let v = [g.re, -g.im];
+                    (0..2)
+                        .map(|i| {
+                            (0..2)
+                                .map(|j| v[i] * cov[(col + i, col + j)] * v[j])
+                                .sum::<f64>()
+                        })
+                        .sum::<f64>()
+                } else {
+                    g.re * g.re * cov[(col, col)]
+                }
+            })
+            .sum();
+        let rest: f64 = (k..full).map(|l| s[l] * s[l]).sum();
+        let dof = ((ny - k) * (nu - k) * if pair { 2 } else { 1 }) as f64;
+        if var > 0.0 && rest / var <= sd_model::chi2_quantile(1.0 - alpha, dof) {
+            return k;
+        }
+    }
+    full
+}
+
+/// Rank-`k` factors `(U, V)` of each free pole (`R ≈ U Vᵀ`, `U` ny × k, `V` nu × k) from the
+/// truncated SVD of its free residues.
+fn factors(
+    xs: &[Vec<f64>],
+    ny: usize,
+    nu: usize,
+    cols: &[(usize, bool)],
+    ranks: &[usize],
+) -> Vec<(DMatrix<C>, DMatrix<C>)> {
+    cols.iter()
+        .zip(ranks)
+        .map(|(&pc, &k)| {
+            let r = residue_matrix(xs, ny, nu, pc);
+            if !pc.1 {
+                // a real pole's residues are real: real factors
+                let svd = r.map(|v| v.re).svd(true, true);
+                let s = &svd.singular_values;
+                let (u, vt) = match (svd.u, svd.v_t) {
+                    (Some(u), Some(vt)) => (u, vt),
+                    _ => (
+                        DMatrix::identity(ny, ny.min(nu)),
+                        DMatrix::identity(ny.min(nu), nu),
+                    ),
+                };
+                let uf = DMatrix::from_fn(ny, k, |a, l| C::new(u[(a, l)] * s[l], 0.0));
+                let vf = DMatrix::from_fn(nu, k, |b, l| C::new(vt[(l, b)], 0.0));
+                return (uf, vf);
+            }
+            let svd = r.svd(true, true);
+            let (u, vt) = match (svd.u, svd.v_t) {
+                (Some(u), Some(vt)) => (u, vt),
+                _ => (
+                    DMatrix::identity(ny, ny.min(nu)),
+                    DMatrix::identity(ny.min(nu), nu),
+                ),
+            };
+            let s = &svd.singular_values;
+            let uf = DMatrix::from_fn(ny, k, |a, l| u[(a, l)] * s[l]);
+            let vf = DMatrix::from_fn(nu, k, |b, l| vt[(l, b)]);
+            (uf, vf)
+        })
+        .collect()
+}
+
+/// The residues of every entry from the factors (free columns) and `rest` (rigid and
+/// feedthrough coefficients per entry).
+fn compose(
+    f: &[(DMatrix<C>, DMatrix<C>)],
+    cols: &[(usize, bool)],
+    rest: &[Vec<f64>],
+    ny: usize,
+    nu: usize,
+    nf: usize,
+) -> Vec<Vec<f64>> {
+    (0..ny * nu)
+        .map(|e| {
+            let (a, b) = (e / nu, e % nu);
+            let mut x = vec![0.0; nf];
+            for ((u, v), &(col, pair)) in f.iter().zip(cols) {
+                let r: C = (0..u.ncols()).map(|l| u[(a, l)] * v[(b, l)]).sum();
+                x[col] = r.re;
+                if pair {
+                    x[col + 1] = r.im;
+                }
+            }
+            x.extend_from_slice(&rest[e]);
+            x
+        })
+        .collect()
+}
+
+/// Which factor an alternating step solves for.
+#[derive(Clone, Copy, PartialEq)]
+enum Side {
+    /// Row `a` of every `U` (and the rest of the entries `(a, ·)`).
+    Output(usize),
+    /// Row `b` of every `V` (and the rest of the entries `(·, b)`).
+    Input(usize),
+}
+
+/// Problem of the rank-constrained residues with the poles fixed.
+struct Ranked<'a> {
+    e: &'a Entries,
+    real: &'a [f64],
+    pairs: &'a [C],
+    m: usize,
+    feed: bool,
+}
+
+impl Ranked<'_> {
+    /// The free poles as `(pole, pair?)`, in the order of [`pole_columns`].
+    fn poles(&self) -> Vec<(C, bool)> {
+        self.real
+            .iter()
+            .map(|&p| (C::new(p, 0.0), false))
+            .chain(self.pairs.iter().map(|&p| (p, true)))
+            .collect()
+    }
+
+    /// One alternating step: the least squares of one side's factor row and the rest
+    /// coefficients of the entries it touches, the other side fixed.
+    fn step(
+        &self,
+        f: &mut [(DMatrix<C>, DMatrix<C>)],
+        rest: &mut [Vec<f64>],
+        side: Side,
+    ) -> Result<()> {
+        let (ny, nu) = (self.e.ny, self.e.nu);
+        let poles = self.poles();
+        let entries: Vec<usize> = match side {
+            Side::Output(a) => (0..nu).map(|b| a * nu + b).collect(),
+            Side::Input(b) => (0..ny).map(|a| a * nu + b).collect(),
+        };
+        let nrest = self.m + usize::from(self.feed);
+        let nfac: usize = f
+            .iter()
+            .zip(&poles)
+            .map(|((u, _), &(_, pair))| u.ncols() * if pair { 2 } else { 1 })
+            .sum();
+        let ncol = nfac + nrest * entries.len();
+        let k = self.e.data[0].z.len();
+        let mut a = Mat::<f64>::zeros(2 * k * entries.len(), ncol);
+        let mut rhs = vec![0.0; 2 * k * entries.len()];
+        let mut rb = Vec::new();
+        for (ei, &en) in entries.iter().enumerate() {
+            let d = &self.e.data[en];
+            let (ea, eb) = (en / nu, en % nu);
+            for (i, ((&z, &g), &w)) in d.z.iter().zip(&d.g).zip(&d.w).enumerate() {
+                let row = 2 * (ei * k + i);
+                let mut c = 0;
+                let mut put = |c: usize, v: C| {
+                    a[(row, c)] = w * v.re;
+                    a[(row + 1, c)] = w * v.im;
+                };
+                for ((u, v), &(p, pair)) in f.iter().zip(&poles) {
+                    for l in 0..u.ncols() {
+                        // the fixed side's factor of this entry
+                        let other = match side {
+                            Side::Output(_) => v[(eb, l)],
+                            Side::Input(_) => u[(ea, l)],
+                        };
+                        if pair {
+                            let (uz, vz) = (1.0 / (z - p), 1.0 / (z - p.conj()));
+                            put(c, other * uz + other.conj() * vz);
+                            put(c + 1, C::new(0.0, 1.0) * (other * uz - other.conj() * vz));
+                            c += 2;
+                        } else {
+                            put(c, C::new(other.re, 0.0) / (z - p.re));
+                            c += 1;
+                        }
+                    }
+                }
+                rb.clear();
+                crate::fit::rigid_basis(self.m, z, &mut rb);
+                if self.feed {
+                    rb.push(C::new(1.0, 0.0));
+                }
+                for (j, v) in rb.iter().enumerate() {
+                    put(nfac + ei * nrest + j, *v);
+                }
+                rhs[row] = w * g.re;
+                rhs[row + 1] = w * g.im;
+            }
+        }
+        let ls = sd_model::linalg::lstsq_faer(a.as_ref(), &rhs).map_err(|err| {
+            IdentError::Numerical(format!("the rank-constrained residues failed: {err}"))
+        })?;
+        let x: Vec<f64> = ls.x.iter().copied().collect();
+        let mut c = 0;
+        for ((u, v), &(_, pair)) in f.iter_mut().zip(&poles) {
+            for l in 0..u.ncols() {
+                let val = if pair {
+                    c += 2;
+                    C::new(x[c - 2], x[c - 1])
+                } else {
+                    c += 1;
+                    C::new(x[c - 1], 0.0)
+                };
+                match side {
+                    Side::Output(a) => u[(a, l)] = val,
+                    Side::Input(b) => v[(b, l)] = val,
+                }
+            }
+        }
+        for (ei, &en) in entries.iter().enumerate() {
+            rest[en] = x[nfac + ei * nrest..nfac + (ei + 1) * nrest].to_vec();
+        }
+        Ok(())
+    }
+
+    /// Alternating least squares from `f`, `rest` (updated in place) until the cost settles;
+    /// the entries' coefficients and the cost.
+    fn solve_into(
+        &self,
+        f: &mut [(DMatrix<C>, DMatrix<C>)],
+        rest: &mut [Vec<f64>],
+    ) -> Result<(Vec<Vec<f64>>, f64)> {
+        let (ny, nu) = (self.e.ny, self.e.nu);
+        let nf = self.real.len() + 2 * self.pairs.len();
+        let cols = pole_columns(self.real.len(), self.pairs.len());
+        let cost_of = |f: &[(DMatrix<C>, DMatrix<C>)], rest: &[Vec<f64>]| {
+            let xs = compose(f, &cols, rest, ny, nu, nf);
+            let c: f64 = entry_costs(self.e, &xs, self.real, self.pairs, self.m, self.feed)
+                .iter()
+                .sum();
+            (xs, c)
+        };
+        let (mut xs, mut cost) = cost_of(f, rest);
+        for _ in 0..ALS_SWEEPS {
+            for a in 0..ny {
+                self.step(f, rest, Side::Output(a))?;
+            }
+            for b in 0..nu {
+                self.step(f, rest, Side::Input(b))?;
+            }
+            // each step solves its own least squares exactly: the cost never rises
+            let (x2, c2) = cost_of(f, rest);
+            let settled = (cost - c2).abs() <= 1e-10 * cost.max(f64::MIN_POSITIVE);
+            (xs, cost) = (x2, c2);
+            if settled {
+                break;
+            }
+        }
+        Ok((xs, cost))
+    }
+}
+
+/// Most alternating sweeps of the rank-constrained residues.
+const ALS_SWEEPS: usize = 50;
+
+/// The modal realisation (module documentation) of factors `f` of the free poles, the rigid
+/// and feedthrough coefficients `rest` per entry.
+fn realise(
+    f: &[(DMatrix<C>, DMatrix<C>)],
+    poles: &[(C, bool)],
+    rest: &[Vec<f64>],
+    (ny, nu, m, feed): (usize, usize, usize, bool),
+    ts: f64,
+) -> Result<StateSpace> {
+    let n: usize = m * nu
+        + f.iter()
+            .zip(poles)
+            .map(|((u, _), &(_, pair))| u.ncols() * if pair { 2 } else { 1 })
+            .sum::<usize>();
+    let mut a = DMatrix::<f64>::zeros(n, n);
+    let mut b = DMatrix::<f64>::zeros(n, nu);
+    let mut c = DMatrix::<f64>::zeros(ny, n);
+    let mut d = DMatrix::<f64>::zeros(ny, nu);
+    let mut i = 0;
+    // the rigid body: per input a chain at z = 1 (x_m⁺ = x_m + u, x_l⁺ = x_l + x_{l+1}), the
+    // state x_l = u/(z − 1)^{m+1−l}
+    for col in 0..nu {
+        for l in 0..m {
+            a[(i + l, i + l)] = 1.0;
+            if l + 1 < m {
+                a[(i + l, i + l + 1)] = 1.0;
+            }
+            for row in 0..ny {
+                // coefficient of 1/(z − 1)^{m−l}
+                c[(row, i + l)] = rest[row * nu + col][m - 1 - l];
+            }
+        }
+        if m > 0 {
+            b[(i + m - 1, col)] = 1.0;
+        }
+        i += m;
+    }
+    for ((u, v), &(p, pair)) in f.iter().zip(poles) {
+        for l in 0..u.ncols() {
+            if pair {
+                a[(i, i)] = p.re;
+                a[(i, i + 1)] = -p.im;
+                a[(i + 1, i)] = p.im;
+                a[(i + 1, i + 1)] = p.re;
+                for col in 0..nu {
+                    b[(i, col)] = v[(col, l)].re;
+                    b[(i + 1, col)] = v[(col, l)].im;
+                }
+                for row in 0..ny {
+                    c[(row, i)] = 2.0 * u[(row, l)].re;
+                    c[(row, i + 1)] = -2.0 * u[(row, l)].im;
+                }
+                i += 2;
+            } else {
+                a[(i, i)] = p.re;
+                for col in 0..nu {
+                    b[(i, col)] = v[(col, l)].re;
+                }
+                for row in 0..ny {
+                    c[(row, i)] = u[(row, l)].re;
+                }
+                i += 1;
+            }
+        }
+    }
+    if feed {
+        for row in 0..ny {
+            for col in 0..nu {
+                d[(row, col)] = rest[row * nu + col][m];
+            }
+        }
+    }
+    Ok(StateSpace::new(a, b, c, d, SampleTime::discrete(ts)?)?)
+}
+
+/// Fits one set of poles to every entry of a MIMO FRD (module documentation).
+///
+/// # Errors
+/// A continuous-time FRD, an order below the rigid-body count, a fixed rank above
+/// `min(ny, nu)` or zero, too few lines for the parameters, NaN data, a singular
+/// least-squares problem.
+pub fn fit_common_poles(frd: &Frd, opt: &MimoFitOptions) -> Result<MimoFitResult> {
+    fit_common_poles_with_progress(frd, opt, &mut |_| {})
+}
+
+/// [`fit_common_poles`] reporting each iteration to `progress`.
+pub fn fit_common_poles_with_progress(
+    frd: &Frd,
+    opt: &MimoFitOptions,
+    progress: &mut dyn FnMut(&FitProgress),
+) -> Result<MimoFitResult> {
+    let fo = &opt.fit;
+    let (ts, e) = entries(frd, fo)?;
+    let (ny, nu) = (e.ny, e.nu);
+    if let ResidueRank::Fixed(k) = opt.rank {
+        if k == 0 || k > ny.min(nu) {
+            return Err(IdentError::InvalidArgument(format!(
+                "residue rank {k} must be between 1 and min(ny, nu) = {}",
+                ny.min(nu)
+            )));
+        }
+    }
+    if !(opt.alpha > 0.0 && opt.alpha < 0.5) {
+        return Err(IdentError::InvalidArgument(format!(
+            "the rank test's alpha {} must be in (0, 0.5)",
+            opt.alpha
+        )));
+    }
+    let (m, feed) = (fo.rigid_body, fo.feedthrough);
+    let nf = fo.order - m;
+    let (mut real, mut pairs) = starting_poles(frd.freq_hz(), ts, nf);
+    let mut history = Vec::new();
+    let mut best: Option<PoleFit> = None;
+    for it in 0..fo.sk_iterations {
+        (real, pairs) = relocate_common(&e, &real, &pairs, m, feed)?;
+        let pf = PoleFit::at(&e, real.clone(), pairs.clone(), m, feed)?;
+        let p = FitProgress {
+            stage: "sk",
+            iteration: it + 1,
+            cost: pf.cost,
+        };
+        progress(&p);
+        history.push(p);
+        if best.as_ref().is_none_or(|b| pf.cost < b.cost) {
+            best = Some(pf);
+        }
+    }
+    let start = match best {
+        Some(b) => b,
+        None => PoleFit::at(&e, real, pairs, m, feed)?,
+    };
+    let pf = lm_common(&e, start, fo, &mut history, progress)?;
+    finish(&e, pf, opt, history, ts)
+}
+
+/// Ranks, the rank-constrained residues, the realisation and the report of a pole fit.
+fn finish(
+    e: &Entries,
+    pf: PoleFit,
+    opt: &MimoFitOptions,
+    history: Vec<FitProgress>,
+    ts: f64,
+) -> Result<MimoFitResult> {
+    let (ny, nu, m, feed) = (e.ny, e.nu, opt.fit.rigid_body, opt.fit.feedthrough);
+    let nf = pf.real.len() + 2 * pf.pairs.len();
+    let cols = pole_columns(pf.real.len(), pf.pairs.len());
+    let xs: Vec<Vec<f64>> = pf.fits.iter().map(|f| f.x.clone()).collect();
+    let variance = opt.fit.weighting == Weighting::Variance && e.has_variance;
+    let numerical = |pc: (usize, bool)| {
+        let s = residue_matrix(&xs, ny, nu, pc).singular_values();
+        let top = s.iter().cloned().fold(0.0, f64::max);
+        s.iter().filter(|v| **v > 1e-12 * top).count().max(1)
+    };
+    let ranks: Vec<usize> = cols
+        .iter()
+        .map(|&pc| match opt.rank {
+            ResidueRank::Full => numerical(pc),
+            ResidueRank::Fixed(k) => k,
+            ResidueRank::Select if variance => supported_rank(&pf.fits, ny, nu, pc, opt.alpha),
+            ResidueRank::Select => numerical(pc),
+        })
+        .collect();
+    let f0 = factors(&xs, ny, nu, &cols, &ranks);
+    let rest0: Vec<Vec<f64>> = xs.iter().map(|x| x[nf..].to_vec()).collect();
+    let constrained = ranks.iter().zip(&cols).any(|(&k, &pc)| k < numerical(pc));
+    let problem = Ranked {
+        e,
+        real: &pf.real,
+        pairs: &pf.pairs,
+        m,
+        feed,
+    };
+    let (xs_final, f_final, rest_final) = if constrained {
+        let mut f = f0.clone();
+        let mut rest = rest0.clone();
+        let (x2, _) = problem.solve_into(&mut f, &mut rest)?;
+        (x2, f, rest)
+    } else {
+        (xs.clone(), f0, rest0)
+    };
+    let costs = entry_costs(e, &xs_final, &pf.real, &pf.pairs, m, feed);
+    let model = realise(
+        &f_final,
+        &problem.poles(),
+        &rest_final,
+        (ny, nu, m, feed),
+        ts,
+    )?;
+    let modes = cols
+        .iter()
+        .zip(&ranks)
+        .zip(problem.poles())
+        .map(|((&pc, &k), (p, _))| mode_report(&xs, ny, nu, pc, k, p, ts))
+        .collect();
+    let mut poles: Vec<C> = problem.poles().iter().map(|(p, _)| *p).collect();
+    poles.extend(std::iter::repeat_n(C::new(1.0, 0.0), m));
+    Ok(MimoFitResult {
+        model,
+        cost: costs.iter().sum(),
+        full_rank_cost: pf.cost,
+        entry_cost: DMatrix::from_fn(ny, nu, |a, b| costs[a * nu + b]),
+        history,
+        poles,
+        modes,
+        median_rel_error: median_rel_error(e, &xs_final, &pf.real, &pf.pairs, m, feed),
+    })
+}
+
+/// One free pole's report.
+fn mode_report(
+    xs: &[Vec<f64>],
+    ny: usize,
+    nu: usize,
+    pc: (usize, bool),
+    rank: usize,
+    p: C,
+    ts: f64,
+) -> MimoMode {
+    let r = residue_matrix(xs, ny, nu, pc);
+    let svd = r.svd(true, true);
+    let s = (p.ln()) / ts;
+    let unit = |v: Vec<f64>| {
+        let n = v
+            .iter()
+            .map(|x| x * x)
+            .sum::<f64>()
+            .sqrt()
+            .max(f64::MIN_POSITIVE);
+        v.into_iter().map(|x| x / n).collect::<Vec<f64>>()
+    };
+    MimoMode {
+        freq_hz: s.norm() / (2.0 * PI),
+        damping: if s.norm() > 0.0 {
+            -s.re / s.norm()
+        } else {
+            1.0
+        },
+        singular_values: svd.singular_values.iter().copied().collect(),
+        rank,
+        output_direction: svd.u.as_ref().map_or_else(Vec::new, |u| {
+            unit((0..ny).map(|a| u[(a, 0)].norm()).collect())
+        }),
+        input_direction: svd.v_t.as_ref().map_or_else(Vec::new, |v| {
+            unit((0..nu).map(|b| v[(0, b)].norm()).collect())
+        }),
+    }
+}
+
+/// Median of `|G − Ĝ|/|G|` over every entry and line.
+fn median_rel_error(
+    e: &Entries,
+    xs: &[Vec<f64>],
+    real: &[f64],
+    pairs: &[C],
+    m: usize,
+    feed: bool,
+) -> f64 {
+    let mut row = Vec::new();
+    let mut rel: Vec<f64> = e
+        .data
+        .iter()
+        .zip(xs)
+        .flat_map(|(d, x)| {
+            d.z.iter()
+                .zip(&d.g)
+                .map(|(&z, &g)| {
+                    (eval(x, real, pairs, m, feed, z, &mut row) - g).norm()
+                        / g.norm().max(f64::MIN_POSITIVE)
+                })
+                .collect::<Vec<f64>>()
+        })
+        .collect();
+    rel.sort_by(f64::total_cmp);
+    rel.get(rel.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
+/// The per-entry data of a discrete MIMO FRD and its sample time (checks as the SISO fit).
+fn entries(frd: &Frd, fo: &FitOptions) -> Result<(f64, Entries)> {
+    let ts = match frd.time() {
+        SampleTime::Discrete { ts } => ts,
+        SampleTime::Continuous => {
+            return Err(IdentError::InvalidArgument(
+                "fit needs a discrete-time FRD (its ts fixes z = e^{jωT})".into(),
+            ))
+        }
+    };
+    crate::fit::check_options(fo)?;
+    let (ny, nu) = frd.shape();
+    let nf = fo.order - fo.rigid_body;
+    // per entry: its residues, rigid and feedthrough; shared: the poles
+    let nparams = 2 * nf + ny * nu * (nf + fo.rigid_body + usize::from(fo.feedthrough));
+    if 2 * frd.len() * ny * nu <= nparams {
+        return Err(IdentError::Data(format!(
+            "{} lines of {ny}x{nu} entries give {} real equations, too few for {nparams} parameters",
+            frd.len(),
+            2 * frd.len() * ny * nu
+        )));
+    }
+    let z: Vec<C> = frd
+        .freq_hz()
+        .iter()
+        .map(|&f| C::from_polar(1.0, 2.0 * PI * f * ts))
+        .collect();
+    let mut data = Vec::with_capacity(ny * nu);
+    for a in 0..ny {
+        for b in 0..nu {
+            let g: Vec<C> = frd.response().iter().map(|m| m[(a, b)]).collect();
+            if g.iter().any(|v| !v.is_finite()) {
+                return Err(IdentError::Data(format!(
+                    "the FRD's entry ({}, {}) has NaN or infinite values",
+                    a + 1,
+                    b + 1
+                )));
+            }
+            data.push(Data {
+                z: z.clone(),
+                w: weights_entry(frd, fo.weighting, (a, b))?,
+                g,
+                ts,
+                min_damping: fo.min_damping,
+            });
+        }
+    }
+    Ok((
+        ts,
+        Entries {
+            data,
+            ny,
+            nu,
+            has_variance: frd.variance().is_some(),
+        },
+    ))
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
+mod tests {
+    use super::*;
+    use crate::rng::SplitMix;
+
+    /// A 2×2 system of three lightly damped pairs at 1 kHz with the residues `r(i)` and a
+    /// feedthrough; its FRD on 300 lines with relative noise `rel` (variance stored).
+    fn system(r: impl Fn(usize) -> DMatrix<C>, rel: f64, seed: u64) -> (Vec<C>, Frd) {
+        let ts = 1e-3;
+        let modes = [(40.0, 0.02), (110.0, 0.01), (260.0, 0.03)];
+        let poles: Vec<C> = modes
+            .iter()
+            .map(|&(f, z): &(f64, f64)| {
+                let w = 2.0 * PI * f;
+                (C::new(-z * w, w * (1.0 - z * z).sqrt()) * ts).exp()
+            })
+            .collect();
+        let freq: Vec<f64> = (0..300).map(|k| 1.0 + 479.0 * k as f64 / 299.0).collect();
+        let mut rng = SplitMix::new(seed);
+        let (mut resp, mut var) = (Vec::new(), Vec::new());
+        for &f in &freq {
+            let z = C::from_polar(1.0, 2.0 * PI * f * ts);
+            let mut g = DMatrix::from_element(2, 2, C::new(0.01, 0.0));
+            for (i, &p) in poles.iter().enumerate() {
+                let ri = r(i);
+                g += ri.map(|v| v / (z - p)) + ri.map(|v| v.conj() / (z - p.conj()));
+            }
+            let sd = g.map(|v| rel * v.norm());
+            let noisy = DMatrix::from_fn(2, 2, |a, b| {
+                g[(a, b)] + C::new(rng.normal(), rng.normal()) * (sd[(a, b)] / 2f64.sqrt())
+            });
+            resp.push(noisy);
+            var.push(sd.map(|s| s * s));
+        }
+        let frd = Frd::new(freq, resp, Some(var), SampleTime::discrete(ts).unwrap()).unwrap();
+        (poles, frd)
+    }
+
+    fn rank_one(i: usize) -> DMatrix<C> {
+        let c = [C::new(1.0, 0.2), C::new(-0.5, 0.4)];
+        let b = [
+            [C::new(0.3, 0.0), C::new(0.2, -0.1)],
+            [C::new(-0.2, 0.1), C::new(0.4, 0.0)],
+            [C::new(0.1, 0.05), C::new(0.15, 0.0)],
+        ][i];
+        let s = [0.02, 0.01, 0.03][i];
+        DMatrix::from_fn(2, 2, |a, bb| {
+            c[a] * b[bb]
+                * s
+                * if i == 1 {
+                    C::new(0.0, 1.0)
+                } else {
+                    C::new(1.0, 0.0)
+                }
+        })
+    }
+
+    fn options() -> MimoFitOptions {
+        MimoFitOptions {
+            fit: FitOptions {
+                order: 6,
+                ..FitOptions::default()
+            },
+            ..MimoFitOptions::default()
+        }
+    }
+
+    #[test]
+    fn recovers_common_poles_and_rank_one_residues() {
+        let (poles, frd) = system(rank_one, 1e-3, 1);
+        let r = fit_common_poles(&frd, &options()).unwrap();
+        for p in &poles {
+            let best = r
+                .poles
+                .iter()
+                .map(|q| (q - p).norm())
+                .fold(f64::INFINITY, f64::min);
+            assert!(best < 1e-4, "pole {p}: nearest fitted at {best:e}");
+        }
+        assert!(r.modes.iter().all(|m| m.rank == 1), "{:?}", r.modes);
+        // three pairs of rank one: six states (four SISO fits of order 6 would have 24)
+        assert_eq!(r.model.n(), 6);
+        // with the noise's variance (of the complex value) as weights each term is χ²₂/2: the
+        // cost is about (2·300·4 − p)/2 for p = 6 pole + 3·2·(2 + 2 − 1) residue + 4
+        // feedthrough parameters (two-sigma band of χ²: ±√(2·2372)/2 = ±34)
+        let expected = (2.0 * 300.0 * 4.0 - 28.0) / 2.0;
+        assert!(
+            (r.cost - expected).abs() < 70.0,
+            "cost {} against {expected}",
+            r.cost
+        );
+        assert!(r.full_rank_cost <= r.cost);
+        // the realisation is the fitted model: its frequency response gives the same cost
+        let g = r.model.freqresp(frd.freq_hz()).unwrap();
+        let var = frd.variance().unwrap();
+        let v: f64 = (0..frd.len())
+            .map(|k| {
+                (0..4)
+                    .map(|e| {
+                        let (a, b) = (e / 2, e % 2);
+                        (g.response()[k][(a, b)] - frd.response()[k][(a, b)]).norm_sqr()
+                            / var[k][(a, b)]
+                    })
+                    .sum::<f64>()
+            })
+            .sum();
+        assert!((v - r.cost).abs() <= 1e-6 * r.cost, "{v} vs {}", r.cost);
+    }
+
+    #[test]
+    fn keeps_the_rank_the_data_show() {
+        // the middle mode has a rank-two residue (a second, independent direction at 40 %)
+        let r2 = |i: usize| {
+            let mut m = rank_one(i);
+            if i == 1 {
+                m[(0, 0)] += C::new(0.004, 0.0);
+                m[(1, 1)] -= C::new(0.004, 0.0);
+            }
+            m
+        };
+        let (_, frd) = system(r2, 1e-3, 2);
+        let r = fit_common_poles(&frd, &options()).unwrap();
+        let ranks: Vec<usize> = r.modes.iter().map(|m| m.rank).collect();
+        let mid = r
+            .modes
+            .iter()
+            .position(|m| (m.freq_hz - 110.0).abs() < 1.0)
+            .unwrap();
+        assert_eq!(ranks[mid], 2, "{ranks:?}");
+        assert_eq!(ranks.iter().sum::<usize>(), 4, "{ranks:?}");
+        assert_eq!(r.model.n(), 8);
+    }
+
+    #[test]
+    fn bad_settings_and_data_are_named() {
+        let (_, frd) = system(rank_one, 1e-3, 3);
+        let mut o = options();
+        o.rank = ResidueRank::Fixed(3);
+        let e = fit_common_poles(&frd, &o).unwrap_err().to_string();
+        assert!(e.contains("rank 3"), "{e}");
+        o.rank = ResidueRank::Select;
+        o.fit.order = 400;
+        let e = fit_common_poles(&frd, &o).unwrap_err().to_string();
+        assert!(e.contains("too few"), "{e}");
+        let ct = Frd::new(
+            frd.freq_hz().to_vec(),
+            frd.response().to_vec(),
+            None,
+            SampleTime::Continuous,
+        )
+        .unwrap();
+        let e = fit_common_poles(&ct, &options()).unwrap_err().to_string();
+        assert!(e.contains("discrete-time"), "{e}");
+    }
+}
