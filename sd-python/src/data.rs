@@ -136,9 +136,12 @@ fn frf_from_arrays<'py>(
 }
 
 /// A discrete-time rational fit of a SISO FRD (`sd_ident::fit`): the model, its cost, the
-/// median relative error, the cost per line, the poles and the fit's warnings.
+/// median relative error, the cost per line, the poles and the fit's warnings. A MIMO FRD gets
+/// one set of poles for every entry (`sd_ident::fit_common_poles`, residue ranks `rank`:
+/// "select", "full" or a number): the model, cost, full-rank cost, entry costs, median
+/// relative error, poles and per-mode ranks and singular values.
 #[pyfunction]
-#[pyo3(signature = (freq_hz, response, variance, dt, order, rigid_body, strictly_proper, weighting, min_damping))]
+#[pyo3(signature = (freq_hz, response, variance, dt, order, rigid_body, strictly_proper, weighting, min_damping, rank))]
 fn fit<'py>(
     py: Python<'py>,
     freq_hz: PyReadonlyArray1<'py, f64>,
@@ -150,6 +153,7 @@ fn fit<'py>(
     strictly_proper: bool,
     weighting: &str,
     min_damping: f64,
+    rank: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
     let frd = frd_in(&freq_hz, &response, variance.as_ref(), dt)?;
     let weighting = match weighting {
@@ -170,6 +174,9 @@ fn fit<'py>(
         min_damping,
         ..Default::default()
     };
+    if frd.shape() != (1, 1) {
+        return fit_mimo(py, &frd, opt, rank);
+    }
     let r = py.detach(|| sd_ident::fit(&frd, &opt)).map_err(py_err)?;
     let d = PyDict::new(py);
     d.set_item("model", sys_out(py, &r.model))?;
@@ -180,6 +187,52 @@ fn fit<'py>(
     d.set_item("poles", poles.into_pyarray(py))?;
     let w: Vec<String> = r.warnings.iter().map(|w| w.to_string()).collect();
     d.set_item("warnings", w)?;
+    Ok(d)
+}
+
+/// [`fit`] of a MIMO FRD.
+fn fit_mimo<'py>(
+    py: Python<'py>,
+    frd: &sd_model::Frd,
+    fit: sd_ident::FitOptions,
+    rank: &str,
+) -> PyResult<Bound<'py, PyDict>> {
+    let rank = match rank {
+        "select" => sd_ident::ResidueRank::Select,
+        "full" => sd_ident::ResidueRank::Full,
+        n => match n.parse::<usize>() {
+            Ok(k) if k > 0 => sd_ident::ResidueRank::Fixed(k),
+            _ => {
+                return Err(value_err(format!(
+                    "rank {n:?}: use \"select\", \"full\" or a positive number"
+                )))
+            }
+        },
+    };
+    let opt = sd_ident::MimoFitOptions {
+        fit,
+        rank,
+        ..Default::default()
+    };
+    let r = py
+        .detach(|| sd_ident::fit_common_poles(frd, &opt))
+        .map_err(py_err)?;
+    let d = PyDict::new(py);
+    d.set_item("model", sys_out(py, &r.model))?;
+    d.set_item("cost", r.cost)?;
+    d.set_item("full_rank_cost", r.full_rank_cost)?;
+    let ec: Vec<Vec<f64>> = (0..r.entry_cost.nrows())
+        .map(|a| r.entry_cost.row(a).iter().copied().collect())
+        .collect();
+    d.set_item("entry_cost", ec)?;
+    d.set_item("median_rel_error", r.median_rel_error)?;
+    let poles: Vec<Complex64> = r.poles.iter().map(|p| Complex64::new(p.re, p.im)).collect();
+    d.set_item("poles", poles.into_pyarray(py))?;
+    let ranks: Vec<usize> = r.modes.iter().map(|m| m.rank).collect();
+    d.set_item("ranks", ranks)?;
+    let sv: Vec<Vec<f64>> = r.modes.iter().map(|m| m.singular_values.clone()).collect();
+    d.set_item("singular_values", sv)?;
+    d.set_item("states", r.model.n())?;
     Ok(d)
 }
 

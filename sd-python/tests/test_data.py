@@ -59,3 +59,27 @@ def test_diagnose_matches_sdctl(stage_data, sdctl, tmp_path):
     assert ours.verdict == cli["verdict"] and ours.cause == cli["cause"] == "averaging_sampler"
     assert ours.parameters.window_frac == pytest.approx(cli["parameters"]["window_frac"], rel=1e-9)
     assert ours.gain.ratio == pytest.approx(cli["gain"]["ratio"], rel=1e-9)
+
+
+def test_fit_of_a_mimo_frd_matches_sdctl(sdctl, tmp_path):
+    # two lightly damped pairs with rank-one residues, 2x2, noise-free, at 1 kHz
+    ts = 1e-3
+    f = np.linspace(1.0, 450.0, 200)
+    z = np.exp(2j * np.pi * f * ts)
+    poles = [0.98 * np.exp(0.3j), 0.95 * np.exp(1.1j)]
+    shapes = [(np.array([1.0, -0.4]), np.array([0.5, 0.2])), (np.array([0.3, 1.0]), np.array([-0.6, 0.8]))]
+    g = np.zeros((2, 2, f.size), dtype=complex)
+    for p, (c, b) in zip(poles, shapes):
+        r = np.outer(c, b) * (0.05 + 0.02j)
+        g += r[:, :, None] / (z - p) + np.conj(r)[:, :, None] / (z - np.conj(p))
+    frd = sd.Frd(f, g, None, ts)
+    r = sd.fit(frd, 4, strictly_proper=True)
+    assert r.states == 4 and list(r.ranks) == [1, 1]
+    assert r.median_rel_error < 1e-8
+    p = tmp_path / "g.json"
+    p.write_text(frd.to_json())
+    cli = json.loads(sdctl("fit", p, "--order", 4, "--strictly-proper", "--json"))
+    assert r.cost == pytest.approx(cli["cost"], rel=1e-6, abs=1e-20)
+    assert cli["states"] == 4
+    with pytest.raises(ValueError, match="rank"):
+        sd.fit(frd, 4, rank="two")

@@ -646,6 +646,49 @@ fn hypotheses_section(md: &mut String, d: &Diagnosis) {
             g.why.as_deref().unwrap_or("no held-out data")
         ),
     };
+    held_out_levels(md, d);
+}
+
+/// Per held-out experiment (levels left out in turn): the linear model's statistic, the
+/// extension's, their ratio, and the experiment's own fit in the extension's model class (the
+/// floor a prediction can approach).
+fn held_out_levels(md: &mut String, d: &Diagnosis) {
+    let rows: Vec<(&str, sd_diagnose::HeldOut)> = d
+        .experiments
+        .iter()
+        .filter_map(|x| x.held_out.map(|h| (x.name.as_str(), h)))
+        .collect();
+    if rows.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        md,
+        "\nEach experiment left out in turn (statistics on its lines in the moving modes' bands; \
+         1 is the noise):\n\n| experiment | linear model | extension | ratio | own fit (floor) | \
+         |---|---|---|---|---|---|"
+    );
+    for (name, h) in rows {
+        let _ = writeln!(
+            md,
+            "| {name} | {:.3} | {:.3} | {:.1} | {} | {} |",
+            h.before,
+            h.after,
+            h.ratio,
+            cell(Some(h.floor), false),
+            if h.extrapolated {
+                "extrapolated: beyond the fitted amplitudes"
+            } else {
+                ""
+            }
+        );
+    }
+    let _ = writeln!(
+        md,
+        "\nAn extension statistic near the floor means the prediction from the other experiments \
+         does as well as a fit to this experiment's own data in the same model class; well above \
+         it, the trend between the levels is what misses (more levels, or a level nearer this \
+         one, would help)."
+    );
 }
 
 /// `x ± s` with the standard error when there is one.

@@ -669,6 +669,14 @@ fn friction_corner_is_reported() {
     let md = std::fs::read_to_string(dir.join("report.md")).unwrap();
     assert!(md.contains("Damped rigid body, corner at"), "{md}");
     assert!(md.contains("friction-like"), "{md}");
+    // the per-level table with each left-out level's own fit (the floor)
+    assert!(
+        md.contains("| experiment | linear model | extension | ratio | own fit (floor) |"),
+        "{md}"
+    );
+    for x in d.experiments.iter().filter(|x| x.held_out.is_some()) {
+        assert!(md.contains(&format!("| {} | ", x.name)), "{md}");
+    }
     let svg: Vec<String> = figs
         .iter()
         .filter(|f| f.starts_with("amplitude_"))
