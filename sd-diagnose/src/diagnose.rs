@@ -893,6 +893,32 @@ fn slow_poles_as_rigid_body(
         .then_some(b))
 }
 
+/// The basis with its double integrator read as one integrator and its first real pole
+/// below the modes as a friction-damped rigid body's corner ([`ModalBasis::with_one_integrator`],
+/// then [`ModalBasis::with_damped_rigid_body`]), when it still describes the model experiment
+/// `reference` within [`SLOW_POLE_SLACK`] times the larger of the verdict's threshold and the
+/// plain basis's statistic (an undamped rigid body with a sensor's real pole does not: its
+/// low-frequency response `1/s²` becomes `1/(a s)`); `None` otherwise.
+fn one_integrator_damped(
+    plain: &ModalBasis,
+    near_zero: f64,
+    h: f64,
+    reference: &Level<'_>,
+    alpha: f64,
+) -> Result<Option<ModalBasis>> {
+    let Some(one) = plain.with_one_integrator()? else {
+        return Ok(None);
+    };
+    let b = one.with_damped_rigid_body(near_zero)?;
+    if !b.is_damped() {
+        return Ok(None);
+    }
+    let bound = slack_bound(plain, h, reference, alpha)?;
+    Ok(describes(&b, h, reference, alpha)
+        .is_ok_and(|s| s.value <= bound)
+        .then_some(b))
+}
+
 /// A same-level repeat at the model experiment's rate that disagrees while neither of the
 /// pair shows distortion: drift (a pair that shows distortion differs by the nonlinearity's
 /// stochastic contributions, another phase realisation, and is no evidence of drift).
@@ -984,6 +1010,14 @@ fn nonlinearity(
         .with_damped_rigid_body(std::f64::consts::TAU * f0)?;
     if !damped.is_damped() {
         if let Some(b) = slow_poles_as_rigid_body(&damped, data.h, &levels[0], alpha)? {
+            damped = b;
+        } else if let Some(b) = one_integrator_damped(
+            &damped,
+            std::f64::consts::TAU * f0,
+            data.h,
+            &levels[0],
+            alpha,
+        )? {
             damped = b;
         }
     }

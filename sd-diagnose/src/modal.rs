@@ -169,6 +169,19 @@ impl ModalBasis {
         Self::build((2, real[1].abs()), &real[2..], &self.pairs).map(Some)
     }
 
+    /// The basis with one integrator where the model has two rigid-body poles (a fit with one
+    /// fixed rigid-body pole may put a free pole so near z = 1 that it reads as a second one,
+    /// [`ModalBasis::from_model`]), so that a real corner below the modes can be read as a
+    /// friction-damped rigid body ([`ModalBasis::with_damped_rigid_body`]); `None` unless the
+    /// model has two undamped rigid-body poles. Whether the model experiment is still described
+    /// is the caller's check.
+    pub(crate) fn with_one_integrator(&self) -> Result<Option<Self>> {
+        if self.rigid != 2 || self.rigid_damping != 0.0 {
+            return Ok(None);
+        }
+        Self::build((1, 0.0), &self.real, &self.pairs).map(Some)
+    }
+
     /// The basis with each group of pole pairs closer than twice their half-power
     /// half-widths together reduced to its least damped pair (a fit of a mode whose
     /// frequency wanders with amplitude, or of a distorted resonance, may split it into two

@@ -5,6 +5,9 @@
 //! - [`experiment`]: the manifest of docs/formats.md (TOML) and robust CSV reading.
 //! - [`frf`]: FRF of periodic data — closed loop `(Y/R)/(U/R)` or open loop — with variances
 //!   from the spread over periods, and noise / nonlinear-distortion levels.
+//! - [`frf_mimo`]: the ny×nu FRF of periodic experiments (one input per experiment, or
+//!   orthogonal multisines from [`orthogonal`]), open or closed loop, with the covariance of the
+//!   vectorised estimate.
 //! - [`lpm()`]: the local polynomial method for transients and non-periodic (MIMO) data.
 //! - [`fit()`]: discrete-time rational fitting up to order ~60 (SK iterations in a partial-fraction
 //!   basis, then Levenberg–Marquardt on the variance-weighted cost; stability by reflection;
@@ -18,6 +21,7 @@ pub mod experiment;
 pub mod fit;
 pub mod fit_mimo;
 pub mod frf;
+pub mod frf_mimo;
 pub mod lpm;
 pub mod multisine;
 pub mod quality;
@@ -41,8 +45,11 @@ pub use fit_mimo::{
 pub use frf::{
     frf_periodic, DistortionReport, FrfEstimate, PeriodicOptions, MIN_INPUT_SNR, NL_NEIGHBOURS,
 };
+pub use frf_mimo::{frf_periodic_mimo, Channels, MimoFrfEstimate};
 pub use lpm::{lpm, lpm_closed_loop, lpm_closed_loop_snr, LpmEstimate, LpmOptions};
-pub use multisine::{crest_factor, design, write_csv, Lines, Multisine, MultisineSpec, Phases};
+pub use multisine::{
+    crest_factor, design, orthogonal, write_csv, Lines, Multisine, MultisineSpec, Phases,
+};
 pub use quality::{
     feedback_only, input_unexplained_by_output, snr_warnings, trusted, DataWarning,
     FEEDBACK_ONLY_RESIDUAL, NO_EXCITATION_SNR,

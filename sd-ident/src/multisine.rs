@@ -101,6 +101,48 @@ impl Multisine {
     }
 }
 
+/// Orthogonal multisines for `inputs` inputs (Pintelon & Schoukens, *System Identification*,
+/// 2nd ed., §3.7): `inputs` experiments, in experiment e input j plays `ms` with every excited
+/// line turned by `2π·j·e/inputs` (for two inputs: `u₁ = s`, `u₂ = ±s`, a Hadamard pattern).
+/// At every excited line the excitation matrix (inputs × experiments) is `A_k e^{jφ_k}` times
+/// the DFT matrix, `√inputs`-scaled unitary: the inputs are told apart at every line with the
+/// best possible conditioning, and each signal keeps `ms`'s amplitude spectrum, so its rms;
+/// the crest factor of a turned signal can differ. One period per signal:
+/// `[experiment][input]`.
+///
+/// # Errors
+/// No input, or more than the period's length.
+pub fn orthogonal(ms: &Multisine, inputs: usize) -> Result<Vec<Vec<Vec<f64>>>> {
+    let n = ms.signal.len();
+    if inputs == 0 || inputs > n {
+        return Err(IdentError::InvalidArgument(format!(
+            "{inputs} inputs: need between 1 and the period's {n} samples"
+        )));
+    }
+    let mut planner = FftPlanner::<f64>::new();
+    let (fwd, inv) = (planner.plan_fft_forward(n), planner.plan_fft_inverse(n));
+    let mut spec: Vec<Complex<f64>> = ms.signal.iter().map(|&v| Complex::new(v, 0.0)).collect();
+    fwd.process(&mut spec);
+    let turn = |j: usize, e: usize| -> Vec<f64> {
+        let phi = std::f64::consts::TAU * ((j * e) % inputs) as f64 / inputs as f64;
+        let rot = Complex::from_polar(1.0, phi);
+        let mut s = spec.clone();
+        for k in 1..n {
+            // the lower half turned by e^{jφ}, its mirror by e^{−jφ}: a real signal
+            if 2 * k < n {
+                s[k] *= rot;
+            } else if 2 * k > n {
+                s[k] *= rot.conj();
+            }
+        }
+        inv.process(&mut s);
+        s.iter().map(|v| v.re / n as f64).collect()
+    };
+    Ok((0..inputs)
+        .map(|e| (0..inputs).map(|j| turn(j, e)).collect())
+        .collect())
+}
+
 /// Crest factor `max|x|/rms` of a signal (1 for an empty or zero signal).
 pub fn crest_factor(x: &[f64]) -> f64 {
     let rms = (x.iter().map(|v| v * v).sum::<f64>() / x.len().max(1) as f64).sqrt();

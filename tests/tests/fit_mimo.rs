@@ -14,8 +14,11 @@ use sd_model::{c2d, Discretization, Frd, SampleTime, StateSpace};
 use sd_tests::gen::Rng;
 use std::f64::consts::PI;
 
-/// The two-axis stage: `(model, per mode (freq Hz, output shape, input shape))`.
-fn two_axis_stage(seed: u64) -> (StateSpace, Vec<(f64, [f64; 2], [f64; 2])>) {
+/// One mode of the two-axis stage: frequency (Hz), output shape, input shape.
+type Shape = (f64, [f64; 2], [f64; 2]);
+
+/// The two-axis stage and its modes' shapes.
+fn two_axis_stage(seed: u64) -> (StateSpace, Vec<Shape>) {
     let mut r = Rng::new(seed);
     let modes = sd_model::stage::stage60_modes();
     let n = 2 + 2 * modes.len();
@@ -103,7 +106,7 @@ fn order60_common_pole_fit_of_a_two_axis_stage() {
             .zeta;
         let w = 2.0 * PI * f_ct;
         let s = C::new(-zeta * w, w * (1.0 - zeta * zeta).sqrt());
-        let fm = &((s * h).exp().ln() / h).norm() / (2.0 * PI);
+        let fm = ((s * h).exp().ln() / h).norm() / (2.0 * PI);
         let m = r
             .modes
             .iter()
