@@ -122,3 +122,68 @@ pub fn paper_stage_two_modes() -> Result<StateSpace> {
         ],
     )
 }
+
+/// One mode of a two-axis stage: its frequency, the sensors' and the actuators' participation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TwoAxisMode {
+    /// The mode (frequency, damping, residue magnitude relative to the rigid body).
+    pub mode: Mode,
+    /// Participation of each of the two sensors (the output shape).
+    pub output_shape: [f64; 2],
+    /// Participation of each of the two actuators (the input shape).
+    pub input_shape: [f64; 2],
+}
+
+/// The modes of the two-axis variant of the 60-state stage: [`stage60_modes`]' frequencies,
+/// dampings and residue magnitudes, each with its own sensor and actuator shapes
+/// (`[cos θ, sin θ]`-like, θ stepping by irrational fractions of a turn so that no two
+/// neighbouring modes share a direction).
+pub fn two_axis_modes() -> Vec<TwoAxisMode> {
+    stage60_modes()
+        .into_iter()
+        .enumerate()
+        .map(|(i, m)| {
+            let (t, p) = (0.3 + 1.9 * i as f64, 0.5 + 1.3 * i as f64);
+            TwoAxisMode {
+                mode: Mode {
+                    residue: m.residue.abs(),
+                    ..m
+                },
+                output_shape: [0.4 + 0.6 * t.cos().abs(), t.sin()],
+                input_shape: [0.4 + 0.6 * p.cos().abs(), p.sin()],
+            }
+        })
+        .collect()
+}
+
+/// The two-axis stage (two actuators, two sensors, force in, position out, 20 kg): a rigid
+/// body both actuators push (the second at 0.8) and both sensors see (the second at 0.7),
+/// and the [`two_axis_modes`], each mode's residue matrix the rank-one
+/// `r·c bᵀ/m` of its output shape `c` and input shape `b`. 60 states.
+pub fn two_axis_stage60() -> Result<StateSpace> {
+    let modes = two_axis_modes();
+    let mass = 20.0;
+    let n = 2 + 2 * modes.len();
+    let (mut a, mut b, mut c) = (
+        DMatrix::zeros(n, n),
+        DMatrix::zeros(n, 2),
+        DMatrix::zeros(2, n),
+    );
+    a[(0, 1)] = 1.0;
+    b[(1, 0)] = 1.0 / mass;
+    b[(1, 1)] = 0.8 / mass;
+    c[(0, 0)] = 1.0;
+    c[(1, 0)] = 0.7;
+    for (i, m) in modes.iter().enumerate() {
+        let k = 2 + 2 * i;
+        let w = 2.0 * PI * m.mode.freq_hz;
+        a[(k, k + 1)] = 1.0;
+        a[(k + 1, k)] = -w * w;
+        a[(k + 1, k + 1)] = -2.0 * m.mode.zeta * w;
+        for j in 0..2 {
+            b[(k + 1, j)] = m.mode.residue / mass * m.input_shape[j];
+            c[(j, k)] = m.output_shape[j];
+        }
+    }
+    StateSpace::new(a, b, c, DMatrix::zeros(2, 2), SampleTime::Continuous)
+}
