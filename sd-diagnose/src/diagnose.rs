@@ -1915,8 +1915,9 @@ pub fn diagnose(experiments: &[Experiment], opt: &DiagnoseOptions) -> Result<Dia
 /// documentation), reporting each step to `progress`.
 ///
 /// # Errors
-/// Fewer than two experiments, rates that are not whole fractions of the model experiment's,
-/// experiments without enough periods for variances, a given model that is not SISO or not at
+/// Fewer than two experiments, an experiment with several inputs or outputs, rates that are
+/// not whole fractions of the model experiment's, experiments without enough periods for
+/// variances, a given model that is not SISO or not at
 /// the model experiment's rate, a model that cannot be fitted, `alpha` outside (0, 0.5].
 pub fn diagnose_with_progress(
     experiments: &[Experiment],
@@ -1927,6 +1928,15 @@ pub fn diagnose_with_progress(
         return Err(DiagnoseError::Setup(format!(
             "alpha {} is a false-alarm probability: give one in (0, 0.5], e.g. 0.01",
             opt.alpha
+        )));
+    }
+    if let Some(e) = experiments.iter().find(|e| e.spec.is_mimo()) {
+        return Err(DiagnoseError::Setup(format!(
+            "experiment `{}` has {} inputs and {} outputs: the diagnosis takes SISO experiments \
+             (one input column, one output column); diagnose one channel pair at a time",
+            e.spec.name,
+            e.spec.inputs().len(),
+            e.spec.outputs().len()
         )));
     }
     for e in experiments {

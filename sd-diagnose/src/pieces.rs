@@ -157,6 +157,7 @@ pub fn cut_records(experiments: &[Experiment]) -> Option<(Vec<Experiment>, Vec<P
                 r: e.r.as_ref().map(|r| r[b[0]..b[1]].to_vec()),
                 u: e.u[b[0]..b[1]].to_vec(),
                 y: e.y[b[0]..b[1]].to_vec(),
+                extra: Default::default(),
             });
             pieces.push(Piece {
                 record: e.spec.name.clone(),

@@ -249,12 +249,14 @@ mod tests {
             input: "u".into(),
             output: "y".into(),
             role: sd_ident::Role::Validation,
+            extra: Default::default(),
         };
         let e = Experiment {
             spec,
             r: None,
             u,
             y,
+            extra: Default::default(),
         };
         let per = AveragedPeriod::of(&e).unwrap();
         let resp: Vec<C> = per

@@ -7,8 +7,9 @@
 //! feedback, no excitation) is refused unless `keep_low_snr`.
 
 use crate::{
-    feedback_only, frf_periodic, lpm, lpm_closed_loop_snr, snr_warnings, trusted, DataWarning,
-    Experiment, IdentError, LpmOptions, PeriodicOptions, Result,
+    feedback_only, frf_periodic, frf_periodic_mimo, lpm, lpm_closed_loop_snr, snr_warnings,
+    trusted, Channels, DataWarning, Experiment, IdentError, LpmOptions, MimoFrfEstimate,
+    PeriodicOptions, Result,
 };
 use sd_model::Frd;
 
@@ -28,6 +29,16 @@ pub struct FrfRequest {
 /// [`IdentError::InvalidArgument`] for an `excited_fraction` outside (0, 1), the estimators'
 /// errors, [`IdentError::Data`] for a record without excitation (unless `keep_low_snr`).
 pub fn frf_of_experiment(exp: &Experiment, req: &FrfRequest) -> Result<(Frd, Vec<DataWarning>)> {
+    if exp.spec.is_mimo() {
+        return Err(IdentError::InvalidArgument(format!(
+            "experiment `{}` has {} inputs and {} outputs: its FRF is a matrix \
+             (frf_of_experiments with every experiment of the set; `sdctl frf` with an \
+             --experiment for each)",
+            exp.spec.name,
+            exp.spec.inputs().len(),
+            exp.spec.outputs().len()
+        )));
+    }
     let fs = exp.spec.sample_rate_hz;
     let keep = req.keep_low_snr;
     let (frd, mut warnings) = match exp.spec.period_samples {
@@ -74,4 +85,83 @@ pub fn frf_of_experiment(exp: &Experiment, req: &FrfRequest) -> Result<(Frd, Vec
         warnings.insert(0, w);
     }
     Ok((frd, warnings))
+}
+
+/// The ny×nu FRF of a set of experiments with the same columns' counts: periodic ones (same
+/// rate, period and skipped periods) by [`frf_periodic_mimo`] (the covariance of `vec(G)`
+/// included), one non-periodic open-loop record whose inputs are excited independently by
+/// the MIMO local polynomial method ([`lpm()`], per-entry variances only).
+///
+/// # Errors
+/// No experiment, experiments that differ in rate, period, skipped periods or channel counts,
+/// several non-periodic records or a closed-loop non-periodic one, an `excited_fraction`
+/// outside (0, 1), the estimators' errors (too few experiments for the inputs among them).
+pub fn frf_of_experiments(exps: &[&Experiment], req: &FrfRequest) -> Result<MimoFrfEstimate> {
+    let first = exps
+        .first()
+        .ok_or_else(|| IdentError::InvalidArgument("no experiment to estimate from".into()))?;
+    let spec = &first.spec;
+    let shape = |e: &Experiment| {
+        (
+            e.spec.inputs().len(),
+            e.spec.outputs().len(),
+            e.spec.references().len(),
+        )
+    };
+    if let Some(e) = exps.iter().find(|e| {
+        e.spec.sample_rate_hz != spec.sample_rate_hz
+            || e.spec.period_samples != spec.period_samples
+            || e.spec.skip_periods != spec.skip_periods
+            || shape(e) != shape(first)
+    }) {
+        return Err(IdentError::InvalidArgument(format!(
+            "experiment `{}` differs from `{}` in rate, period, skipped periods or its numbers \
+             of inputs, outputs and references: one FRF needs them equal",
+            e.spec.name, spec.name
+        )));
+    }
+    let fs = spec.sample_rate_hz;
+    match spec.period_samples {
+        Some(p) => {
+            let mut opt = PeriodicOptions::new(p, spec.skip_periods);
+            if let Some(f) = req.excited_fraction {
+                if !(f.is_finite() && f > 0.0 && f < 1.0) {
+                    return Err(IdentError::InvalidArgument(format!(
+                        "excited fraction {f} must be in (0, 1)"
+                    )));
+                }
+                opt.excited_fraction = f;
+            }
+            let sig: Vec<[Vec<&[f64]>; 3]> = exps
+                .iter()
+                .map(|e| [e.references(), e.inputs(), e.outputs()])
+                .collect();
+            let ch: Vec<Channels<'_>> = sig.iter().map(|[r, u, y]| Channels { r, u, y }).collect();
+            frf_periodic_mimo(fs, &ch, &opt)
+        }
+        None => {
+            if exps.len() > 1 || !first.references().is_empty() {
+                return Err(IdentError::InvalidArgument(
+                    "a non-periodic MIMO FRF is estimated from one open-loop record whose \
+                     inputs are excited independently; several records, or references, need \
+                     periodic data"
+                        .into(),
+                ));
+            }
+            let n = first.u.len();
+            let cols = |v: Vec<&[f64]>| nalgebra::DMatrix::from_fn(n, v.len(), |t, j| v[j][t]);
+            let est = lpm(
+                fs,
+                &cols(first.inputs()),
+                &cols(first.outputs()),
+                &LpmOptions::default(),
+            )?;
+            Ok(MimoFrfEstimate {
+                frd: est.frd,
+                lines: Vec::new(),
+                covariance: Vec::new(),
+                periods: 0,
+            })
+        }
+    }
 }

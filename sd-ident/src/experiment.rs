@@ -53,6 +53,50 @@ pub struct ExperimentSpec {
     pub output: String,
     /// Model or validation.
     pub role: Role,
+    /// Further columns where the manifest lists several (`output = ["acc1", "acc2"]`):
+    /// `input`, `output` and `reference` hold the first of each list, these the rest.
+    pub extra: ExtraColumns,
+}
+
+/// The columns after the first of a manifest's lists (empty for a SISO experiment).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ExtraColumns {
+    /// Inputs after `input`.
+    pub inputs: Vec<String>,
+    /// Outputs after `output`.
+    pub outputs: Vec<String>,
+    /// References after `reference` (one reference per input).
+    pub references: Vec<String>,
+}
+
+impl ExperimentSpec {
+    /// Every input column, `input` first.
+    pub fn inputs(&self) -> Vec<&str> {
+        std::iter::once(self.input.as_str())
+            .chain(self.extra.inputs.iter().map(String::as_str))
+            .collect()
+    }
+
+    /// Every output column, `output` first.
+    pub fn outputs(&self) -> Vec<&str> {
+        std::iter::once(self.output.as_str())
+            .chain(self.extra.outputs.iter().map(String::as_str))
+            .collect()
+    }
+
+    /// Every reference column (none in open loop).
+    pub fn references(&self) -> Vec<&str> {
+        self.reference
+            .iter()
+            .map(String::as_str)
+            .chain(self.extra.references.iter().map(String::as_str))
+            .collect()
+    }
+
+    /// Several inputs or outputs.
+    pub fn is_mimo(&self) -> bool {
+        !(self.extra.inputs.is_empty() && self.extra.outputs.is_empty())
+    }
 }
 
 /// An experiment with its signals.
@@ -66,6 +110,44 @@ pub struct Experiment {
     pub u: Vec<f64>,
     /// Measured output.
     pub y: Vec<f64>,
+    /// The signals of [`ExperimentSpec::extra`]'s columns, in its order.
+    pub extra: ExtraSignals,
+}
+
+/// The signals after the first of each list (empty for a SISO experiment).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ExtraSignals {
+    /// Inputs after `u`.
+    pub u: Vec<Vec<f64>>,
+    /// Outputs after `y`.
+    pub y: Vec<Vec<f64>>,
+    /// References after `r`.
+    pub r: Vec<Vec<f64>>,
+}
+
+impl Experiment {
+    /// Every input signal, `u` first.
+    pub fn inputs(&self) -> Vec<&[f64]> {
+        std::iter::once(self.u.as_slice())
+            .chain(self.extra.u.iter().map(Vec::as_slice))
+            .collect()
+    }
+
+    /// Every output signal, `y` first.
+    pub fn outputs(&self) -> Vec<&[f64]> {
+        std::iter::once(self.y.as_slice())
+            .chain(self.extra.y.iter().map(Vec::as_slice))
+            .collect()
+    }
+
+    /// Every reference signal (none in open loop).
+    pub fn references(&self) -> Vec<&[f64]> {
+        self.r
+            .iter()
+            .map(Vec::as_slice)
+            .chain(self.extra.r.iter().map(Vec::as_slice))
+            .collect()
+    }
 }
 
 /// The experiments of the manifest file `manifest` whose names pass `keep`, with their data
@@ -216,16 +298,64 @@ pub fn parse_manifest(text: &str) -> Result<Vec<ExperimentSpec>> {
             Some("model") => Role::Model,
             Some(_) => return Err(ctx("role", "must be \"model\" or \"validation\"")),
         };
+        let columns = |field: &str, required: bool| -> Result<Vec<String>> {
+            match t.get(field) {
+                None if required => Err(ctx(field, "is missing")),
+                None => Ok(Vec::new()),
+                Some(toml::Value::String(x)) => Ok(vec![x.clone()]),
+                Some(toml::Value::Array(a)) if !a.is_empty() => a
+                    .iter()
+                    .map(|v| v.as_str().map(str::to_string))
+                    .collect::<Option<Vec<String>>>()
+                    .ok_or_else(|| ctx(field, "must be a column name or a list of them")),
+                Some(_) => Err(ctx(
+                    field,
+                    "must be a column name or a non-empty list of them",
+                )),
+            }
+        };
+        let (inputs, outputs, references) = (
+            columns("input", true)?,
+            columns("output", true)?,
+            columns("reference", false)?,
+        );
+        if !references.is_empty() && references.len() != inputs.len() {
+            return Err(ctx(
+                "reference",
+                &format!(
+                    "lists {} column(s) for {} input(s): give one reference per input (lists \
+                     of different lengths)",
+                    references.len(),
+                    inputs.len()
+                ),
+            ));
+        }
+        let all: Vec<&String> = inputs.iter().chain(&outputs).chain(&references).collect();
+        if let Some(dup) = all
+            .iter()
+            .enumerate()
+            .find_map(|(i, c)| all[..i].contains(c).then_some(c))
+        {
+            return Err(ctx(
+                "input/output/reference",
+                &format!("name the column `{dup}` twice: each signal needs its own column"),
+            ));
+        }
         let spec = ExperimentSpec {
             name: s("name")?,
             file: s("file")?,
             sample_rate_hz: rate,
             period_samples: period,
             skip_periods: opt_u("skip_periods")?.unwrap_or(0),
-            reference: opt_s("reference")?,
-            input: s("input")?,
-            output: s("output")?,
+            reference: references.first().cloned(),
+            input: inputs[0].clone(),
+            output: outputs[0].clone(),
             role,
+            extra: ExtraColumns {
+                inputs: inputs[1..].to_vec(),
+                outputs: outputs[1..].to_vec(),
+                references: references.iter().skip(1).cloned().collect(),
+            },
         };
         if out.iter().any(|e| e.name == spec.name) {
             return Err(fmt_err(format!(
@@ -327,20 +457,22 @@ impl Experiment {
     /// # Errors
     /// As [`read_columns`]; a period longer than the record.
     pub fn from_reader<R: Read>(spec: ExperimentSpec, reader: R) -> Result<Self> {
-        let mut names: Vec<&str> = vec![&spec.input, &spec.output];
-        if let Some(r) = &spec.reference {
-            names.push(r);
-        }
-        let mut cols = read_columns(reader, &spec.file, &names)?;
-        let r = if spec.reference.is_some() {
-            cols.pop()
-        } else {
-            None
-        };
-        let y = cols.pop().unwrap_or_default();
-        let u = cols.pop().unwrap_or_default();
-        check_periods(&spec, u.len())?;
-        Ok(Experiment { spec, r, u, y })
+        let (ins, outs, refs) = (spec.inputs(), spec.outputs(), spec.references());
+        let names: Vec<&str> = ins.iter().chain(&outs).chain(&refs).copied().collect();
+        let mut cols = read_columns(reader, &spec.file, &names)?.into_iter();
+        let mut take = |n: usize| -> Vec<Vec<f64>> { cols.by_ref().take(n).collect() };
+        let (mut u, mut y, mut r) = (take(ins.len()), take(outs.len()), take(refs.len()));
+        let first = |v: &mut Vec<Vec<f64>>| (!v.is_empty()).then(|| v.remove(0));
+        let (u0, y0, r0) = (first(&mut u), first(&mut y), first(&mut r));
+        let u0 = u0.unwrap_or_default();
+        check_periods(&spec, u0.len())?;
+        Ok(Experiment {
+            spec,
+            r: r0,
+            u: u0,
+            y: y0.unwrap_or_default(),
+            extra: ExtraSignals { u, y, r },
+        })
     }
 
     /// An experiment from recorded arrays (no files): `period` samples per period (None:
@@ -396,9 +528,16 @@ impl Experiment {
             input: "u".into(),
             output: "y".into(),
             role: Role::Validation,
+            extra: ExtraColumns::default(),
         };
         check_periods(&spec, u.len())?;
-        Ok(Experiment { spec, r, u, y })
+        Ok(Experiment {
+            spec,
+            r,
+            u,
+            y,
+            extra: ExtraSignals::default(),
+        })
     }
 }
 

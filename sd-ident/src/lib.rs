@@ -29,10 +29,10 @@ pub mod rng;
 pub mod tol;
 
 pub use error::{IdentError, Result};
-pub use estimate::{frf_of_experiment, FrfRequest};
+pub use estimate::{frf_of_experiment, frf_of_experiments, FrfRequest};
 pub use experiment::{
     load_experiment, load_experiments, parse_manifest, read_columns, Experiment, ExperimentSpec,
-    Role,
+    ExtraColumns, ExtraSignals, Role,
 };
 pub use fit::{
     final_prediction_error, fit, fit_with_progress, model_cost, select_order, FitOptions,

@@ -110,7 +110,8 @@ const SS_KEYS: &[&str] = &[
 ];
 const TF_KEYS: &[&str] = &["type", "ts", "num", "den", "name", "uncertainty"];
 /// `warnings` is what `sdctl frf` found in the data, `eval_path` how `sdctl freqresp`
-/// evaluated a model (both informational; ignored on reading).
+/// evaluated a model, `covariance` the full covariance of a MIMO estimate (`sdctl frf
+/// --covariance`; all informational, ignored on reading).
 const FRD_KEYS: &[&str] = &[
     "type",
     "ts",
@@ -119,6 +120,7 @@ const FRD_KEYS: &[&str] = &[
     "im",
     "var",
     "warnings",
+    "covariance",
     "eval_path",
     "uncertainty",
 ];

@@ -367,10 +367,12 @@ impl ExperimentData {
                 input: "u".into(),
                 output: "y".into(),
                 role: self.role,
+                extra: Default::default(),
             },
             r: self.r.clone(),
             u: self.u.clone(),
             y: self.y.clone(),
+            extra: Default::default(),
         }
     }
 

@@ -147,10 +147,12 @@ fn daisy_robot_arm_halves_are_consistent() {
             input: "u".into(),
             output: "y".into(),
             role,
+            extra: Default::default(),
         },
         r: None,
         u: u[lo..hi].to_vec(),
         y: y[lo..hi].to_vec(),
+        extra: Default::default(),
     };
     let exps = [
         half("first", 0, 512, sd_ident::Role::Model),

@@ -233,7 +233,8 @@ pub(crate) fn noisy_frd(pd: &StateSpace, seed: u64) -> Result<sd_model::Frd, Str
         let sd = g.map(|v| 0.01 * v.norm());
         let noisy = nalgebra::DMatrix::from_fn(g.nrows(), g.ncols(), |a, b| {
             g[(a, b)]
-                + num_complex::Complex64::new(rng.normal(), rng.normal()) * (sd[(a, b)] / 2f64.sqrt())
+                + num_complex::Complex64::new(rng.normal(), rng.normal())
+                    * (sd[(a, b)] / 2f64.sqrt())
         });
         resp.push(noisy);
         var.push(sd.map(|s| s * s));

@@ -7,9 +7,16 @@ use crate::io::{emit, from_ident, from_model, CliError};
 pub(crate) struct Args {
     /// Experiment manifest (TOML, docs/formats.md).
     pub(crate) manifest: String,
-    /// Name of the experiment.
+    /// Name of the experiment; repeat it for a MIMO set (experiments at one rate and period,
+    /// at least one per input: one input excited each, or orthogonal multisines), whose FRF is
+    /// ny × nu. A single experiment with several inputs or outputs (lists in the manifest)
+    /// gives a MIMO FRF too (non-periodic: LPM over its inputs).
+    #[arg(long, required = true)]
+    pub(crate) experiment: Vec<String>,
+    /// With a MIMO FRF: add `covariance` (per line the covariance of vec(G), columns stacked,
+    /// as `re` and `im` arrays of (ny·nu)² entries) to the FRD JSON.
     #[arg(long)]
-    pub(crate) experiment: String,
+    pub(crate) covariance: bool,
     /// Excited-line threshold relative to the strongest line (periodic data).
     #[arg(long, allow_negative_numbers = true)]
     pub(crate) excited_fraction: Option<f64>,
@@ -30,14 +37,32 @@ impl Args {
             experiment,
             excited_fraction,
             keep_low_snr,
+            covariance,
             output,
         } = self;
-        let exp = sd_ident::load_experiment(std::path::Path::new(&manifest), &experiment)
-            .map_err(|e| from_ident(&manifest, e))?;
         let req = sd_ident::FrfRequest {
             excited_fraction,
             keep_low_snr,
         };
+        let path = std::path::Path::new(&manifest);
+        let exps = sd_ident::load_experiments(path, |n| experiment.iter().any(|e| e == n))
+            .map_err(|e| from_ident(&manifest, e))?;
+        if let Some(missing) = experiment
+            .iter()
+            .find(|n| !exps.iter().any(|e| &e.spec.name == *n))
+        {
+            return Err(from_ident(
+                &manifest,
+                sd_ident::IdentError::InvalidArgument(format!("no experiment named `{missing}`")),
+            ));
+        }
+        if exps.len() > 1 || exps.iter().any(|e| e.spec.is_mimo()) {
+            return mimo(&exps, &req, covariance, output.as_deref());
+        }
+        let Some(exp) = exps.into_iter().next() else {
+            return Err(CliError::input("no experiment given"));
+        };
+        let experiment = exp.spec.name.clone();
         let (frd, warnings) =
             sd_ident::frf_of_experiment(&exp, &req).map_err(|e| from_ident(&experiment, e))?;
         for w in &warnings {
@@ -49,6 +74,59 @@ impl Args {
         }
         emit(&json, output.as_deref())
     }
+}
+
+/// The ny × nu FRF of several experiments, or of one with several channels
+/// ([`sd_ident::frf_of_experiments`]).
+fn mimo(
+    exps: &[sd_ident::Experiment],
+    req: &sd_ident::FrfRequest,
+    covariance: bool,
+    output: Option<&str>,
+) -> Result<(), CliError> {
+    let refs: Vec<&sd_ident::Experiment> = exps.iter().collect();
+    let names: Vec<&str> = exps.iter().map(|e| e.spec.name.as_str()).collect();
+    let est =
+        sd_ident::frf_of_experiments(&refs, req).map_err(|e| from_ident(&names.join(", "), e))?;
+    let (ny, nu) = est.frd.shape();
+    eprintln!(
+        "[frf] {ny}x{nu} from {}: {} lines{}",
+        names.join(", "),
+        est.frd.len(),
+        if est.periods > 0 {
+            format!(", {} steady periods", est.periods)
+        } else {
+            String::new()
+        }
+    );
+    let json = sd_model::frd_to_json_string(&est.frd).map_err(|e| from_model("output", e))?;
+    if !covariance {
+        return emit(&json, output);
+    }
+    if est.covariance.is_empty() {
+        return Err(CliError::input(
+            "no covariance: it needs periodic experiments with two steady periods or more",
+        ));
+    }
+    let bad = |e: serde_json::Error| CliError::numerical(format!("FRD JSON: {e}"));
+    let mut v: serde_json::Value = serde_json::from_str(&json).map_err(bad)?;
+    let part = |f: fn(&num_complex::Complex64) -> f64| -> Vec<Vec<Vec<f64>>> {
+        est.covariance
+            .iter()
+            .map(|c| {
+                (0..c.nrows())
+                    .map(|i| c.row(i).iter().map(f).collect())
+                    .collect()
+            })
+            .collect()
+    };
+    if let Some(m) = v.as_object_mut() {
+        m.insert(
+            "covariance".into(),
+            serde_json::json!({"re": part(|c| c.re), "im": part(|c| c.im)}),
+        );
+    }
+    emit(&serde_json::to_string(&v).map_err(bad)?, output)
 }
 
 /// The FRD JSON text with a `"warnings"` array (each `{"kind", "message", …}`), which readers
