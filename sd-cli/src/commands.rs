@@ -43,9 +43,15 @@ enum Cmd {
     Connect(crate::cmd::connect::Args),
     /// McFarlane–Glover loopshaping: the controller K = W1·Ks·W2 for negative feedback u = −K y.
     Loopshape(crate::cmd::loopshape::Args),
-    /// FRF of one experiment of a manifest (periodic: averaged over periods; otherwise LPM), FRD JSON with var.
+    /// Multisine excitations as CSV with their manifest; with --inputs N, orthogonal
+    /// multisines (one experiment per input).
+    Multisine(crate::cmd::multisine::Args),
+    /// FRF of one experiment of a manifest (periodic: averaged over periods; otherwise LPM),
+    /// FRD JSON with var; several experiments (or one with several inputs or outputs): the
+    /// MIMO FRF.
     Frf(crate::cmd::frf::Args),
-    /// Fit a discrete-time model of order N to a SISO FRD (progress on stderr).
+    /// Fit a discrete-time model of order N to an FRD; a MIMO FRD gets one set of poles for
+    /// every entry (progress on stderr).
     Fit(crate::cmd::fit::Args),
     /// Closed loop of a plant and a controller (negative feedback): stability, bandwidth, |S| peak, margins.
     Analyze(crate::cmd::analyze::Args),
@@ -115,6 +121,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Cmd::Connect(a) => a.run(),
         Cmd::Loopshape(a) => a.run(),
         Cmd::Frf(a) => a.run(),
+        Cmd::Multisine(a) => a.run(),
         Cmd::Fit(a) => a.run(),
         Cmd::Analyze(a) => a.run(),
         Cmd::Intersample(a) => a.run(),

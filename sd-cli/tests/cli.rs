@@ -1543,3 +1543,133 @@ fn fit_mimo_common_poles() {
         "not a rank",
     );
 }
+
+/// The MIMO chain from the command line: `sdctl multisine --inputs 2` (orthogonal multisines
+/// and their manifest), the user's measured outputs added to each CSV (here a 2×2 model's
+/// simulated response with seeded noise), `sdctl frf` of both experiments (2×2, with the
+/// covariance), `sdctl fit` in common; and the bad manifests and sets of the issue.
+#[test]
+fn mimo_chain_multisine_frf_fit() {
+    let d = tmpdir("mimo_chain");
+    let out = d.join("ms").to_string_lossy().into_owned();
+    let o = sdctl(&[
+        "multisine",
+        "--fs",
+        "1000",
+        "--period",
+        "500",
+        "--f-min",
+        "2",
+        "--f-max",
+        "400",
+        "--inputs",
+        "2",
+        "--outputs",
+        "y1,y2",
+        "--periods",
+        "6",
+        "--out",
+        &out,
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let manifest = std::fs::read_to_string(d.join("ms/experiments.toml")).unwrap();
+    assert!(manifest.contains("input = [\"u1\", \"u2\"]"), "{manifest}");
+    assert!(manifest.contains("output = [\"y1\", \"y2\"]"), "{manifest}");
+    // the plant: two lightly damped pairs, rank-one residues, 1 kHz
+    let (r1, i1) = (0.98 * 0.3f64.cos(), 0.98 * 0.3f64.sin());
+    let (r2, i2) = (0.95 * 1.1f64.cos(), 0.95 * 1.1f64.sin());
+    let a = nalgebra::DMatrix::from_row_slice(
+        4,
+        4,
+        &[
+            r1, i1, 0.0, 0.0, -i1, r1, 0.0, 0.0, 0.0, 0.0, r2, i2, 0.0, 0.0, -i2, r2,
+        ],
+    );
+    let b = nalgebra::DMatrix::from_row_slice(4, 2, &[1.0, 0.5, 0.2, -0.3, 0.4, 1.0, -0.6, 0.1]);
+    let c = nalgebra::DMatrix::from_row_slice(2, 4, &[1.0, 0.3, 0.5, -0.2, -0.4, 1.0, 0.8, 0.6]);
+    let plant = sd_model::StateSpace::new(
+        a,
+        b,
+        c,
+        nalgebra::DMatrix::zeros(2, 2),
+        sd_model::SampleTime::discrete(1e-3).unwrap(),
+    )
+    .unwrap();
+    let mut seed = 7u64;
+    let mut noise = || {
+        // a small deterministic pseudo-noise (splitmix), uniform in ±1e-4
+        seed = seed.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = seed;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        (((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 2e-4
+    };
+    for e in ["exp_1", "exp_2"] {
+        let path = d.join(format!("ms/{e}.csv"));
+        let text = std::fs::read_to_string(&path).unwrap();
+        let rows: Vec<Vec<f64>> = text
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+            .collect();
+        let u = nalgebra::DMatrix::from_fn(rows.len(), 2, |t, j| rows[t][j]);
+        let y = plant.simulate(&u, None).unwrap().y;
+        let mut csv = String::from("u1,u2,y1,y2\n");
+        for t in 0..rows.len() {
+            csv.push_str(&format!(
+                "{:e},{:e},{:e},{:e}\n",
+                u[(t, 0)],
+                u[(t, 1)],
+                y[(t, 0)] + noise(),
+                y[(t, 1)] + noise()
+            ));
+        }
+        std::fs::write(&path, csv).unwrap();
+    }
+    let m = d.join("ms/experiments.toml").to_string_lossy().into_owned();
+    let frd = d.join("g.json").to_string_lossy().into_owned();
+    sdctl_ok(&[
+        "frf",
+        &m,
+        "--experiment",
+        "exp_1",
+        "--experiment",
+        "exp_2",
+        "--covariance",
+        "-o",
+        &frd,
+    ]);
+    let g = read_json(&frd);
+    let n = g["freq_hz"].as_array().unwrap().len();
+    assert_eq!(g["re"][0].as_array().unwrap().len(), 2);
+    assert_eq!(g["re"][0][0].as_array().unwrap().len(), 2);
+    assert_eq!(g["covariance"]["re"].as_array().unwrap().len(), n);
+    assert_eq!(g["covariance"]["re"][0].as_array().unwrap().len(), 4);
+    let o = sdctl_ok(&["fit", &frd, "--order", "4", "--strictly-proper", "--json"]);
+    let f: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(f["states"], 4, "{f}");
+    assert!(f["median_rel_error"].as_f64().unwrap() < 0.01, "{f}");
+    // one experiment cannot tell two inputs apart
+    assert_input_error(
+        &sdctl(&["frf", &m, "--experiment", "exp_1", "--covariance"]),
+        "1 experiment(s) for 2 inputs",
+    );
+    // a column named twice; references not one per input
+    let bad = |name: &str, extra: &str| {
+        write(
+            &d,
+            name,
+            &format!("[[experiment]]\nname = \"a\"\nfile = \"ms/exp_1.csv\"\nsample_rate_hz = 1000\nperiod_samples = 500\n{extra}"),
+        )
+    };
+    let twice = bad("twice.toml", "input = [\"u1\", \"u1\"]\noutput = \"y1\"\n");
+    assert_input_error(&sdctl(&["frf", &twice, "--experiment", "a"]), "`u1` twice");
+    let refs = bad(
+        "refs.toml",
+        "input = [\"u1\", \"u2\"]\noutput = \"y1\"\nreference = [\"y2\"]\n",
+    );
+    assert_input_error(
+        &sdctl(&["frf", &refs, "--experiment", "a"]),
+        "lists of different lengths",
+    );
+}

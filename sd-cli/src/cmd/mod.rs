@@ -12,6 +12,7 @@ pub(crate) mod freqresp;
 pub(crate) mod frf;
 pub(crate) mod intersample;
 pub(crate) mod loopshape;
+pub(crate) mod multisine;
 pub(crate) mod norm;
 pub(crate) mod reduce;
 pub(crate) mod roots;
