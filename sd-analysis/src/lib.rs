@@ -12,6 +12,7 @@
 pub mod closed_loop;
 pub mod error;
 pub mod intersample;
+pub mod mimo;
 pub mod spectra;
 pub mod standstill;
 pub mod tol;
@@ -19,6 +20,7 @@ pub mod tol;
 pub use closed_loop::{ClosedLoop, Margins, Responses, Summary};
 pub use error::{AnalysisError, Result};
 pub use intersample::{intersample, rms_of_density, Intersample};
+pub use mimo::{mimo_margins, singular_values, ChannelMargins, MimoMargins, Side, SingularValues};
 pub use sd_multirate::MultirateSimulation;
 pub use spectra::{cps, periodogram, rms, welch, Spectrum, Window};
 pub use standstill::{standstill, standstill_multirate, Standstill};

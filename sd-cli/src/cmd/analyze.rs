@@ -25,6 +25,10 @@ pub(crate) struct Args {
     /// Write the destabilising plant inside the bound (when there is one) to this model JSON.
     #[arg(long)]
     pub(crate) destabilising_out: Option<String>,
+    /// Write the singular values of S, T and KS against frequency (largest and smallest, dB)
+    /// to this SVG file.
+    #[arg(long)]
+    pub(crate) sigma_svg: Option<String>,
     #[arg(help = crate::commands::JSON_HELP, long)]
     pub(crate) json: bool,
 }
@@ -38,12 +42,22 @@ impl Args {
             uncertainty,
             weight_order,
             destabilising_out,
+            sigma_svg,
             json,
         } = self;
         let p = read_model(&plant)?;
         let k = read_model(&controller)?;
         let cl = sd_analysis::ClosedLoop::new(&p, &k).map_err(|e| from_analysis("analyze", e))?;
         let s = cl.summary().map_err(|e| from_analysis("analyze", e))?;
+        // loop-at-a-time and disk margins of every channel (a stable loop only)
+        let lat = if s.stable {
+            Some(sd_analysis::mimo_margins(&cl).map_err(|e| from_analysis("analyze", e))?)
+        } else {
+            None
+        };
+        if let Some(path) = &sigma_svg {
+            sigma_plot(&cl, &p, path)?;
+        }
         // a plant file that carries its bound is judged against it unless another is given
         let uncertainty = uncertainty.or_else(|| {
             let carried = read_text(&plant).is_ok_and(|t| sd_uncertainty::carries(&t));
@@ -77,11 +91,17 @@ impl Args {
             if let (Some(r), Some(obj)) = (&robust, v.as_object_mut()) {
                 obj.insert("robust".into(), json!(r));
             }
+            if let (Some(m), Some(obj)) = (&lat, v.as_object_mut()) {
+                obj.insert("loop_at_a_time".into(), json!(m));
+            }
             emit(&v.to_string(), None)
         } else {
-            let extra = robust
+            let mut extra = robust
                 .as_ref()
                 .map_or(String::new(), |r| format!("\n{}", robust_text(r)));
+            if let Some(m) = &lat {
+                extra.push_str(&channels_text(m));
+            }
             emit(
             &(format!(
                 "closed loop {} (spectral {} {:.6})\ncrossover {:.3} Hz (|L| = 1), closed-loop bandwidth {:.3} Hz (|T| −3 dB)\n|S| peak {:.2} dB at {:.3} Hz (modulus margin {:.4})\ngain margin {:.2} dB, phase margin {:.2} deg",
@@ -183,4 +203,102 @@ fn robust_text(r: &sd_uncertainty::Robust) -> String {
         );
     }
     t
+}
+
+/// The loop-at-a-time margins as text, one line per channel.
+fn channels_text(m: &sd_analysis::MimoMargins) -> String {
+    let mut out = String::new();
+    for c in &m.channels {
+        out.push_str(&format!(
+            "\n{} {} (loop at a time): gain margin {:.2} dB, phase margin {:.2} deg; disk margin \
+             {:.3} (gain ±{:.2} dB, phase ±{:.2} deg)",
+            match c.side {
+                sd_analysis::Side::Input => "input",
+                sd_analysis::Side::Output => "output",
+            },
+            c.channel + 1,
+            c.gain_margin_db,
+            c.phase_margin_deg,
+            c.disk_margin,
+            c.disk_gain_margin_db,
+            c.disk_phase_margin_deg
+        ));
+    }
+    out.push_str(&format!(
+        "\nsimultaneous disk margin (every channel at once, a lower bound): inputs {:.3}, \
+         outputs {:.3}",
+        m.simultaneous_input_disk_margin, m.simultaneous_output_disk_margin
+    ));
+    out
+}
+
+/// σ_max and σ_min of S, T and KS against frequency (dB) as an SVG, written atomically.
+fn sigma_plot(
+    cl: &sd_analysis::ClosedLoop,
+    p: &sd_model::StateSpace,
+    path: &str,
+) -> Result<(), CliError> {
+    let (lo, hi) = match p.time() {
+        sd_model::SampleTime::Discrete { ts } => (1e-3 * 0.5 / ts, 0.4999 / ts),
+        sd_model::SampleTime::Continuous => (1e-2, 1e4),
+    };
+    let f = sd_model::grid(lo, hi, 600, true).map_err(|e| crate::io::from_model("analyze", e))?;
+    let sv = sd_analysis::singular_values(cl, &f).map_err(|e| from_analysis("analyze", e))?;
+    let db = |m: &[Vec<f64>], last: bool| -> Vec<f64> {
+        m.iter()
+            .map(|v| {
+                let x = if last { v.last() } else { v.first() };
+                20.0 * x.copied().unwrap_or(f64::NAN).max(1e-300).log10()
+            })
+            .collect()
+    };
+    let (s_hi, s_lo, t_hi, ks_hi) = (
+        db(&sv.s, false),
+        db(&sv.s, true),
+        db(&sv.t, false),
+        db(&sv.ks, false),
+    );
+    use sd_report::plot::{Curve, RGBColor};
+    let curves = [
+        Curve {
+            label: "σ_max(S)",
+            freq_hz: &f,
+            db: &s_hi,
+            color: RGBColor(31, 119, 180),
+        },
+        Curve {
+            label: "σ_min(S)",
+            freq_hz: &f,
+            db: &s_lo,
+            color: RGBColor(158, 202, 225),
+        },
+        Curve {
+            label: "σ_max(T)",
+            freq_hz: &f,
+            db: &t_hi,
+            color: RGBColor(214, 39, 40),
+        },
+        Curve {
+            label: "σ_max(KS)",
+            freq_hz: &f,
+            db: &ks_hi,
+            color: RGBColor(44, 160, 44),
+        },
+    ];
+    let target = std::path::Path::new(path);
+    let partial = target.with_extension(format!("partial{}.svg", std::process::id()));
+    let tmp = partial.to_string_lossy().into_owned();
+    let title = format!(
+        "singular values of the closed loop ({}x{} plant)",
+        p.ny(),
+        p.nu()
+    );
+    sd_report::plot::magnitude_plot(&tmp, &title, &curves, lo, hi, &[]).map_err(|e| {
+        let _ = std::fs::remove_file(&partial);
+        CliError::input(format!("cannot write {path}: {e}"))
+    })?;
+    std::fs::rename(&partial, target).map_err(|e| {
+        let _ = std::fs::remove_file(&partial);
+        CliError::input(format!("cannot write {path}: {e}"))
+    })
 }

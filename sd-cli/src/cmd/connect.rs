@@ -8,12 +8,16 @@ pub(crate) enum Conn {
     Series,
     Parallel,
     Feedback,
+    /// Block diagonal: A's inputs and outputs first, then B's (diagonal weights of a MIMO
+    /// loop).
+    Append,
 }
 
 /// Arguments of `sdctl connect`.
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
-    /// series (A then B), parallel (A + B) or feedback (A with B in negative feedback).
+    /// series (A then B), parallel (A + B), feedback (A with B in negative feedback) or append
+    /// (block diagonal diag(A, B)).
     #[arg(value_enum)]
     pub(crate) kind: Conn,
     /// First model JSON file (A).
@@ -43,6 +47,7 @@ impl Args {
             Conn::Series => sd_model::series(&ga, &gb),
             Conn::Parallel => sd_model::parallel(&ga, &gb),
             Conn::Feedback => sd_model::feedback(&ga, &gb, sign),
+            Conn::Append => sd_model::append(&ga, &gb),
         }
         .map_err(|e| from_model("connect", e))?;
         emit(&model_json(&r)?, output.as_deref())
