@@ -1,7 +1,7 @@
 //! A common-pole fit of a MIMO FRD: one set of poles for every entry, residue matrices of the
 //! rank the data support, realised in modal form with the fewest states.
 //!
-//! **Model** (the partial fractions of [`crate::fit`], with matrix residues):
+//! **Model** (the partial fractions of [`mod@crate::fit`], with matrix residues):
 //! `Ĝ(z) = Σ_i R_i/(z − p_i) + Σ_{l=1}^{m} C_l/(z − 1)^l + D`, `R_i`, `C_l`, `D` ∈ ℂ^{ny×nu}
 //! (`R_i` real for a real pole, conjugate for the pair's other pole). Every entry `(a, b)` has
 //! its own weights `w_k^{ab}` (the FRD's per-entry variance, relative or uniform,
