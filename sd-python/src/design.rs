@@ -1,6 +1,6 @@
 //! Design and analysis: `dare`, `care`, `loopshape`, `weight_pid`, `analyze`.
 
-use crate::{mat, np, py_err, sys_in, sys_out, SysIn, SysOut};
+use crate::{mat, np, py_err, sys_in, sys_out, value_err, SysIn, SysOut};
 use numpy::PyReadonlyArray2;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -137,10 +137,24 @@ fn weight_pid<'py>(
 #[pyfunction]
 fn analyze<'py>(py: Python<'py>, p: SysIn<'py>, k: SysIn<'py>) -> PyResult<Bound<'py, PyDict>> {
     let (p, k) = (sys_in(&p)?, sys_in(&k)?);
-    let s = py
-        .detach(|| sd_analysis::ClosedLoop::new(&p, &k).and_then(|cl| cl.summary()))
+    let (s, lat) = py
+        .detach(|| {
+            let cl = sd_analysis::ClosedLoop::new(&p, &k)?;
+            let s = cl.summary()?;
+            // loop-at-a-time and disk margins of a stable loop, as `sdctl analyze --json`
+            let lat = if s.stable {
+                Some(sd_analysis::mimo_margins(&cl)?)
+            } else {
+                None
+            };
+            Ok::<_, sd_analysis::AnalysisError>((s, lat))
+        })
         .map_err(py_err)?;
     let d = PyDict::new(py);
+    if let Some(m) = lat {
+        let text = serde_json::to_string(&m).map_err(|e| value_err(e.to_string()))?;
+        d.set_item("loop_at_a_time_json", text)?;
+    }
     d.set_item("stable", s.stable)?;
     d.set_item("closed_loop_radius", s.closed_loop_radius)?;
     d.set_item("bandwidth_hz", s.bandwidth_hz)?;

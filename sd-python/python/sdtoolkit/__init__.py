@@ -382,8 +382,13 @@ def analyze(P, K) -> Result:
     """The loop of plant ``P`` and controller ``K`` (negative feedback), as ``sdctl analyze``:
     ``stable``, ``closed_loop_radius``, ``bandwidth_hz``, ``crossover_hz``,
     ``sensitivity_peak_db`` / ``_hz``, ``gain_margin_db``, ``phase_margin_deg``,
-    ``modulus_margin``."""
-    return Result(_native.analyze(_ss(P, "P")._tuple(), _ss(K, "K")._tuple()))
+    ``modulus_margin``; for a stable loop ``loop_at_a_time`` (per input and output channel the
+    classic and disk margins, and the simultaneous disk margins)."""
+    d = _native.analyze(_ss(P, "P")._tuple(), _ss(K, "K")._tuple())
+    text = d.pop("loop_at_a_time_json", None)
+    if text is not None:
+        d["loop_at_a_time"] = json.loads(text)
+    return Result(d)
 
 
 # ---------------------------------------------------------------- data
