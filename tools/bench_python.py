@@ -159,4 +159,25 @@ if fr:
     u = np.fromfile(fr["u"], dtype="<f8"); y = np.fromfile(fr["y"], dtype="<f8")
     t, (G, var) = median_time(lambda: frf_average(u, y, fr["period"], fr["skip"]), fr["repeats"])
     res["frf_numpy_periodic_average"] = {"median_s": t, "lines": int(len(G))}
+ft = cases.get("fit")
+if ft:
+    # scipy's AAA (Nakatsukasa, Sète & Trefethen 2018) on z = e^{jωT}, the same lines and
+    # number of poles as our order-60 fit; its cost with our weights 1/var
+    try:
+        from scipy.interpolate import AAA
+        with open(ft["frd"]) as fh:
+            fj = json.load(fh)
+        hz = np.asarray(fj["freq_hz"])
+        g = np.asarray(fj["re"])[:, 0, 0] + 1j * np.asarray(fj["im"])[:, 0, 0]
+        var = np.asarray(fj["var"])[:, 0, 0]
+        z = np.exp(2j * np.pi * hz * fj["ts"])
+        t, r = median_time(lambda: AAA(z, g, rtol=0.0, max_terms=ft["poles"] + 1), ft["repeats"])
+        cost = float(np.sum(np.abs(g - r(z)) ** 2 / var))
+        p = r.poles()
+        res["fit_scipy_aaa"] = {"median_s": t, "cost": cost, "poles": int(len(p)),
+                                "largest_pole_modulus": float(np.max(np.abs(p))),
+                                "stable": bool(np.all(np.abs(p) < 1.0)),
+                                "median_rel_error": float(np.median(np.abs(g - r(z)) / np.abs(g)))}
+    except Exception as e:
+        res["fit_scipy_aaa"] = {"error": str(e).strip().splitlines()[0][:200]}
 print(json.dumps(res))

@@ -251,14 +251,21 @@ fn bench_fit(ctx: &Ctx) -> Result<Value, String> {
         feedthrough: false,
         ..Default::default()
     };
+    // the same data for the peer (scipy's AAA)
+    let text = sd_model::frd_to_json_string(&frd60).map_err(err)?;
+    std::fs::write(ctx.dir.join(FIT_FRD), text).map_err(err)?;
     let (t_fit, fit60) = time_it(ctx.few(), || sd_ident::fit(&frd60, &fopt));
     let fit60 = fit60.map_err(err)?;
+    let stable = fit60.poles.iter().all(|p| p.norm() <= 1.0);
     Ok(
         json!({"name": "fit_order60", "size": "2500 lines of the 60-state stage at 5 kHz, 40 dB SNR",
         "ours_s": t_fit, "median_rel_error": fit60.median_rel_error, "cost": fit60.cost,
-        "peer": "none: python-control and scipy have no rational FRF fitting"}),
+        "stable": stable, "poles": 60}),
     )
 }
+
+/// The order-60 fit's data for the peer (in the bench folder).
+const FIT_FRD: &str = "fit60_frd.json";
 
 /// An order-60 common-pole fit of the two-axis stage (2×2 × 2500 lines at 40 dB SNR; no
 /// peer).
@@ -433,6 +440,7 @@ fn run_peers(root: &Path, ctx: &Ctx, o: &Ours) -> Result<Value, String> {
         "dare": {"model": ctx.dt_path, "repeats": reps},
         "loopshape": {"plant": o.p1k_path, "w1": o.w1_path, "repeats": reps * 4},
         "frf": {"u": o.u_path, "y": o.y_path, "period": 10_000, "skip": 1, "repeats": reps},
+        "fit": {"frd": ctx.dir.join(FIT_FRD), "poles": 60, "repeats": ctx.few()},
     });
     let cases_path = ctx.dir.join("python_cases.json");
     std::fs::write(&cases_path, cases.to_string()).map_err(err)?;
@@ -523,6 +531,15 @@ fn compare_others(py: &Value, o: &Ours, e: &mut Entries) {
     let pf = &py["frf_numpy_periodic_average"];
     e.frf["peer"] = json!({"numpy_fft_period_average": pf});
     e.frf["ratio_numpy_over_ours"] = json!(num(&pf["median_s"]) / o.t_frf);
+    let aaa = &py["fit_scipy_aaa"];
+    if aaa.get("median_s").is_some() {
+        let (ours_t, ours_cost) = (num(&e.fit["ours_s"]), num(&e.fit["cost"]));
+        e.fit["peer"] = json!({"scipy_interpolate_aaa": aaa});
+        e.fit["ratio_aaa_over_ours"] = json!(num(&aaa["median_s"]) / ours_t);
+        e.fit["cost_ratio_aaa_over_ours"] = json!(num(&aaa["cost"]) / ours_cost);
+    } else {
+        e.fit["peer"] = json!({"scipy_interpolate_aaa": aaa});
+    }
 }
 
 /// Every benchmark, then the Python peers when importable; writes
