@@ -437,8 +437,19 @@ fn relocate(
         b[(2 * i + 1, 0)] = w * g.im;
     }
     let x = lstsq(&a, &b)?;
-    let ct = &x[nn..];
-    // zeros of σ: eig(A − b c̃ᵀ) in the real block realisation of the basis
+    sigma_zeros(real, pairs, &x[nn..], data)
+}
+
+/// The zeros of `σ = 1 + Σ c̃_i φ_i` (`ct` = c̃ over the free basis of `real`, `pairs`):
+/// `eig(A − b c̃ᵀ)` in the real block realisation of the basis, made admissible
+/// ([`split_poles`]).
+pub(crate) fn sigma_zeros(
+    real: &[f64],
+    pairs: &[C],
+    ct: &[f64],
+    data: &Data,
+) -> Result<(Vec<f64>, Vec<C>)> {
+    let nf = ct.len();
     let mut am = DMatrix::<f64>::zeros(nf, nf);
     let mut bv = vec![0.0; nf];
     let mut idx = 0;

@@ -38,13 +38,12 @@
 
 use crate::error::{IdentError, Result};
 use crate::fit::{
-    numerator_basis, reflect, split_poles, starting_poles, weights_entry, Data, FitOptions,
+    numerator_basis, reflect, sigma_zeros, starting_poles, weights_entry, Data, FitOptions,
     FitProgress, Weighting,
 };
 use faer::Mat;
 use nalgebra::DMatrix;
 use num_complex::Complex64 as C;
-use sd_model::linalg::convert::eigenvalues;
 use sd_model::{Frd, SampleTime, StateSpace};
 use std::f64::consts::PI;
 
@@ -59,6 +58,24 @@ pub enum ResidueRank {
     Select,
     /// This rank for every free pole (at most `min(ny, nu)`).
     Fixed(usize),
+}
+
+impl std::str::FromStr for ResidueRank {
+    type Err = String;
+
+    /// `select`, `full` or a positive number (the command line's and Python's spelling).
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "select" => Ok(ResidueRank::Select),
+            "full" => Ok(ResidueRank::Full),
+            n => match n.parse::<usize>() {
+                Ok(k) if k > 0 => Ok(ResidueRank::Fixed(k)),
+                _ => Err(format!(
+                    "`{n}` is not a rank: use select, full or a positive number"
+                )),
+            },
+        }
+    }
 }
 
 /// Settings of a common-pole fit.
@@ -225,6 +242,25 @@ fn trailing_block(a: &Mat<f64>, extra: &Mat<f64>) -> Mat<f64> {
     Mat::from_fn(rows, ne, |i, j| r[(na + i, na + j)])
 }
 
+/// The blocks' equations stacked: the first `cols` columns of each as the matrix (with
+/// `spare` zero rows below, for a damping term), its column `cols` as the right-hand side.
+fn stack(blocks: &[Mat<f64>], cols: usize, spare: usize) -> (Mat<f64>, Vec<f64>) {
+    let rows: usize = blocks.iter().map(|b| b.nrows()).sum();
+    let mut m = Mat::<f64>::zeros(rows + spare, cols);
+    let mut rhs = vec![0.0; rows + spare];
+    let mut at = 0;
+    for b in blocks {
+        for i in 0..b.nrows() {
+            for c in 0..cols {
+                m[(at + i, c)] = b[(i, c)];
+            }
+            rhs[at + i] = b[(i, cols)];
+        }
+        at += b.nrows();
+    }
+    (m, rhs)
+}
+
 /// One common-denominator pole relocation (module documentation, step 1).
 fn relocate_common(
     e: &Entries,
@@ -251,52 +287,12 @@ fn relocate_common(
         }
         blocks.push(trailing_block(&a, &extra));
     }
-    let rows: usize = blocks.iter().map(|b| b.nrows()).sum();
-    let mut s = Mat::<f64>::zeros(rows, nf);
-    let mut rhs = vec![0.0; rows];
-    let mut at = 0;
-    for b in &blocks {
-        for i in 0..b.nrows() {
-            for j in 0..nf {
-                s[(at + i, j)] = b[(i, j)];
-            }
-            rhs[at + i] = b[(i, nf)];
-        }
-        at += b.nrows();
-    }
+    let (s, rhs) = stack(&blocks, nf, 0);
     let ls = sd_model::linalg::lstsq_faer(s.as_ref(), &rhs).map_err(|err| {
         IdentError::Numerical(format!("the common pole relocation failed: {err}"))
     })?;
     let ct: Vec<f64> = ls.x.iter().copied().collect();
     sigma_zeros(real, pairs, &ct, &e.data[0])
-}
-
-/// The zeros of `σ = 1 + Σ c̃_i φ_i`: `eig(A − b c̃ᵀ)` in the real block realisation of the basis.
-fn sigma_zeros(real: &[f64], pairs: &[C], ct: &[f64], d: &Data) -> Result<(Vec<f64>, Vec<C>)> {
-    let nf = ct.len();
-    let mut am = DMatrix::<f64>::zeros(nf, nf);
-    let mut bv = vec![0.0; nf];
-    let mut idx = 0;
-    for &p in real {
-        am[(idx, idx)] = p;
-        bv[idx] = 1.0;
-        idx += 1;
-    }
-    for &p in pairs {
-        am[(idx, idx)] = p.re;
-        am[(idx, idx + 1)] = p.im;
-        am[(idx + 1, idx)] = -p.im;
-        am[(idx + 1, idx + 1)] = p.re;
-        bv[idx] = 2.0;
-        idx += 2;
-    }
-    for i in 0..nf {
-        for j in 0..nf {
-            am[(i, j)] -= bv[i] * ct[j];
-        }
-    }
-    let ev = eigenvalues(&am)?;
-    split_poles(&ev, d)
 }
 
 /// The pole parameters: real poles, then `(Re, Im)` of each pair.
@@ -394,18 +390,7 @@ fn lm_common(
             ));
         }
         let rows: usize = blocks.iter().map(|b| b.nrows()).sum();
-        let mut j = Mat::<f64>::zeros(rows + np, np);
-        let mut rhs = vec![0.0; rows + np];
-        let mut at = 0;
-        for b in &blocks {
-            for i in 0..b.nrows() {
-                for c in 0..np {
-                    j[(at + i, c)] = b[(i, c)];
-                }
-                rhs[at + i] = b[(i, np)];
-            }
-            at += b.nrows();
-        }
+        let (mut j, rhs) = stack(&blocks, np, np);
         let dn: Vec<f64> = (0..np)
             .map(|c| (0..rows).map(|r| j[(r, c)].powi(2)).sum::<f64>().sqrt())
             .collect();

@@ -199,6 +199,13 @@ fn nl_variances(
     })
 }
 
+/// The DFT of a real record by a planned FFT of its length.
+pub(crate) fn transform(fft: &dyn rustfft::Fft<f64>, x: &[f64]) -> Vec<C> {
+    let mut buf: Vec<C> = x.iter().map(|&v| C::new(v, 0.0)).collect();
+    fft.process(&mut buf);
+    buf
+}
+
 /// The input SNR below which a line of a ratio estimate is not trusted (bias of `Ȳ/Ū` with
 /// noise on `Ū` relative to its standard deviation ≈ `1/√SNR`: 0.1 at 100).
 pub const MIN_INPUT_SNR: f64 = 100.0;
@@ -221,14 +228,7 @@ pub fn frf_periodic(
     // one plan for every record (each its own FFT: packing two real records into one complex
     // FFT mixes their roundoff, and y in metres beside u in newtons loses digits)
     let fft = FftPlanner::<f64>::new().plan_fft_forward(len);
-    let long = |x: &[f64]| -> Vec<C> {
-        let mut buf: Vec<C> = x[start..start + len]
-            .iter()
-            .map(|&v| C::new(v, 0.0))
-            .collect();
-        fft.process(&mut buf);
-        buf
-    };
+    let long = |x: &[f64]| transform(fft.as_ref(), &x[start..start + len]);
     let ul = long(u);
     let yl = long(y);
     let exc_src = match r {

@@ -94,14 +94,7 @@ fn spectra(
     let fft = FftPlanner::<f64>::new().plan_fft_forward(len);
     let long: Vec<Vec<C>> = all
         .iter()
-        .map(|x| {
-            let mut buf: Vec<C> = x[start..start + len]
-                .iter()
-                .map(|&v| C::new(v, 0.0))
-                .collect();
-            fft.process(&mut buf);
-            buf
-        })
+        .map(|x| crate::frf::transform(fft.as_ref(), &x[start..start + len]))
         .collect();
     let mf = m as f64;
     let half = p / 2;

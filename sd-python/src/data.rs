@@ -197,18 +197,9 @@ fn fit_mimo<'py>(
     fit: sd_ident::FitOptions,
     rank: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let rank = match rank {
-        "select" => sd_ident::ResidueRank::Select,
-        "full" => sd_ident::ResidueRank::Full,
-        n => match n.parse::<usize>() {
-            Ok(k) if k > 0 => sd_ident::ResidueRank::Fixed(k),
-            _ => {
-                return Err(value_err(format!(
-                    "rank {n:?}: use \"select\", \"full\" or a positive number"
-                )))
-            }
-        },
-    };
+    let rank: sd_ident::ResidueRank = rank
+        .parse()
+        .map_err(|e: String| value_err(format!("rank: {e}")))?;
     let opt = sd_ident::MimoFitOptions {
         fit,
         rank,

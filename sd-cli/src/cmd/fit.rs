@@ -33,7 +33,7 @@ pub(crate) struct Args {
     pub(crate) min_damping: f64,
     /// A MIMO FRD's residue ranks (one set of poles for every entry): `select` (the rank the
     /// data support, a χ² test at 1 % per pole; default), `full`, or a number (every pole).
-    #[arg(long, default_value = "select", value_parser = parse_rank)]
+    #[arg(long, default_value = "select", value_parser = |s: &str| s.parse::<sd_ident::ResidueRank>())]
     pub(crate) rank: sd_ident::ResidueRank,
     /// Write a JSON object instead of the model: `model` (model JSON), `cost`,
     /// `median_rel_error`, and for a SISO FRD `lines` (each line's `freq_hz` and `cost` term)
@@ -116,20 +116,6 @@ impl Args {
             &serde_json::to_string_pretty(&out).map_err(bad)?,
             output.as_deref(),
         )
-    }
-}
-
-/// `--rank`: `select`, `full` or a positive number.
-fn parse_rank(s: &str) -> Result<sd_ident::ResidueRank, String> {
-    match s {
-        "select" => Ok(sd_ident::ResidueRank::Select),
-        "full" => Ok(sd_ident::ResidueRank::Full),
-        n => match n.parse::<usize>() {
-            Ok(k) if k > 0 => Ok(sd_ident::ResidueRank::Fixed(k)),
-            _ => Err(format!(
-                "`{n}` is not a rank: use select, full or a positive number"
-            )),
-        },
     }
 }
 
