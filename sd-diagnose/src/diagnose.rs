@@ -874,49 +874,39 @@ fn choose(variants: &[Variant], levels: &[Level<'_>], on: &[usize], h: f64, alph
     (1..variants.len()).fold(0, |best, i| if scores[i] < scores[best] { i } else { best })
 }
 
-/// The basis with its two slowest real poles read as a friction-damped rigid body
-/// ([`ModalBasis::with_slow_poles_as_damped_rigid_body`]), when it still describes the model
-/// experiment `reference` within [`SLOW_POLE_SLACK`] times the larger of the verdict's
-/// threshold and the plain basis's statistic; `None` otherwise.
-fn slow_poles_as_rigid_body(
-    plain: &ModalBasis,
-    h: f64,
-    reference: &Level<'_>,
-    alpha: f64,
-) -> Result<Option<ModalBasis>> {
-    let Some(b) = plain.with_slow_poles_as_damped_rigid_body()? else {
-        return Ok(None);
-    };
-    let bound = slack_bound(plain, h, reference, alpha)?;
-    Ok(describes(&b, h, reference, alpha)
-        .is_ok_and(|s| s.value <= bound)
-        .then_some(b))
-}
-
-/// The basis with its double integrator read as one integrator and its first real pole
-/// below the modes as a friction-damped rigid body's corner ([`ModalBasis::with_one_integrator`],
-/// then [`ModalBasis::with_damped_rigid_body`]), when it still describes the model experiment
-/// `reference` within [`SLOW_POLE_SLACK`] times the larger of the verdict's threshold and the
-/// plain basis's statistic (an undamped rigid body with a sensor's real pole does not: its
-/// low-frequency response `1/s²` becomes `1/(a s)`); `None` otherwise.
-fn one_integrator_damped(
+/// A friction-damped reading of a basis that shows no damped rigid body, when it still
+/// describes the model experiment `reference` within [`SLOW_POLE_SLACK`] times the larger of
+/// the verdict's threshold and the plain basis's statistic; `None` otherwise. Tried in turn:
+/// its two slowest real poles as the integrator and the corner
+/// ([`ModalBasis::with_slow_poles_as_damped_rigid_body`]); its double integrator as one
+/// integrator and its first real pole below the modes as the corner
+/// ([`ModalBasis::with_one_integrator`], then [`ModalBasis::with_damped_rigid_body`]; an
+/// undamped rigid body with a sensor's real pole is not described: its low-frequency
+/// response `1/s²` becomes `1/(a s)`).
+fn damped_reading(
     plain: &ModalBasis,
     near_zero: f64,
     h: f64,
     reference: &Level<'_>,
     alpha: f64,
 ) -> Result<Option<ModalBasis>> {
-    let Some(one) = plain.with_one_integrator()? else {
-        return Ok(None);
-    };
-    let b = one.with_damped_rigid_body(near_zero)?;
-    if !b.is_damped() {
+    let mut readings = Vec::new();
+    if let Some(b) = plain.with_slow_poles_as_damped_rigid_body()? {
+        readings.push(b);
+    }
+    if let Some(one) = plain.with_one_integrator()? {
+        let b = one.with_damped_rigid_body(near_zero)?;
+        if b.is_damped() {
+            readings.push(b);
+        }
+    }
+    if readings.is_empty() {
         return Ok(None);
     }
     let bound = slack_bound(plain, h, reference, alpha)?;
-    Ok(describes(&b, h, reference, alpha)
-        .is_ok_and(|s| s.value <= bound)
-        .then_some(b))
+    Ok(readings
+        .into_iter()
+        .find(|b| describes(b, h, reference, alpha).is_ok_and(|s| s.value <= bound)))
 }
 
 /// A same-level repeat at the model experiment's rate that disagrees while neither of the
@@ -1009,15 +999,8 @@ fn nonlinearity(
         .basis
         .with_damped_rigid_body(std::f64::consts::TAU * f0)?;
     if !damped.is_damped() {
-        if let Some(b) = slow_poles_as_rigid_body(&damped, data.h, &levels[0], alpha)? {
-            damped = b;
-        } else if let Some(b) = one_integrator_damped(
-            &damped,
-            std::f64::consts::TAU * f0,
-            data.h,
-            &levels[0],
-            alpha,
-        )? {
+        let near_zero = std::f64::consts::TAU * f0;
+        if let Some(b) = damped_reading(&damped, near_zero, data.h, &levels[0], alpha)? {
             damped = b;
         }
     }
