@@ -88,9 +88,9 @@ pub fn frf_of_experiment(exp: &Experiment, req: &FrfRequest) -> Result<(Frd, Vec
 }
 
 /// The ny×nu FRF of a set of experiments with the same columns' counts: periodic ones (same
-/// rate, period and skipped periods) by [`frf_periodic_mimo`] (the covariance of `vec(G)`
-/// included), one non-periodic open-loop record whose inputs are excited independently by
-/// the MIMO local polynomial method ([`lpm()`], per-entry variances only).
+/// rate, period and skipped periods) by [`frf_periodic_mimo`], one non-periodic open-loop
+/// record whose inputs are excited independently by the MIMO local polynomial method
+/// ([`lpm()`]); both with the covariance of `vec(G)`.
 ///
 /// # Errors
 /// No experiment, experiments that differ in rate, period, skipped periods or channel counts,
@@ -159,7 +159,7 @@ pub fn frf_of_experiments(exps: &[&Experiment], req: &FrfRequest) -> Result<Mimo
             Ok(MimoFrfEstimate {
                 frd: est.frd,
                 lines: Vec::new(),
-                covariance: Vec::new(),
+                covariance: est.covariance,
                 periods: 0,
             })
         }

@@ -45,12 +45,12 @@ pub struct Channels<'a> {
 pub struct MimoFrfEstimate {
     /// ny × nu estimate at the excited lines, with per-entry variances (M ≥ 2).
     pub frd: Frd,
-    /// The excited DFT bins.
+    /// The excited DFT bins (empty for a local-polynomial estimate, which has every line).
     pub lines: Vec<usize>,
     /// Covariance of `vec(Ĝ_k)` per line (`ny·nu` square, columns stacked); empty without
     /// variances.
     pub covariance: Vec<DMatrix<C>>,
-    /// The fewest steady periods of any experiment.
+    /// The fewest steady periods of any experiment (0: a non-periodic record).
     pub periods: usize,
 }
 

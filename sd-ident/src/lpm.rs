@@ -8,7 +8,8 @@
 //! `Z(k+r) = (G_k + Σ_s g_s r^s) X(k+r) + T_k + Σ_s t_s r^s + V(k+r)`.
 //! The `(nx + 1)(R + 1)` coefficients per output follow by least squares over the `2n + 1`
 //! lines (solved by SVD, r scaled to [−1, 1]); `G_k` is the estimate, the residual gives the
-//! noise covariance `C_V = EᴴE/(2n + 1 − q)`, and `var Ĝ_k(i, j) = C_V(i, i)·[(KᴴK)⁻¹]_jj`.
+//! noise covariance `C_V = EᴴE/(2n + 1 − q)`, and `var Ĝ_k(i, j) = C_V(i, i)·[(KᴴK)⁻¹]_jj`;
+//! the covariance of entries (i, j) and (i', j') is `C_V(i, i')·[(KᴴK)⁻¹]_{jj'}`.
 //! The window is shifted (not shrunk) at the band edges. Default R = 2 and the smallest n with
 //! at least `nx + 2` residual degrees of freedom.
 //!
@@ -46,6 +47,9 @@ pub struct LpmEstimate {
     pub frd: Frd,
     /// Noise covariance of the responses per line (nz × nz).
     pub noise_cov: Vec<DMatrix<C>>,
+    /// Covariance of `vec(Ĝ_k)` per line (`nz·nx` square, columns stacked: index `j·nz + i`
+    /// for entry (i, j)): `C_V(i, i')·[(KᴴK)⁻¹]_{jj'}` (module documentation).
+    pub covariance: Vec<DMatrix<C>>,
 }
 
 fn dft_columns(x: &DMatrix<f64>) -> Vec<Vec<C>> {
@@ -105,6 +109,7 @@ pub fn lpm(fs: f64, x: &DMatrix<f64>, z: &DMatrix<f64>, opt: &LpmOptions) -> Res
     let mut resp = Vec::new();
     let mut var = Vec::new();
     let mut noise = Vec::new();
+    let mut covs = Vec::new();
     for k in lo..=hi {
         // window centre shifted to stay inside [lo, hi]
         let start = k.saturating_sub(hw).max(lo).min(hi + 1 - w);
@@ -159,16 +164,27 @@ pub fn lpm(fs: f64, x: &DMatrix<f64>, z: &DMatrix<f64>, opt: &LpmOptions) -> Res
             .ok_or_else(|| IdentError::Numerical("SVD without V".into()))?;
         let mut g = DMatrix::<C>::zeros(nz, nx);
         let mut gv = DMatrix::<f64>::zeros(nz, nx);
+        // [(KᴴK)⁻¹]_{jj'} = Σ_l conj(Vᴴ_lj) Vᴴ_lj' / s_l², unscaled
+        let pinv = DMatrix::<C>::from_fn(nx, nx, |j, jj| {
+            let s: C = svd
+                .singular_values
+                .iter()
+                .enumerate()
+                .map(|(l, sv)| v_t[(l, j)].conj() * v_t[(l, jj)] / (sv * sv))
+                .sum();
+            s / (scale[j] * scale[jj])
+        });
         for j in 0..nx {
-            let mut d = 0.0;
-            for (l, sv) in svd.singular_values.iter().enumerate() {
-                d += v_t[(l, j)].norm_sqr() / (sv * sv);
-            }
             for i in 0..nz {
                 g[(i, j)] = theta[(j, i)] / scale[j];
-                gv[(i, j)] = cv[(i, i)].re * d / (scale[j] * scale[j]);
+                gv[(i, j)] = cv[(i, i)].re * pinv[(j, j)].re;
             }
         }
+        let cov = DMatrix::<C>::from_fn(nz * nx, nz * nx, |a, b| {
+            let (j, i, jj, ii) = (a / nz, a % nz, b / nz, b % nz);
+            cv[(i, ii)] * pinv[(j, jj)]
+        });
+        covs.push(cov);
         freq.push(k as f64 * fs / n_samp as f64);
         resp.push(g);
         var.push(gv);
@@ -177,6 +193,7 @@ pub fn lpm(fs: f64, x: &DMatrix<f64>, z: &DMatrix<f64>, opt: &LpmOptions) -> Res
     Ok(LpmEstimate {
         frd: Frd::new(freq, resp, Some(var), SampleTime::discrete(1.0 / fs)?)?,
         noise_cov: noise,
+        covariance: covs,
     })
 }
 

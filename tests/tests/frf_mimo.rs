@@ -203,3 +203,59 @@ fn too_few_experiments_or_mismatched_channels_are_named() {
     let e = frf_periodic_mimo(1000.0, &bad, &PeriodicOptions::new(1000, 0)).unwrap_err();
     assert!(e.to_string().contains("1 references for 2 inputs"), "{e}");
 }
+
+/// One non-periodic record with two independent noise inputs (MIMO LPM through
+/// `sd_ident::lpm`): the covariance's diagonal is the per-entry variance, and the estimate's
+/// error against the true FRF, whitened by it, has the size the covariance states.
+#[test]
+fn lpm_mimo_covariance() {
+    // a well-damped 2×2 plant (ζ = 0.2, 0.3): the local polynomials' bias stays below the noise
+    let ts = 1e-3;
+    let mut a = DMatrix::zeros(4, 4);
+    for (i, &(f, z)) in [(80.0, 0.2), (220.0, 0.3)].iter().enumerate() {
+        let w: f64 = 2.0 * PI * f;
+        let p = (C::new(-z * w, w * (1.0 - z * z).sqrt()) * ts).exp();
+        a[(2 * i, 2 * i)] = p.re;
+        a[(2 * i, 2 * i + 1)] = -p.im;
+        a[(2 * i + 1, 2 * i)] = p.im;
+        a[(2 * i + 1, 2 * i + 1)] = p.re;
+    }
+    let b = DMatrix::from_row_slice(4, 2, &[0.3, 0.1, 0.1, -0.2, -0.2, 0.25, 0.15, 0.1]);
+    let c = DMatrix::from_row_slice(2, 4, &[1.0, 0.2, 0.5, -0.3, -0.3, 0.8, 0.6, 0.2]);
+    let sys = StateSpace::new(
+        a,
+        b,
+        c,
+        DMatrix::zeros(2, 2),
+        SampleTime::discrete(ts).unwrap(),
+    )
+    .unwrap();
+    let n = 8192;
+    let mut rng = Rng::new(5);
+    let u = DMatrix::from_fn(n, 2, |_, _| rng.normal());
+    let y0 = sys.simulate(&u, None).unwrap().y;
+    let y = y0.map(|v| v + 0.01 * rng.normal());
+    let est = sd_ident::lpm(1000.0, &u, &y, &sd_ident::LpmOptions::default()).unwrap();
+    let truth = sys.freqresp(est.frd.freq_hz()).unwrap();
+    let var = est.frd.variance().unwrap();
+    let (mut full, mut diag_err, mut k) = (0.0, 0.0f64, 0);
+    // lines away from the band edges, where the window is centred
+    for q in 20..est.frd.len() - 20 {
+        let cov = &est.covariance[q];
+        for e in 0..4 {
+            let (i, j) = (e % 2, e / 2);
+            diag_err = diag_err.max((cov[(e, e)].re - var[q][(i, j)]).abs() / var[q][(i, j)]);
+        }
+        let d = &est.frd.response()[q] - &truth.response()[q];
+        let v = DMatrix::from_fn(4, 1, |e, _| d[(e % 2, e / 2)]);
+        full += (v.adjoint() * cov.clone().try_inverse().unwrap() * &v)[(0, 0)].re;
+        k += 1;
+    }
+    let mean = full / k as f64;
+    println!("MIMO LPM: {k} lines, mean ΔgᴴC⁻¹Δg {mean:.3} (8 expected: 4 entries, 2× for ν = 4); diagonal vs var: {diag_err:.1e}");
+    assert!(diag_err < 1e-9);
+    // C_V from ν = 2n + 1 − q = 13 − 9 = 4 complex residual degrees of freedom per window:
+    // the inverse of an estimated 2×2 covariance is ν/(ν − 2) = 2 times too large on average
+    // (complex Wishart), so the mean is 4·2 = 8; ±15 % for 4000 overlapping lines
+    assert!((mean / 8.0 - 1.0).abs() < 0.15, "{mean}");
+}
