@@ -32,9 +32,9 @@
 //!
 //! **Realisation.** A real pole of rank k: k states (`B = S Vᵀ`, `C = U`); a pair of rank k:
 //! 2k states per `[[α, −β], [β, α]]` block (`B = [Re b; Im b]`, `C = [2 Re c, −2 Im c]` for
-//! each rank-one term `c b/(z − p)`); the rigid body `m·nu` states (per input a Jordan chain
-//! at z = 1). A 2×2 structure with rank-one modes has a quarter of the states of four SISO
-//! fits of the same order.
+//! each rank-one term `c b/(z − p)`); the rigid body by Ho–Kalman with the rank of its
+//! Markov parameters' Hankel matrix ([`rigid_block`]). A 2×2 structure with rank-one modes
+//! has a quarter of the states of four SISO fits of the same order.
 
 use crate::error::{IdentError, Result};
 use crate::fit::{
@@ -741,7 +741,9 @@ fn realise(
     (ny, nu, m, feed): (usize, usize, usize, bool),
     ts: f64,
 ) -> Result<StateSpace> {
-    let n: usize = m * nu
+    let (ra, rb, rc) = rigid_block(rest, (ny, nu, m));
+    let nr = ra.nrows();
+    let n: usize = nr
         + f.iter()
             .zip(poles)
             .map(|((u, _), &(_, pair))| u.ncols() * if pair { 2 } else { 1 })
@@ -750,25 +752,10 @@ fn realise(
     let mut b = DMatrix::<f64>::zeros(n, nu);
     let mut c = DMatrix::<f64>::zeros(ny, n);
     let mut d = DMatrix::<f64>::zeros(ny, nu);
-    let mut i = 0;
-    // the rigid body: per input a chain at z = 1 (x_m⁺ = x_m + u, x_l⁺ = x_l + x_{l+1}), the
-    // state x_l = u/(z − 1)^{m+1−l}
-    for col in 0..nu {
-        for l in 0..m {
-            a[(i + l, i + l)] = 1.0;
-            if l + 1 < m {
-                a[(i + l, i + l + 1)] = 1.0;
-            }
-            for row in 0..ny {
-                // coefficient of 1/(z − 1)^{m−l}
-                c[(row, i + l)] = rest[row * nu + col][m - 1 - l];
-            }
-        }
-        if m > 0 {
-            b[(i + m - 1, col)] = 1.0;
-        }
-        i += m;
-    }
+    a.view_mut((0, 0), (nr, nr)).copy_from(&ra);
+    b.view_mut((0, 0), (nr, nu)).copy_from(&rb);
+    c.view_mut((0, 0), (ny, nr)).copy_from(&rc);
+    let mut i = nr;
     for ((u, v), &(p, pair)) in f.iter().zip(poles) {
         for l in 0..u.ncols() {
             if pair {
@@ -805,6 +792,62 @@ fn realise(
         }
     }
     Ok(StateSpace::new(a, b, c, d, SampleTime::discrete(ts)?)?)
+}
+
+/// The rigid body `Σ_{l≤m} C_l/(z − 1)^l` (`C_l` from each entry's `rest`) realised with the
+/// fewest states (Ho–Kalman): with `ζ = z − 1` it is `C (ζI − N)⁻¹ B` with `N` nilpotent and
+/// Markov parameters `C_l = C N^{l−1} B`; the block Hankel matrix of `C_1 … C_m` (m + 1 block
+/// rows, m block columns) factors by its SVD into observability and controllability parts
+/// of its numerical rank r (singular values above 1e-9 of the largest), `N` follows from the
+/// shift of the observability part, and `A = I + N`. r states: 2 for a rank-one double
+/// integrator, where one chain per input would take `m·nu`.
+fn rigid_block(
+    rest: &[Vec<f64>],
+    (ny, nu, m): (usize, usize, usize),
+) -> (DMatrix<f64>, DMatrix<f64>, DMatrix<f64>) {
+    let empty = || {
+        (
+            DMatrix::zeros(0, 0),
+            DMatrix::zeros(0, nu),
+            DMatrix::zeros(ny, 0),
+        )
+    };
+    if m == 0 {
+        return empty();
+    }
+    let markov = |l: usize| -> DMatrix<f64> {
+        if l == 0 || l > m {
+            return DMatrix::zeros(ny, nu);
+        }
+        DMatrix::from_fn(ny, nu, |a, b| rest[a * nu + b][l - 1])
+    };
+    let mut h = DMatrix::<f64>::zeros((m + 1) * ny, m * nu);
+    for i in 0..=m {
+        for j in 0..m {
+            h.view_mut((i * ny, j * nu), (ny, nu))
+                .copy_from(&markov(i + j + 1));
+        }
+    }
+    let svd = h.svd(true, true);
+    let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
+        return empty();
+    };
+    let s = &svd.singular_values;
+    let top = s.iter().cloned().fold(0.0, f64::max);
+    let r = s.iter().filter(|v| **v > 1e-9 * top).count();
+    if r == 0 {
+        return empty();
+    }
+    let sq: Vec<f64> = (0..r).map(|k| s[k].sqrt()).collect();
+    let o = DMatrix::from_fn((m + 1) * ny, r, |i, k| u[(i, k)] * sq[k]);
+    let q = DMatrix::from_fn(r, m * nu, |k, j| sq[k] * vt[(k, j)]);
+    let up = o.rows(0, m * ny).into_owned();
+    let down = o.rows(ny, m * ny).into_owned();
+    let n = up
+        .pseudo_inverse(1e-12 * top.sqrt())
+        .map_or_else(|_| DMatrix::zeros(r, r), |p| p * down);
+    let a = DMatrix::identity(r, r) + n;
+    (a, q.columns(0, nu).into_owned(), o.rows(0, ny).into_owned())
 }
 
 /// Fits one set of poles to every entry of a MIMO FRD (module documentation).
@@ -1198,6 +1241,53 @@ mod tests {
         assert_eq!(ranks[mid], 2, "{ranks:?}");
         assert_eq!(ranks.iter().sum::<usize>(), 4, "{ranks:?}");
         assert_eq!(r.model.n(), 8);
+    }
+
+    /// A rank-one double integrator (a rigid body both actuators push and both sensors see,
+    /// ZOH: `C₁ = h²/2·c bᵀ`, `C₂ = h²·c bᵀ`) and one pair: two states for the rigid body
+    /// (one chain per input would take four), two for the pair.
+    #[test]
+    fn a_rank_one_rigid_body_takes_two_states() {
+        let ts = 1e-3;
+        let (c, b) = ([1.0, 0.7], [0.05, 0.04]);
+        let p = C::from_polar(0.97, 0.4);
+        let r = DMatrix::from_fn(2, 2, |a, j| C::new(0.02 * c[a] * b[j], -0.01 * c[a] * b[j]));
+        let freq: Vec<f64> = (1..=200).map(|k| k as f64 * 2.0).collect();
+        let resp: Vec<DMatrix<C>> = freq
+            .iter()
+            .map(|&f| {
+                let z = C::from_polar(1.0, 2.0 * PI * f * ts);
+                let w = 1.0 / (z - 1.0);
+                DMatrix::from_fn(2, 2, |a, j| {
+                    let k = c[a] * b[j];
+                    w * (ts * ts / 2.0 * k)
+                        + w * w * (ts * ts * k)
+                        + r[(a, j)] / (z - p)
+                        + r[(a, j)].conj() / (z - p.conj())
+                })
+            })
+            .collect();
+        let frd = Frd::new(freq, resp, None, SampleTime::discrete(ts).unwrap()).unwrap();
+        let o = MimoFitOptions {
+            fit: FitOptions {
+                order: 4,
+                rigid_body: 2,
+                feedthrough: false,
+                ..FitOptions::default()
+            },
+            ..MimoFitOptions::default()
+        };
+        let fit = fit_common_poles(&frd, &o).unwrap();
+        assert_eq!(fit.model.n(), 4, "{:?}", fit.modes);
+        assert!(fit.median_rel_error < 1e-8, "{}", fit.median_rel_error);
+        let g = fit.model.freqresp(frd.freq_hz()).unwrap();
+        let worst = g
+            .response()
+            .iter()
+            .zip(frd.response())
+            .map(|(x, y)| (x - y).norm() / y.norm())
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-8, "the realisation misses the fit by {worst:e}");
     }
 
     #[test]
