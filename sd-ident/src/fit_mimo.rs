@@ -33,7 +33,7 @@
 //! **Realisation.** A real pole of rank k: k states (`B = S Vᵀ`, `C = U`); a pair of rank k:
 //! 2k states per `[[α, −β], [β, α]]` block (`B = [Re b; Im b]`, `C = [2 Re c, −2 Im c]` for
 //! each rank-one term `c b/(z − p)`); the rigid body by Ho–Kalman with the rank of its
-//! Markov parameters' Hankel matrix ([`rigid_block`]). A 2×2 structure with rank-one modes
+//! Markov parameters' Hankel matrix (`rigid_block`). A 2×2 structure with rank-one modes
 //! has a quarter of the states of four SISO fits of the same order.
 
 use crate::error::{IdentError, Result};
