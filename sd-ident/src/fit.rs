@@ -612,6 +612,25 @@ fn jacobian(data: &Data, pf: &Pf, feed: bool) -> (Mat<f64>, Mat<f64>) {
     (j, e)
 }
 
+/// `[J, −e]` reduced by one QR to `(R, c)` with `‖J s + e‖² = ‖R s − c‖² + ρ²` (R: np × np);
+/// `(J, −e)` unchanged when there are not more rows than unknowns.
+fn reduced(j: &Mat<f64>, e: &Mat<f64>) -> (Mat<f64>, Vec<f64>) {
+    let (rows, np) = (j.nrows(), j.ncols());
+    if rows <= np {
+        return (j.clone(), (0..rows).map(|r| -e[(r, 0)]).collect());
+    }
+    let mut je = Mat::<f64>::zeros(rows, np + 1);
+    je.as_mut().submatrix_mut(0, 0, rows, np).copy_from(j);
+    for r in 0..rows {
+        je[(r, np)] = -e[(r, 0)];
+    }
+    let rf = je.qr().thin_R().to_owned();
+    (
+        Mat::from_fn(np, np, |r, c| rf[(r, c)]),
+        (0..np).map(|r| rf[(r, np)]).collect(),
+    )
+}
+
 fn lm(
     data: &Data,
     mut pf: Pf,
@@ -626,15 +645,19 @@ fn lm(
         let (j, e) = jacobian(data, &pf, opt.feedthrough);
         let np = j.ncols();
         let dn: Vec<f64> = (0..np).map(|c| j.col(c).norm_l2()).collect();
+        // one QR of [J, −e] per iteration (Moré's MINPACK): every damped trial then solves
+        // `[R; √λ D] s ≈ [c; 0]` (2·np rows) instead of the full `[J; √λ D]`, with the same
+        // singular values and the same step
+        let (jr, cr) = reduced(&j, &e);
         let theta = to_params(&pf);
         let mut improved = false;
         for _ in 0..12 {
-            let rows = j.nrows();
+            let rows = jr.nrows();
             let mut aug = Mat::<f64>::zeros(rows + np, np);
-            aug.as_mut().submatrix_mut(0, 0, rows, np).copy_from(&j);
+            aug.as_mut().submatrix_mut(0, 0, rows, np).copy_from(&jr);
             let mut rhs = Mat::<f64>::zeros(rows + np, 1);
             for r in 0..rows {
-                rhs[(r, 0)] = -e[(r, 0)];
+                rhs[(r, 0)] = cr[r];
             }
             for c in 0..np {
                 aug[(rows + c, c)] = lambda.sqrt() * dn[c].max(f64::MIN_POSITIVE);
