@@ -244,119 +244,7 @@ pub fn parse_manifest(text: &str) -> Result<Vec<ExperimentSpec>> {
         let t = item
             .as_table()
             .ok_or_else(|| fmt_err(format!("experiment {} is not a table", i + 1)))?;
-        let name = t.get("name").and_then(|v| v.as_str()).unwrap_or("?");
-        sd_model::keys::check_keys(
-            t.keys().map(String::as_str),
-            EXPERIMENT_KEYS,
-            EXPERIMENT_ALIASES,
-            &format!("experiment {} (`{name}`)", i + 1),
-        )
-        .map_err(fmt_err)?;
-        let ctx = |field: &str, what: &str| {
-            fmt_err(format!("experiment {} ({name}): `{field}` {what}", i + 1))
-        };
-        let s = |field: &str| -> Result<String> {
-            t.get(field)
-                .and_then(|v| v.as_str())
-                .map(str::to_string)
-                .ok_or_else(|| ctx(field, "is missing or not a string"))
-        };
-        let opt_s = |field: &str| -> Result<Option<String>> {
-            match t.get(field) {
-                None => Ok(None),
-                Some(v) => v
-                    .as_str()
-                    .map(|x| Some(x.to_string()))
-                    .ok_or_else(|| ctx(field, "must be a string")),
-            }
-        };
-        let opt_u = |field: &str| -> Result<Option<usize>> {
-            match t.get(field) {
-                None => Ok(None),
-                Some(v) => match v.as_integer() {
-                    Some(x) if x >= 0 => Ok(Some(x as usize)),
-                    _ => Err(ctx(field, "must be a non-negative integer")),
-                },
-            }
-        };
-        let rate = match t.get("sample_rate_hz") {
-            Some(v) => v
-                .as_float()
-                .or_else(|| v.as_integer().map(|x| x as f64))
-                .ok_or_else(|| ctx("sample_rate_hz", "must be a number"))?,
-            None => return Err(ctx("sample_rate_hz", "is missing")),
-        };
-        if !(rate.is_finite() && rate > 0.0) {
-            return Err(ctx("sample_rate_hz", "must be > 0"));
-        }
-        let period = opt_u("period_samples")?;
-        if period == Some(0) {
-            return Err(ctx("period_samples", "must be > 0"));
-        }
-        let role = match opt_s("role")?.as_deref() {
-            None | Some("validation") => Role::Validation,
-            Some("model") => Role::Model,
-            Some(_) => return Err(ctx("role", "must be \"model\" or \"validation\"")),
-        };
-        let columns = |field: &str, required: bool| -> Result<Vec<String>> {
-            match t.get(field) {
-                None if required => Err(ctx(field, "is missing")),
-                None => Ok(Vec::new()),
-                Some(toml::Value::String(x)) => Ok(vec![x.clone()]),
-                Some(toml::Value::Array(a)) if !a.is_empty() => a
-                    .iter()
-                    .map(|v| v.as_str().map(str::to_string))
-                    .collect::<Option<Vec<String>>>()
-                    .ok_or_else(|| ctx(field, "must be a column name or a list of them")),
-                Some(_) => Err(ctx(
-                    field,
-                    "must be a column name or a non-empty list of them",
-                )),
-            }
-        };
-        let (inputs, outputs, references) = (
-            columns("input", true)?,
-            columns("output", true)?,
-            columns("reference", false)?,
-        );
-        if !references.is_empty() && references.len() != inputs.len() {
-            return Err(ctx(
-                "reference",
-                &format!(
-                    "lists {} column(s) for {} input(s): give one reference per input (lists \
-                     of different lengths)",
-                    references.len(),
-                    inputs.len()
-                ),
-            ));
-        }
-        let all: Vec<&String> = inputs.iter().chain(&outputs).chain(&references).collect();
-        if let Some(dup) = all
-            .iter()
-            .enumerate()
-            .find_map(|(i, c)| all[..i].contains(c).then_some(c))
-        {
-            return Err(ctx(
-                "input/output/reference",
-                &format!("name the column `{dup}` twice: each signal needs its own column"),
-            ));
-        }
-        let spec = ExperimentSpec {
-            name: s("name")?,
-            file: s("file")?,
-            sample_rate_hz: rate,
-            period_samples: period,
-            skip_periods: opt_u("skip_periods")?.unwrap_or(0),
-            reference: references.first().cloned(),
-            input: inputs[0].clone(),
-            output: outputs[0].clone(),
-            role,
-            extra: ExtraColumns {
-                inputs: inputs[1..].to_vec(),
-                outputs: outputs[1..].to_vec(),
-                references: references.iter().skip(1).cloned().collect(),
-            },
-        };
+        let spec = parse_experiment(i, t)?;
         if out.iter().any(|e| e.name == spec.name) {
             return Err(fmt_err(format!(
                 "experiment name `{}` is used twice",
@@ -366,6 +254,134 @@ pub fn parse_manifest(text: &str) -> Result<Vec<ExperimentSpec>> {
         out.push(spec);
     }
     Ok(out)
+}
+
+/// The `i`-th (0-based) `[[experiment]]` table.
+fn parse_experiment(i: usize, t: &toml::Table) -> Result<ExperimentSpec> {
+    let name = t.get("name").and_then(|v| v.as_str()).unwrap_or("?");
+    sd_model::keys::check_keys(
+        t.keys().map(String::as_str),
+        EXPERIMENT_KEYS,
+        EXPERIMENT_ALIASES,
+        &format!("experiment {} (`{name}`)", i + 1),
+    )
+    .map_err(fmt_err)?;
+    let ctx = |field: &str, what: &str| {
+        fmt_err(format!("experiment {} ({name}): `{field}` {what}", i + 1))
+    };
+    let s = |field: &str| -> Result<String> {
+        t.get(field)
+            .and_then(|v| v.as_str())
+            .map(str::to_string)
+            .ok_or_else(|| ctx(field, "is missing or not a string"))
+    };
+    let opt_s = |field: &str| -> Result<Option<String>> {
+        match t.get(field) {
+            None => Ok(None),
+            Some(v) => v
+                .as_str()
+                .map(|x| Some(x.to_string()))
+                .ok_or_else(|| ctx(field, "must be a string")),
+        }
+    };
+    let opt_u = |field: &str| -> Result<Option<usize>> {
+        match t.get(field) {
+            None => Ok(None),
+            Some(v) => match v.as_integer() {
+                Some(x) if x >= 0 => Ok(Some(x as usize)),
+                _ => Err(ctx(field, "must be a non-negative integer")),
+            },
+        }
+    };
+    let rate = match t.get("sample_rate_hz") {
+        Some(v) => v
+            .as_float()
+            .or_else(|| v.as_integer().map(|x| x as f64))
+            .ok_or_else(|| ctx("sample_rate_hz", "must be a number"))?,
+        None => return Err(ctx("sample_rate_hz", "is missing")),
+    };
+    if !(rate.is_finite() && rate > 0.0) {
+        return Err(ctx("sample_rate_hz", "must be > 0"));
+    }
+    let period = opt_u("period_samples")?;
+    if period == Some(0) {
+        return Err(ctx("period_samples", "must be > 0"));
+    }
+    let role = match opt_s("role")?.as_deref() {
+        None | Some("validation") => Role::Validation,
+        Some("model") => Role::Model,
+        Some(_) => return Err(ctx("role", "must be \"model\" or \"validation\"")),
+    };
+    let (inputs, outputs, references) = channel_columns(t, &ctx)?;
+    Ok(ExperimentSpec {
+        name: s("name")?,
+        file: s("file")?,
+        sample_rate_hz: rate,
+        period_samples: period,
+        skip_periods: opt_u("skip_periods")?.unwrap_or(0),
+        reference: references.first().cloned(),
+        input: inputs[0].clone(),
+        output: outputs[0].clone(),
+        role,
+        extra: ExtraColumns {
+            inputs: inputs[1..].to_vec(),
+            outputs: outputs[1..].to_vec(),
+            references: references.iter().skip(1).cloned().collect(),
+        },
+    })
+}
+
+/// The input, output and reference columns of an experiment table (a name or a non-empty
+/// list each; inputs and outputs required): one reference per input when any, no column
+/// named twice. `ctx(field, what)` makes the error.
+fn channel_columns(
+    t: &toml::Table,
+    ctx: &dyn Fn(&str, &str) -> IdentError,
+) -> Result<(Vec<String>, Vec<String>, Vec<String>)> {
+    let columns = |field: &str, required: bool| -> Result<Vec<String>> {
+        match t.get(field) {
+            None if required => Err(ctx(field, "is missing")),
+            None => Ok(Vec::new()),
+            Some(toml::Value::String(x)) => Ok(vec![x.clone()]),
+            Some(toml::Value::Array(a)) if !a.is_empty() => a
+                .iter()
+                .map(|v| v.as_str().map(str::to_string))
+                .collect::<Option<Vec<String>>>()
+                .ok_or_else(|| ctx(field, "must be a column name or a list of them")),
+            Some(_) => Err(ctx(
+                field,
+                "must be a column name or a non-empty list of them",
+            )),
+        }
+    };
+    let (inputs, outputs, references) = (
+        columns("input", true)?,
+        columns("output", true)?,
+        columns("reference", false)?,
+    );
+    if !references.is_empty() && references.len() != inputs.len() {
+        return Err(ctx(
+            "reference",
+            &format!(
+                "lists {} column(s) for {} input(s): give one reference per input (lists \
+                 of different lengths)",
+                references.len(),
+                inputs.len()
+            ),
+        ));
+    }
+    let all: Vec<&String> = inputs.iter().chain(&outputs).chain(&references).collect();
+    if let Some(dup) = all
+        .iter()
+        .enumerate()
+        .find_map(|(i, c)| all[..i].contains(c).then_some(c))
+    {
+        return Err(ctx(
+            "input/output/reference",
+            &format!("name the column `{dup}` twice: each signal needs its own column"),
+        ));
+    }
+    Ok((inputs, outputs, references))
 }
 
 /// Reads the named columns of a CSV with a header row (module documentation).

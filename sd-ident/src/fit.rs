@@ -740,6 +740,16 @@ pub(crate) fn weights_entry(frd: &Frd, w: Weighting, (a, b): (usize, usize)) -> 
     })
 }
 
+/// The sample time of a discrete FRD (a fit's `z = e^{jωT}` needs it).
+pub(crate) fn discrete_ts(frd: &Frd) -> Result<f64> {
+    match frd.time() {
+        SampleTime::Discrete { ts } => Ok(ts),
+        SampleTime::Continuous => Err(IdentError::InvalidArgument(
+            "fit needs a discrete-time FRD (its ts fixes z = e^{jωT})".into(),
+        )),
+    }
+}
+
 /// The settings' own checks: the damping floor in `[0, 1)`, `1 ≤ order`, `rigid_body ≤ 2`
 /// and `rigid_body ≤ order`.
 pub(crate) fn check_options(opt: &FitOptions) -> Result<()> {
@@ -773,14 +783,7 @@ pub fn fit_with_progress(
     opt: &FitOptions,
     progress: &mut dyn FnMut(&FitProgress),
 ) -> Result<FitResult> {
-    let ts = match frd.time() {
-        SampleTime::Discrete { ts } => ts,
-        SampleTime::Continuous => {
-            return Err(IdentError::InvalidArgument(
-                "fit needs a discrete-time FRD (its ts fixes z = e^{jωT})".into(),
-            ))
-        }
-    };
+    let ts = discrete_ts(frd)?;
     if frd.shape() != (1, 1) {
         return Err(IdentError::InvalidArgument(format!(
             "fit is SISO; the FRD is {}x{} (fit_common_poles fits one set of poles to every entry)",

@@ -205,6 +205,28 @@ fn eval(x: &[f64], real: &[f64], pairs: &[C], m: usize, feed: bool, z: C, row: &
     row.iter().zip(x).map(|(v, c)| v * *c).sum()
 }
 
+/// Per entry and line, the model with residues `xs` minus the data, and the data.
+fn residuals(
+    e: &Entries,
+    xs: &[Vec<f64>],
+    real: &[f64],
+    pairs: &[C],
+    m: usize,
+    feed: bool,
+) -> Vec<Vec<(C, C)>> {
+    let mut row = Vec::new();
+    e.data
+        .iter()
+        .zip(xs)
+        .map(|(d, x)| {
+            d.z.iter()
+                .zip(&d.g)
+                .map(|(&z, &g)| (eval(x, real, pairs, m, feed, z, &mut row) - g, g))
+                .collect()
+        })
+        .collect()
+}
+
 /// Every entry's weighted cost for residues `xs`.
 fn entry_costs(
     e: &Entries,
@@ -214,17 +236,13 @@ fn entry_costs(
     m: usize,
     feed: bool,
 ) -> Vec<f64> {
-    let mut row = Vec::new();
-    e.data
+    residuals(e, xs, real, pairs, m, feed)
         .iter()
-        .zip(xs)
-        .map(|(d, x)| {
-            d.z.iter()
-                .zip(&d.g)
+        .zip(&e.data)
+        .map(|(r, d)| {
+            r.iter()
                 .zip(&d.w)
-                .map(|((&z, &g), &w)| {
-                    (w * (eval(x, real, pairs, m, feed, z, &mut row) - g)).norm_sqr()
-                })
+                .map(|((dv, _), w)| (w * dv).norm_sqr())
                 .sum()
         })
         .collect()
@@ -1032,20 +1050,10 @@ fn median_rel_error(
     m: usize,
     feed: bool,
 ) -> f64 {
-    let mut row = Vec::new();
-    let mut rel: Vec<f64> = e
-        .data
+    let mut rel: Vec<f64> = residuals(e, xs, real, pairs, m, feed)
         .iter()
-        .zip(xs)
-        .flat_map(|(d, x)| {
-            d.z.iter()
-                .zip(&d.g)
-                .map(|(&z, &g)| {
-                    (eval(x, real, pairs, m, feed, z, &mut row) - g).norm()
-                        / g.norm().max(f64::MIN_POSITIVE)
-                })
-                .collect::<Vec<f64>>()
-        })
+        .flatten()
+        .map(|(dv, g)| dv.norm() / g.norm().max(f64::MIN_POSITIVE))
         .collect();
     rel.sort_by(f64::total_cmp);
     rel.get(rel.len() / 2).copied().unwrap_or(f64::NAN)
@@ -1053,14 +1061,7 @@ fn median_rel_error(
 
 /// The per-entry data of a discrete MIMO FRD and its sample time (checks as the SISO fit).
 fn entries(frd: &Frd, fo: &FitOptions) -> Result<(f64, Entries)> {
-    let ts = match frd.time() {
-        SampleTime::Discrete { ts } => ts,
-        SampleTime::Continuous => {
-            return Err(IdentError::InvalidArgument(
-                "fit needs a discrete-time FRD (its ts fixes z = e^{jωT})".into(),
-            ))
-        }
-    };
+    let ts = crate::fit::discrete_ts(frd)?;
     crate::fit::check_options(fo)?;
     let (ny, nu) = frd.shape();
     let nf = fo.order - fo.rigid_body;

@@ -113,87 +113,115 @@ pub fn lpm(fs: f64, x: &DMatrix<f64>, z: &DMatrix<f64>, opt: &LpmOptions) -> Res
     for k in lo..=hi {
         // window centre shifted to stay inside [lo, hi]
         let start = k.saturating_sub(hw).max(lo).min(hi + 1 - w);
-        let mut kmat = DMatrix::<C>::zeros(w, q);
-        let mut zw = DMatrix::<C>::zeros(w, nz);
-        for (row, line) in (start..start + w).enumerate() {
-            let off = (line as f64 - k as f64) / hw.max(1) as f64;
-            let mut pw = 1.0;
-            for s in 0..=r {
-                for j in 0..nx {
-                    kmat[(row, s * nx + j)] = xs[j][line] * pw;
-                }
-                kmat[(row, (r + 1) * nx + s)] = C::new(pw, 0.0);
-                pw *= off;
-            }
-            for i in 0..nz {
-                zw[(row, i)] = zs[i][line];
-            }
-        }
-        // column scaling, then SVD least squares
-        let scale: Vec<f64> = (0..q)
-            .map(|c| kmat.column(c).norm().max(f64::MIN_POSITIVE))
-            .collect();
-        for c in 0..q {
-            let s = scale[c];
-            kmat.column_mut(c).iter_mut().for_each(|v| *v /= s);
-        }
-        let svd = nalgebra::linalg::SVD::try_new(kmat.clone(), true, true, f64::EPSILON, 200)
-            .ok_or_else(|| IdentError::Numerical("SVD of a local LPM problem".into()))?;
-        let smax = svd.singular_values.iter().cloned().fold(0.0, f64::max);
-        let smin = svd
-            .singular_values
-            .iter()
-            .cloned()
-            .fold(f64::INFINITY, f64::min);
-        if smin <= 1e-12 * smax {
-            return Err(IdentError::Data(format!(
-                "the local LPM problem at line {k} is singular: the excitation has no power \
-                 there (or the inputs are collinear)"
-            )));
-        }
-        let theta = svd
-            .solve(&zw, 0.0)
-            .map_err(|e| IdentError::Numerical(format!("LPM solve: {e}")))?;
-        let e = &zw - &kmat * &theta;
-        let dof = (w - q) as f64;
-        let cv = (e.adjoint() * &e).map(|v| v / dof);
-        // (KᴴK)⁻¹ = V Σ⁻² Vᴴ (scaled coordinates)
-        let v_t = svd
-            .v_t
-            .as_ref()
-            .ok_or_else(|| IdentError::Numerical("SVD without V".into()))?;
-        let mut g = DMatrix::<C>::zeros(nz, nx);
-        let mut gv = DMatrix::<f64>::zeros(nz, nx);
-        // [(KᴴK)⁻¹]_{jj'} = Σ_l conj(Vᴴ_lj) Vᴴ_lj' / s_l², unscaled
-        let pinv = DMatrix::<C>::from_fn(nx, nx, |j, jj| {
-            let s: C = svd
-                .singular_values
-                .iter()
-                .enumerate()
-                .map(|(l, sv)| v_t[(l, j)].conj() * v_t[(l, jj)] / (sv * sv))
-                .sum();
-            s / (scale[j] * scale[jj])
-        });
-        for j in 0..nx {
-            for i in 0..nz {
-                g[(i, j)] = theta[(j, i)] / scale[j];
-                gv[(i, j)] = cv[(i, i)].re * pinv[(j, j)].re;
-            }
-        }
-        let cov = DMatrix::<C>::from_fn(nz * nx, nz * nx, |a, b| {
-            let (j, i, jj, ii) = (a / nz, a % nz, b / nz, b % nz);
-            cv[(i, ii)] * pinv[(j, jj)]
-        });
-        covs.push(cov);
+        let f = local_fit((&xs, &zs), k, start, (w, hw, r))?;
         freq.push(k as f64 * fs / n_samp as f64);
-        resp.push(g);
-        var.push(gv);
-        noise.push(cv);
+        resp.push(f.g);
+        var.push(f.var);
+        noise.push(f.noise);
+        covs.push(f.cov);
     }
     Ok(LpmEstimate {
         frd: Frd::new(freq, resp, Some(var), SampleTime::discrete(1.0 / fs)?)?,
         noise_cov: noise,
         covariance: covs,
+    })
+}
+
+/// One line's local fit (module documentation).
+struct LocalFit {
+    g: DMatrix<C>,
+    var: DMatrix<f64>,
+    noise: DMatrix<C>,
+    cov: DMatrix<C>,
+}
+
+/// The local polynomial fit around line `k` over the `w` lines from `start` (`hw` the
+/// half-width scaling the offsets, `r` the degree), from the excitations' and responses'
+/// DFTs `(xs, zs)`.
+fn local_fit(
+    (xs, zs): (&[Vec<C>], &[Vec<C>]),
+    k: usize,
+    start: usize,
+    (w, hw, r): (usize, usize, usize),
+) -> Result<LocalFit> {
+    let (nx, nz) = (xs.len(), zs.len());
+    let q = (nx + 1) * (r + 1);
+    let mut kmat = DMatrix::<C>::zeros(w, q);
+    let mut zw = DMatrix::<C>::zeros(w, nz);
+    for (row, line) in (start..start + w).enumerate() {
+        let off = (line as f64 - k as f64) / hw.max(1) as f64;
+        let mut pw = 1.0;
+        for s in 0..=r {
+            for j in 0..nx {
+                kmat[(row, s * nx + j)] = xs[j][line] * pw;
+            }
+            kmat[(row, (r + 1) * nx + s)] = C::new(pw, 0.0);
+            pw *= off;
+        }
+        for i in 0..nz {
+            zw[(row, i)] = zs[i][line];
+        }
+    }
+    // column scaling, then SVD least squares
+    let scale: Vec<f64> = (0..q)
+        .map(|c| kmat.column(c).norm().max(f64::MIN_POSITIVE))
+        .collect();
+    for c in 0..q {
+        let s = scale[c];
+        kmat.column_mut(c).iter_mut().for_each(|v| *v /= s);
+    }
+    let svd = nalgebra::linalg::SVD::try_new(kmat.clone(), true, true, f64::EPSILON, 200)
+        .ok_or_else(|| IdentError::Numerical("SVD of a local LPM problem".into()))?;
+    let smax = svd.singular_values.iter().cloned().fold(0.0, f64::max);
+    let smin = svd
+        .singular_values
+        .iter()
+        .cloned()
+        .fold(f64::INFINITY, f64::min);
+    if smin <= 1e-12 * smax {
+        return Err(IdentError::Data(format!(
+            "the local LPM problem at line {k} is singular: the excitation has no power \
+             there (or the inputs are collinear)"
+        )));
+    }
+    let theta = svd
+        .solve(&zw, 0.0)
+        .map_err(|e| IdentError::Numerical(format!("LPM solve: {e}")))?;
+    let e = &zw - &kmat * &theta;
+    let dof = (w - q) as f64;
+    let cv = (e.adjoint() * &e).map(|v| v / dof);
+    // (KᴴK)⁻¹ = V Σ⁻² Vᴴ (scaled coordinates)
+    let v_t = svd
+        .v_t
+        .as_ref()
+        .ok_or_else(|| IdentError::Numerical("SVD without V".into()))?;
+    let mut g = DMatrix::<C>::zeros(nz, nx);
+    let mut gv = DMatrix::<f64>::zeros(nz, nx);
+    // [(KᴴK)⁻¹]_{jj'} = Σ_l conj(Vᴴ_lj) Vᴴ_lj' / s_l², unscaled
+    let pinv = DMatrix::<C>::from_fn(nx, nx, |j, jj| {
+        let s: C = svd
+            .singular_values
+            .iter()
+            .enumerate()
+            .map(|(l, sv)| v_t[(l, j)].conj() * v_t[(l, jj)] / (sv * sv))
+            .sum();
+        s / (scale[j] * scale[jj])
+    });
+    for j in 0..nx {
+        for i in 0..nz {
+            g[(i, j)] = theta[(j, i)] / scale[j];
+            gv[(i, j)] = cv[(i, i)].re * pinv[(j, j)].re;
+        }
+    }
+    let cov = DMatrix::<C>::from_fn(nz * nx, nz * nx, |a, b| {
+        let (j, i, jj, ii) = (a / nz, a % nz, b / nz, b % nz);
+        cv[(i, ii)] * pinv[(j, jj)]
+    });
+    Ok(LocalFit {
+        g,
+        var: gv,
+        noise: cv,
+        cov,
     })
 }
 
