@@ -180,6 +180,14 @@ impl ClosedLoop {
     pub fn control_sensitivity(&self) -> &StateSpace {
         &self.ks
     }
+    /// The closed loop from the plant's and the controller's inputs to their outputs.
+    pub fn closed_loop(&self) -> &StateSpace {
+        &self.cl
+    }
+    /// The frequency-response evaluators of P and K.
+    pub(crate) fn evaluators(&self) -> (&FreqRespEvaluator, &FreqRespEvaluator) {
+        (&self.ev_p, &self.ev_k)
+    }
     /// The plant.
     pub fn plant(&self) -> &StateSpace {
         &self.p

@@ -2,6 +2,8 @@
 //!
 //! - [`ClosedLoop`]: internal stability, S, T, PS, KS, |S| peak, margins (python-control's
 //!   definitions), the gain crossover and the closed-loop −3 dB bandwidth, the `sdctl analyze` summary.
+//! - [`generalized_nyquist()`]: the generalised Nyquist criterion of a MIMO loop (encirclements
+//!   of `det(I + L)`, checked against the closed-loop eigenvalues), [`characteristic_loci()`].
 //! - [`spectra`]: Welch and periodogram PSDs with windows, cumulative power spectrum, rms,
 //!   dominant frequency.
 //! - [`standstill()`]: disturbance simulation of a single-rate loop, and of a slow controller on a
@@ -13,6 +15,7 @@ pub mod closed_loop;
 pub mod error;
 pub mod intersample;
 pub mod mimo;
+pub mod nyquist;
 pub mod spectra;
 pub mod standstill;
 pub mod tol;
@@ -21,6 +24,7 @@ pub use closed_loop::{ClosedLoop, Margins, Responses, Summary};
 pub use error::{AnalysisError, Result};
 pub use intersample::{intersample, rms_of_density, Intersample};
 pub use mimo::{mimo_margins, singular_values, ChannelMargins, MimoMargins, Side, SingularValues};
+pub use nyquist::{characteristic_loci, generalized_nyquist, Nyquist};
 pub use sd_multirate::MultirateSimulation;
 pub use spectra::{cps, periodogram, rms, welch, Spectrum, Window};
 pub use standstill::{standstill, standstill_multirate, Standstill};

@@ -1724,9 +1724,20 @@ fn mimo_loopshape_and_analyze() {
         "--json",
         "--sigma-svg",
         &p("sigma.svg"),
+        "--nyquist-svg",
+        &p("loci.svg"),
     ]);
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(v["stable"], true);
+    // the generalised Nyquist criterion agrees: no open-loop pole outside (the integrators lie
+    // on the boundary), no encirclement
+    let n = &v["nyquist"];
+    assert_eq!(n["stable"], true, "{n}");
+    assert_eq!(n["agrees"], true, "{n}");
+    assert_eq!(n["encirclements"], 0, "{n}");
+    assert_eq!(n["open_loop_unstable"], 0, "{n}");
+    let loci = std::fs::read_to_string(p("loci.svg")).unwrap();
+    assert!(loci.contains("locus 2") && loci.contains("critical point"));
     let ch = v["loop_at_a_time"]["channels"].as_array().unwrap();
     assert_eq!(ch.len(), 4, "{v}");
     for c in ch {
@@ -1757,4 +1768,25 @@ fn mimo_loopshape_and_analyze() {
         &p("k.json"),
     ]);
     assert!(String::from_utf8_lossy(&t.stdout).contains("input 2 (loop at a time)"));
+    assert!(String::from_utf8_lossy(&t.stdout).contains("generalised Nyquist"));
+    // positive feedback through a static gain: unstable by both counts
+    let bad = write(
+        &d,
+        "kbad.json",
+        r#"{"type":"ss","ts":0.001,"a":[],"b":[],"c":[],"d":[[-50,0],[0,-50]]}"#,
+    );
+    let o = sdctl_ok(&[
+        "analyze",
+        "--plant",
+        &p("p.json"),
+        "--controller",
+        &bad,
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let n = &v["nyquist"];
+    assert_eq!(v["stable"], false);
+    assert_eq!(n["stable"], false, "{n}");
+    assert_eq!(n["agrees"], true, "{n}");
+    assert!(n["closed_loop_unstable"].as_i64().unwrap() >= 1, "{n}");
 }

@@ -133,11 +133,12 @@ fn weight_pid<'py>(
 }
 
 /// The loop of plant `p` and controller `k` (negative feedback) as `sdctl analyze --json`
-/// reports it: stability, closed-loop radius, bandwidth, crossover, |S| peak, margins.
+/// reports it: stability, closed-loop radius, bandwidth, crossover, |S| peak, margins, the
+/// generalised Nyquist criterion.
 #[pyfunction]
 fn analyze<'py>(py: Python<'py>, p: SysIn<'py>, k: SysIn<'py>) -> PyResult<Bound<'py, PyDict>> {
     let (p, k) = (sys_in(&p)?, sys_in(&k)?);
-    let (s, lat) = py
+    let (s, lat, nyq) = py
         .detach(|| {
             let cl = sd_analysis::ClosedLoop::new(&p, &k)?;
             let s = cl.summary()?;
@@ -147,10 +148,13 @@ fn analyze<'py>(py: Python<'py>, p: SysIn<'py>, k: SysIn<'py>) -> PyResult<Bound
             } else {
                 None
             };
-            Ok::<_, sd_analysis::AnalysisError>((s, lat))
+            let nyq = sd_analysis::generalized_nyquist(&cl)?;
+            Ok::<_, sd_analysis::AnalysisError>((s, lat, nyq))
         })
         .map_err(py_err)?;
     let d = PyDict::new(py);
+    let text = serde_json::to_string(&nyq).map_err(|e| value_err(e.to_string()))?;
+    d.set_item("nyquist_json", text)?;
     if let Some(m) = lat {
         let text = serde_json::to_string(&m).map_err(|e| value_err(e.to_string()))?;
         d.set_item("loop_at_a_time_json", text)?;

@@ -65,3 +65,5 @@ def test_loopshape_weight_and_analyze_match_sdctl(stage, sdctl, tmp_path):
     for k in ("sensitivity_peak_db", "crossover_hz", "phase_margin_deg", "gain_margin_db"):
         assert getattr(a, k) == pytest.approx(cli_a[k], rel=1e-6), k
     assert a.to_dict().keys() == cli_a.keys()
+    ny = a.to_dict()["nyquist"]
+    assert ny == cli_a["nyquist"] and ny["agrees"] and ny["stable"]

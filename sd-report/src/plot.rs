@@ -240,7 +240,30 @@ pub fn line_plot(
     lines: &[Line<'_>],
     xlog: bool,
 ) -> crate::Result<()> {
-    let root = SVGBackend::new(path, (900, 560)).into_drawing_area();
+    line_plot_in(path, (title, x_desc, y_desc), lines, xlog, false)
+}
+
+/// A line plot of a complex-plane figure: linear axes of equal scale on a square canvas (a
+/// circle stays round).
+pub fn plane_plot(
+    path: &str,
+    title: &str,
+    x_desc: &str,
+    y_desc: &str,
+    lines: &[Line<'_>],
+) -> crate::Result<()> {
+    line_plot_in(path, (title, x_desc, y_desc), lines, false, true)
+}
+
+fn line_plot_in(
+    path: &str,
+    (title, x_desc, y_desc): (&str, &str, &str),
+    lines: &[Line<'_>],
+    xlog: bool,
+    equal: bool,
+) -> crate::Result<()> {
+    let size = if equal { (760, 760) } else { (900, 560) };
+    let root = SVGBackend::new(path, size).into_drawing_area();
     root.fill(&WHITE).map_err(crate::plot_err)?;
     let finite = |v: &f64| v.is_finite();
     let xs = lines
@@ -263,7 +286,19 @@ pub fn line_plot(
         )));
     }
     let pad = 0.05 * (ymax - ymin).abs().max(1e-300);
-    let (ylo, yhi) = (ymin - pad, ymax + pad);
+    let (mut ylo, mut yhi) = (ymin - pad, ymax + pad);
+    let (mut xmin, mut xmax) = (xmin, xmax);
+    if equal {
+        // one span for both axes, centred on the data
+        let span = 1.1 * (xmax - xmin).max(ymax - ymin).max(1e-300);
+        let (cx, cy) = (0.5 * (xmin + xmax), 0.5 * (ymin + ymax));
+        (xmin, xmax, ylo, yhi) = (
+            cx - span / 2.0,
+            cx + span / 2.0,
+            cy - span / 2.0,
+            cy + span / 2.0,
+        );
+    }
     let mut builder = ChartBuilder::on(&root);
     builder
         .caption(title, ("sans-serif", 22))

@@ -29,6 +29,10 @@ pub(crate) struct Args {
     /// to this SVG file.
     #[arg(long)]
     pub(crate) sigma_svg: Option<String>,
+    /// Write the characteristic loci (eigenvalues of L = PK along the frequency axis, on a
+    /// compressed radius log10(1 + |λ|)) with the critical point −1 to this SVG file.
+    #[arg(long)]
+    pub(crate) nyquist_svg: Option<String>,
     #[arg(help = crate::commands::JSON_HELP, long)]
     pub(crate) json: bool,
 }
@@ -43,6 +47,7 @@ impl Args {
             weight_order,
             destabilising_out,
             sigma_svg,
+            nyquist_svg,
             json,
         } = self;
         let p = read_model(&plant)?;
@@ -55,8 +60,13 @@ impl Args {
         } else {
             None
         };
+        // the generalised Nyquist criterion, an independent check of the eigenvalues' verdict
+        let nyq = sd_analysis::generalized_nyquist(&cl).map_err(|e| from_analysis("analyze", e))?;
         if let Some(path) = &sigma_svg {
             sigma_plot(&cl, &p, path)?;
+        }
+        if let Some(path) = &nyquist_svg {
+            loci_plot(&cl, &p, path)?;
         }
         // a plant file that carries its bound is judged against it unless another is given
         let uncertainty = uncertainty.or_else(|| {
@@ -94,11 +104,15 @@ impl Args {
             if let (Some(m), Some(obj)) = (&lat, v.as_object_mut()) {
                 obj.insert("loop_at_a_time".into(), json!(m));
             }
+            if let Some(obj) = v.as_object_mut() {
+                obj.insert("nyquist".into(), json!(nyq));
+            }
             emit(&v.to_string(), None)
         } else {
             let mut extra = robust
                 .as_ref()
                 .map_or(String::new(), |r| format!("\n{}", robust_text(r)));
+            extra.push_str(&nyquist_text(&nyq, p.time().is_continuous()));
             if let Some(m) = &lat {
                 extra.push_str(&channels_text(m));
             }
@@ -205,6 +219,31 @@ fn robust_text(r: &sd_uncertainty::Robust) -> String {
     t
 }
 
+/// The generalised Nyquist criterion as one line (and a warning when it disagrees with the
+/// closed loop's eigenvalues).
+fn nyquist_text(n: &sd_analysis::Nyquist, continuous: bool) -> String {
+    let region = if continuous {
+        "in the right half-plane"
+    } else {
+        "outside the unit circle"
+    };
+    let mut t = format!(
+        "\ngeneralised Nyquist: det(I + L) encircles the origin {} time(s) counterclockwise; \
+         open-loop poles {region}: {}; closed-loop poles {region}: {} (eigenvalues: {})",
+        n.encirclements,
+        n.open_loop_unstable,
+        n.closed_loop_unstable,
+        n.closed_loop_unstable_eigenvalues
+    );
+    if !n.agrees {
+        t.push_str(
+            "\nWARNING: the criterion and the closed-loop eigenvalues disagree: a pole near the \
+             stability boundary or an ill-conditioned realisation; check the loop's poles",
+        );
+    }
+    t
+}
+
 /// The loop-at-a-time margins as text, one line per channel.
 fn channels_text(m: &sd_analysis::MimoMargins) -> String {
     let mut out = String::new();
@@ -232,17 +271,136 @@ fn channels_text(m: &sd_analysis::MimoMargins) -> String {
     out
 }
 
+/// Writes an SVG through a temporary file renamed into place (atomic).
+fn atomic_svg(
+    path: &str,
+    draw: impl FnOnce(&str) -> Result<(), sd_report::ReportError>,
+) -> Result<(), CliError> {
+    let target = std::path::Path::new(path);
+    let partial = target.with_extension(format!("partial{}.svg", std::process::id()));
+    let tmp = partial.to_string_lossy().into_owned();
+    draw(&tmp).map_err(|e| {
+        let _ = std::fs::remove_file(&partial);
+        CliError::input(format!("cannot write {path}: {e}"))
+    })?;
+    std::fs::rename(&partial, target).map_err(|e| {
+        let _ = std::fs::remove_file(&partial);
+        CliError::input(format!("cannot write {path}: {e}"))
+    })
+}
+
+/// The analysis grid (Hz): up to Nyquist for a discrete loop.
+fn analysis_grid(p: &sd_model::StateSpace, n: usize) -> Result<(Vec<f64>, f64, f64), CliError> {
+    let (lo, hi) = match p.time() {
+        sd_model::SampleTime::Discrete { ts } => (1e-3 * 0.5 / ts, 0.4999 / ts),
+        sd_model::SampleTime::Continuous => (1e-2, 1e4),
+    };
+    let f = sd_model::grid(lo, hi, n, true).map_err(|e| crate::io::from_model("analyze", e))?;
+    Ok((f, lo, hi))
+}
+
+/// The characteristic loci on a compressed radius `log10(1 + |λ|)` (phase kept), with the
+/// critical point −1 and the unit circle, as an SVG written atomically.
+fn loci_plot(
+    cl: &sd_analysis::ClosedLoop,
+    p: &sd_model::StateSpace,
+    path: &str,
+) -> Result<(), CliError> {
+    let (f, _, _) = analysis_grid(p, 2000)?;
+    let loci = sd_analysis::characteristic_loci(cl, &f).map_err(|e| from_analysis("analyze", e))?;
+    let squash = |z: &num_complex::Complex64| {
+        let r = z.norm();
+        if r > 0.0 {
+            *z * ((1.0 + r).log10() / r)
+        } else {
+            *z
+        }
+    };
+    // each locus and its mirror image (negative frequencies)
+    let mut xy: Vec<(Vec<f64>, Vec<f64>)> = Vec::new();
+    for l in &loci {
+        let pts: Vec<num_complex::Complex64> = l.iter().map(squash).collect();
+        xy.push((
+            pts.iter().map(|z| z.re).collect(),
+            pts.iter().map(|z| z.im).collect(),
+        ));
+        xy.push((
+            pts.iter().map(|z| z.re).collect(),
+            pts.iter().map(|z| -z.im).collect(),
+        ));
+    }
+    let unit: Vec<num_complex::Complex64> = (0..=360)
+        .map(|d| {
+            squash(&num_complex::Complex64::from_polar(
+                1.0,
+                f64::from(d).to_radians(),
+            ))
+        })
+        .collect();
+    let (ux, uy): (Vec<f64>, Vec<f64>) = unit.iter().map(|z| (z.re, z.im)).unzip();
+    // the critical point's cross, 2 % of the figure's extent
+    let extent = xy
+        .iter()
+        .flat_map(|(x, y)| x.iter().chain(y))
+        .filter(|v| v.is_finite())
+        .fold(1.0f64, |m, v| m.max(v.abs()));
+    let (c, e) = (2f64.log10(), 0.02 * extent);
+    let (cx, cy) = (vec![-c - e, -c + e, -c, -c, -c], vec![0.0, 0.0, 0.0, e, -e]);
+    use sd_report::plot::{Line, RGBColor};
+    let palette = [
+        RGBColor(31, 119, 180),
+        RGBColor(214, 39, 40),
+        RGBColor(44, 160, 44),
+        RGBColor(148, 103, 189),
+    ];
+    let labels: Vec<String> = (0..loci.len())
+        .map(|i| format!("locus {}", i + 1))
+        .collect();
+    let mut lines: Vec<Line<'_>> = xy
+        .iter()
+        .enumerate()
+        .map(|(i, (x, y))| Line {
+            label: if i % 2 == 0 { &labels[i / 2] } else { "" },
+            x,
+            y,
+            color: palette[(i / 2) % palette.len()],
+        })
+        .collect();
+    lines.push(Line {
+        label: "|λ| = 1",
+        x: &ux,
+        y: &uy,
+        color: RGBColor(170, 170, 170),
+    });
+    lines.push(Line {
+        label: "critical point −1",
+        x: &cx,
+        y: &cy,
+        color: RGBColor(0, 0, 0),
+    });
+    let title = format!(
+        "characteristic loci of L = PK ({}x{} loop), radius log10(1 + |λ|)",
+        p.ny(),
+        p.ny()
+    );
+    atomic_svg(path, |tmp| {
+        sd_report::plot::plane_plot(
+            tmp,
+            &title,
+            "real part (compressed)",
+            "imaginary part (compressed)",
+            &lines,
+        )
+    })
+}
+
 /// σ_max and σ_min of S, T and KS against frequency (dB) as an SVG, written atomically.
 fn sigma_plot(
     cl: &sd_analysis::ClosedLoop,
     p: &sd_model::StateSpace,
     path: &str,
 ) -> Result<(), CliError> {
-    let (lo, hi) = match p.time() {
-        sd_model::SampleTime::Discrete { ts } => (1e-3 * 0.5 / ts, 0.4999 / ts),
-        sd_model::SampleTime::Continuous => (1e-2, 1e4),
-    };
-    let f = sd_model::grid(lo, hi, 600, true).map_err(|e| crate::io::from_model("analyze", e))?;
+    let (f, lo, hi) = analysis_grid(p, 600)?;
     let sv = sd_analysis::singular_values(cl, &f).map_err(|e| from_analysis("analyze", e))?;
     let db = |m: &[Vec<f64>], last: bool| -> Vec<f64> {
         m.iter()
@@ -285,20 +443,12 @@ fn sigma_plot(
             color: RGBColor(44, 160, 44),
         },
     ];
-    let target = std::path::Path::new(path);
-    let partial = target.with_extension(format!("partial{}.svg", std::process::id()));
-    let tmp = partial.to_string_lossy().into_owned();
     let title = format!(
         "singular values of the closed loop ({}x{} plant)",
         p.ny(),
         p.nu()
     );
-    sd_report::plot::magnitude_plot(&tmp, &title, &curves, lo, hi, &[]).map_err(|e| {
-        let _ = std::fs::remove_file(&partial);
-        CliError::input(format!("cannot write {path}: {e}"))
-    })?;
-    std::fs::rename(&partial, target).map_err(|e| {
-        let _ = std::fs::remove_file(&partial);
-        CliError::input(format!("cannot write {path}: {e}"))
+    atomic_svg(path, |tmp| {
+        sd_report::plot::magnitude_plot(tmp, &title, &curves, lo, hi, &[])
     })
 }

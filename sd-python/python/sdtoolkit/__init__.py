@@ -383,11 +383,14 @@ def analyze(P, K) -> Result:
     ``stable``, ``closed_loop_radius``, ``bandwidth_hz``, ``crossover_hz``,
     ``sensitivity_peak_db`` / ``_hz``, ``gain_margin_db``, ``phase_margin_deg``,
     ``modulus_margin``; for a stable loop ``loop_at_a_time`` (per input and output channel the
-    classic and disk margins, and the simultaneous disk margins)."""
+    classic and disk margins, and the simultaneous disk margins); ``nyquist``: the generalised
+    Nyquist criterion (``encirclements`` of the origin by det(I + L), ``open_loop_unstable``,
+    ``closed_loop_unstable``, and whether it ``agrees`` with the closed-loop eigenvalues)."""
     d = _native.analyze(_ss(P, "P")._tuple(), _ss(K, "K")._tuple())
     text = d.pop("loop_at_a_time_json", None)
     if text is not None:
         d["loop_at_a_time"] = json.loads(text)
+    d["nyquist"] = json.loads(d.pop("nyquist_json"))
     return Result(d)
 
 
