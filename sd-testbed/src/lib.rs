@@ -9,6 +9,8 @@
 pub mod config;
 pub mod error;
 pub mod experiments;
+mod fine;
+pub mod multiaxis;
 pub mod sim;
 pub mod truth;
 
@@ -17,6 +19,10 @@ pub use error::{Result, TestbedError};
 pub use experiments::{
     manifest, output_files, run_identification, run_standstill, truth_model, ExperimentData,
     Identification, Injection, Noise, Standstill,
+};
+pub use multiaxis::{
+    axis_manifest, decentralised_pid, run_multiaxis, AxisData, AxisIdentification, AxisMode,
+    AxisNonIdealities, MultiAxisTruth,
 };
 pub use sim::{default_substeps, NonIdealities, PlantSim};
 pub use truth::{ModeSpec, Truth};

@@ -23,6 +23,7 @@
 //! Measurements are quantised to `quantization` (if > 0) after the sampler.
 
 use crate::error::{Result, TestbedError};
+use crate::fine::FineStep;
 use crate::truth::{Layout, Truth};
 use nalgebra::{DMatrix, DVector};
 use sd_model::linalg::expm;
@@ -76,61 +77,6 @@ struct Segment {
     e_full: DMatrix<f64>,
     g_half: DVector<f64>,
     g_full: DVector<f64>,
-}
-
-/// The fine-step route's state (module documentation).
-#[derive(Debug, Clone)]
-struct FineStep {
-    ad: DMatrix<f64>,
-    bd: DVector<f64>,
-    c: DVector<f64>,
-    x: DVector<f64>,
-    subs: usize,
-    dt: f64,
-    delay_subs: usize,
-    window_subs: usize,
-    /// Past commands, the newest first.
-    history: std::collections::VecDeque<f64>,
-    avg: f64,
-    tmp: DVector<f64>,
-}
-
-impl FineStep {
-    fn step(&mut self, u: f64) {
-        self.history.push_front(u);
-        let keep = self.delay_subs / self.subs + 2;
-        self.history.truncate(keep);
-        let mut integral = 0.0;
-        let mut y0 = self.c.dot(&self.x);
-        for s in 0..self.subs {
-            // the command issued `lag` periods ago is in force on this sub-step
-            let lag = if self.delay_subs > s {
-                (self.delay_subs - s).div_ceil(self.subs)
-            } else {
-                0
-            };
-            let us = self.history.get(lag).copied().unwrap_or(0.0);
-            self.tmp.gemv(1.0, &self.ad, &self.x, 0.0);
-            self.tmp.axpy(us, &self.bd, 1.0);
-            std::mem::swap(&mut self.tmp, &mut self.x);
-            let y1 = self.c.dot(&self.x);
-            if s + self.window_subs >= self.subs {
-                integral += 0.5 * (y0 + y1) * self.dt;
-            }
-            y0 = y1;
-        }
-        if self.window_subs > 0 {
-            self.avg = integral / (self.window_subs as f64 * self.dt);
-        }
-    }
-
-    fn measure(&self) -> f64 {
-        if self.window_subs > 0 {
-            self.avg
-        } else {
-            self.c.dot(&self.x)
-        }
-    }
 }
 
 #[derive(Debug, Clone)]
@@ -306,30 +252,16 @@ impl PlantSim {
                     .into(),
             ));
         }
-        if subs < 2 || !(nominal_ts.is_finite() && nominal_ts > 0.0) {
-            return Err(TestbedError::Config(format!(
-                "fine-step simulation needs ≥ 2 sub-steps (got {subs}) and a period > 0 (got \
-                 {nominal_ts})"
-            )));
-        }
         let h = nominal_ts * (1.0 + ni.clock_error);
-        let dt = h / subs as f64;
         let lin = truth.linear_model()?;
-        let d = sd_model::c2d(&lin, dt, sd_model::Discretization::Zoh)?;
         Ok(PlantSim {
-            kind: Kind::FineStep(Box::new(FineStep {
-                ad: d.a().clone(),
-                bd: d.b().column(0).into_owned(),
-                c: d.c().row(0).transpose(),
-                x: DVector::zeros(d.n()),
+            kind: Kind::FineStep(Box::new(FineStep::new(
+                &lin,
+                h,
                 subs,
-                dt,
-                delay_subs: (ni.hold_delay * subs as f64).round() as usize,
-                window_subs: (ni.averaging * subs as f64).round() as usize,
-                history: std::collections::VecDeque::new(),
-                avg: 0.0,
-                tmp: DVector::zeros(d.n()),
-            })),
+                &[ni.hold_delay],
+                &[ni.averaging],
+            )?)),
             quantization: ni.quantization,
         })
     }
@@ -337,7 +269,7 @@ impl PlantSim {
     /// The measurement at the current sample instant.
     pub fn measure(&self) -> f64 {
         let y = match &self.kind {
-            Kind::FineStep(f) => f.measure(),
+            Kind::FineStep(f) => f.measure()[0],
             Kind::Lti { c, x, .. } => c.dot(x),
             Kind::Nonlinear {
                 c,
@@ -364,7 +296,7 @@ impl PlantSim {
     /// delay).
     pub fn step(&mut self, u: f64) {
         match &mut self.kind {
-            Kind::FineStep(f) => f.step(u),
+            Kind::FineStep(f) => f.step(&[u]),
             Kind::Lti { a, b, x, .. } => {
                 let xn = &*a * &*x + &*b * u;
                 *x = xn;
