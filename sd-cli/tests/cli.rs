@@ -1790,3 +1790,85 @@ fn mimo_loopshape_and_analyze() {
     assert_eq!(n["agrees"], true, "{n}");
     assert!(n["closed_loop_unstable"].as_i64().unwrap() >= 1, "{n}");
 }
+
+/// The multi-axis stage from a configuration: `testbed` with a `[stage]` table writes one
+/// experiment per actuator (manifest with lists of columns), `frf` combines them into the
+/// 3×2 FRF, `fit` finds the two-axis stage's coupled modes; a per-actuator list of the wrong
+/// length, a misspelled key and a mode with the wrong number of gains exit 2 naming them.
+#[test]
+fn multiaxis_testbed_frf_fit() {
+    let d = tmpdir("multiaxis");
+    let cfg = write(
+        &d,
+        "axes.toml",
+        "seed = 5\n[stage]\n[nonideal]\nhold_delay = [0.0, 0.2]\n[[experiment]]\nname = \
+         \"fast\"\nrate_hz = 5000.0\nrole = \"model\"\nperiod = 2500\nperiods = 4\nf_max = \
+         2400.0\n",
+    );
+    let out = d.join("run").to_string_lossy().into_owned();
+    sdctl_ok(&["testbed", "--config", &cfg, "--out", &out]);
+    let m = format!("{out}/experiments.toml");
+    let manifest = std::fs::read_to_string(&m).unwrap();
+    assert!(
+        manifest.contains("fast_2") && manifest.contains("\"y3\""),
+        "{manifest}"
+    );
+    let frd = d.join("g.json").to_string_lossy().into_owned();
+    sdctl_ok(&[
+        "frf",
+        &m,
+        "--experiment",
+        "fast_1",
+        "--experiment",
+        "fast_2",
+        "-o",
+        &frd,
+    ]);
+    let o = sdctl_ok(&[
+        "fit",
+        &frd,
+        "--order",
+        "8",
+        "--rigid-body",
+        "2",
+        "--strictly-proper",
+        "--json",
+    ]);
+    let f: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let freqs: Vec<f64> = f["modes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|m| m["freq_hz"].as_f64().unwrap())
+        .collect();
+    for truth in [653.0, 1100.0, 1650.0] {
+        assert!(
+            freqs.iter().any(|x| (x / truth - 1.0).abs() < 3e-3),
+            "{truth} Hz not among {freqs:?}"
+        );
+    }
+    let bad = |name: &str, text: &str, needle: &str| {
+        let p = write(&d, name, text);
+        let o = d.join(format!("{name}.out")).to_string_lossy().into_owned();
+        assert_input_error(&sdctl(&["testbed", "--config", &p, "--out", &o]), needle);
+    };
+    let exp = "[[experiment]]\nname = \"a\"\nrate_hz = 1000.0\nperiod = 500\nperiods = 2\n";
+    bad(
+        "len.toml",
+        &format!("[stage]\n[nonideal]\nhold_delay = [0.0, 0.1, 0.2]\n{exp}"),
+        "list of 2 numbers (one per actuator)",
+    );
+    bad(
+        "typo.toml",
+        &format!("[stage]\n[nonideal]\nhold_dealy = 0.1\n{exp}"),
+        "hold_delay",
+    );
+    bad(
+        "gains.toml",
+        &format!(
+            "[stage]\n[[stage.mode]]\nfreq_hz = 0.0\nzeta = 0.0\ninput = [0.05, 0.05]\noutput = \
+             [1.0, 1.0]\n[[stage.mode]]\nfreq_hz = 500.0\ninput = [0.1]\noutput = [1.0, 1.0]\n{exp}"
+        ),
+        "stage mode 2: 1 input and 2 output gains",
+    );
+}

@@ -258,6 +258,55 @@ fn diagnose(
     json_text(&d.to_json())
 }
 
+/// Writes `files` into the folder `dir` (created), each atomically.
+fn write_files(dir: &str, files: &[(String, String)]) -> PyResult<()> {
+    let dir = Path::new(dir);
+    std::fs::create_dir_all(dir)
+        .map_err(|e| value_err(format!("cannot create {}: {e}", dir.display())))?;
+    for (name, text) in files {
+        sd_report::write_atomic(&dir.join(name), &format!("{text}\n"))
+            .map_err(|e| value_err(e.to_string()))?;
+    }
+    Ok(())
+}
+
+/// [`testbed`] of a multi-axis configuration: `r`, `u`, `y` are lists of arrays (one per
+/// actuator or sensor).
+fn testbed_axes<'py>(
+    py: Python<'py>,
+    text: &str,
+    out: Option<&str>,
+) -> PyResult<(Vec<Bound<'py, PyDict>>, SysOut<'py>)> {
+    let (cfg, data, files) = py
+        .detach(|| {
+            let cfg = sd_testbed::parse_axis_config(text)?;
+            let (data, files) = sd_testbed::run_axis_config(&cfg)?;
+            Ok::<_, sd_testbed::TestbedError>((cfg, data, files))
+        })
+        .map_err(py_err)?;
+    if let Some(dir) = out {
+        write_files(dir, &files)?;
+    }
+    let truth = cfg.truth.linear_model().map_err(py_err)?;
+    let mut list = Vec::with_capacity(data.len());
+    for e in &data {
+        let d = PyDict::new(py);
+        let arrays = |v: &[Vec<f64>]| -> Vec<Bound<'py, numpy::PyArray1<f64>>> {
+            v.iter().map(|c| c.clone().into_pyarray(py)).collect()
+        };
+        d.set_item("name", &e.name)?;
+        d.set_item("rate_hz", e.rate_hz)?;
+        d.set_item("period", e.period)?;
+        d.set_item("skip_periods", e.skip_periods)?;
+        d.set_item("role", e.role.as_str())?;
+        d.set_item("r", arrays(&e.r))?;
+        d.set_item("u", arrays(&e.u))?;
+        d.set_item("y", arrays(&e.y))?;
+        list.push(d);
+    }
+    Ok((list, sys_out(py, &truth)))
+}
+
 /// The virtual stage (`sdctl testbed`): runs the configuration `config` (TOML text; None: the
 /// default two-rate identification), returns the experiments' arrays and the continuous truth,
 /// and with `out` writes the manifest, the CSVs and truth.json there.
@@ -269,6 +318,9 @@ fn testbed<'py>(
     out: Option<&str>,
 ) -> PyResult<(Vec<Bound<'py, PyDict>>, SysOut<'py>)> {
     let text = config.unwrap_or(sd_testbed::DEFAULT_CONFIG);
+    if sd_testbed::is_multiaxis(text) {
+        return testbed_axes(py, text, out);
+    }
     let (data, truth) = py
         .detach(|| {
             let cfg = sd_testbed::parse_config(text)?;
@@ -279,13 +331,7 @@ fn testbed<'py>(
         .map_err(py_err)?;
     if let Some(dir) = out {
         let files = sd_testbed::output_files(&data, &truth).map_err(py_err)?;
-        let dir = Path::new(dir);
-        std::fs::create_dir_all(dir)
-            .map_err(|e| value_err(format!("cannot create {}: {e}", dir.display())))?;
-        for (name, text) in &files {
-            sd_report::write_atomic(&dir.join(name), &format!("{text}\n"))
-                .map_err(|e| value_err(e.to_string()))?;
-        }
+        write_files(dir, &files)?;
     }
     let mut list = Vec::with_capacity(data.len());
     for e in &data {

@@ -19,6 +19,19 @@ def test_testbed_writes_what_sdctl_reads(stage_data):
     assert stage_data.truth.dt is None and stage_data.truth.nstates >= 6
 
 
+def test_multiaxis_testbed(tmp_path, sdctl):
+    cfg = ("seed = 3\n[stage]\n[[experiment]]\nname = \"fast\"\nrate_hz = 2000.0\n"
+           "period = 1000\nperiods = 3\nf_max = 900.0\n")
+    d = sd.testbed(cfg, out=tmp_path / "axes")
+    assert [e.name for e in d.experiments] == ["fast_1", "fast_2"]
+    e = d.experiments[0]
+    assert len(e.u) == 2 and len(e.y) == 3 and e.y[2].shape == (3 * 1000,)
+    assert d.truth.nstates == 10
+    # the files sdctl reads: the 3x2 FRF of the pair
+    g = sd.Frd.from_json(sdctl("frf", d.manifest, "--experiment", "fast_1", "--experiment", "fast_2"))
+    assert g.response.shape[:2] == (3, 2)
+
+
 def test_frf_matches_sdctl_and_the_arrays_route(stage_data, sdctl):
     m = stage_data.manifest
     ours = sd.frf(m, "fast")

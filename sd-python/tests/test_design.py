@@ -66,4 +66,7 @@ def test_loopshape_weight_and_analyze_match_sdctl(stage, sdctl, tmp_path):
         assert getattr(a, k) == pytest.approx(cli_a[k], rel=1e-6), k
     assert a.to_dict().keys() == cli_a.keys()
     ny = a.to_dict()["nyquist"]
-    assert ny == cli_a["nyquist"] and ny["agrees"] and ny["stable"]
+    # the same count (the accumulated argument's roundoff may differ through the JSON file)
+    same = {k: v for k, v in ny.items() if k != "turn_residual"}
+    assert same == {k: v for k, v in cli_a["nyquist"].items() if k != "turn_residual"}
+    assert ny["agrees"] and ny["stable"] and ny["turn_residual"] < 1e-6

@@ -69,7 +69,7 @@ pub struct TestbedConfig {
     pub standstill: Vec<Standstill>,
 }
 
-fn err(m: String) -> TestbedError {
+pub(crate) fn err(m: String) -> TestbedError {
     TestbedError::Config(m)
 }
 
@@ -123,7 +123,7 @@ const ALIASES: &[(&str, &str)] = &[
 pub const MAX_SAMPLES: usize = 80_000_000;
 
 /// `Err` naming the experiment and the keys when `count` samples exceed [`MAX_SAMPLES`].
-fn within_budget(name: &str, count: Option<usize>, keys: &str) -> Result<()> {
+pub(crate) fn within_budget(name: &str, count: Option<usize>, keys: &str) -> Result<()> {
     match count {
         Some(c) if c <= MAX_SAMPLES => Ok(()),
         _ => Err(err(format!(
@@ -138,11 +138,11 @@ const MAX_REFERENCE_RMS_M: f64 = 1e-2;
 
 /// Every key of `t` is one of `allowed` (else an error naming the key, the place and the
 /// closest allowed key).
-fn keys(t: &toml::Table, allowed: &[&str], place: &str) -> Result<()> {
+pub(crate) fn keys(t: &toml::Table, allowed: &[&str], place: &str) -> Result<()> {
     sd_model::keys::check_keys(t.keys().map(String::as_str), allowed, ALIASES, place).map_err(err)
 }
 
-fn num(t: &toml::Table, key: &str, default: f64) -> Result<f64> {
+pub(crate) fn num(t: &toml::Table, key: &str, default: f64) -> Result<f64> {
     match t.get(key) {
         None => Ok(default),
         Some(v) => v
@@ -152,14 +152,14 @@ fn num(t: &toml::Table, key: &str, default: f64) -> Result<f64> {
     }
 }
 
-fn opt_num(t: &toml::Table, key: &str) -> Result<Option<f64>> {
+pub(crate) fn opt_num(t: &toml::Table, key: &str) -> Result<Option<f64>> {
     match t.get(key) {
         None => Ok(None),
         Some(_) => num(t, key, 0.0).map(Some),
     }
 }
 
-fn int(t: &toml::Table, key: &str, default: usize) -> Result<usize> {
+pub(crate) fn int(t: &toml::Table, key: &str, default: usize) -> Result<usize> {
     match t.get(key) {
         None => Ok(default),
         Some(v) => match v.as_integer() {
@@ -169,7 +169,7 @@ fn int(t: &toml::Table, key: &str, default: usize) -> Result<usize> {
     }
 }
 
-fn text<'a>(t: &'a toml::Table, key: &str, default: &'a str) -> Result<&'a str> {
+pub(crate) fn text<'a>(t: &'a toml::Table, key: &str, default: &'a str) -> Result<&'a str> {
     match t.get(key) {
         None => Ok(default),
         Some(v) => v
@@ -270,7 +270,11 @@ pub fn parse_config(source: &str) -> Result<TestbedConfig> {
 }
 
 /// The table `key` of `doc` (`empty` when absent).
-fn table<'a>(doc: &'a toml::Table, key: &str, empty: &'a toml::Table) -> Result<&'a toml::Table> {
+pub(crate) fn table<'a>(
+    doc: &'a toml::Table,
+    key: &str,
+    empty: &'a toml::Table,
+) -> Result<&'a toml::Table> {
     match doc.get(key) {
         Some(v) => v
             .as_table()
@@ -428,7 +432,7 @@ fn parse_experiment(
 }
 
 /// The string key `key` of experiment `name` as one of `options` (`default` when absent).
-fn choice<T: Copy>(
+pub(crate) fn choice<T: Copy>(
     e: &toml::Table,
     name: &str,
     key: &str,
@@ -445,7 +449,7 @@ fn choice<T: Copy>(
 
 /// An identification experiment's multisine (`period`, `multisine`, `f_min`, `f_max`, `rms`; a
 /// reference-injection `rms` is a position and is checked against [`MAX_REFERENCE_RMS_M`]).
-fn parse_excitation(
+pub(crate) fn parse_excitation(
     e: &toml::Table,
     name: &str,
     rate: f64,

@@ -7,6 +7,7 @@
 //! ([`run_identification`], [`run_standstill`]) give data in the docs/formats.md format, seeded and reproducible.
 
 pub mod config;
+pub mod config_axes;
 pub mod error;
 pub mod experiments;
 mod fine;
@@ -15,6 +16,7 @@ pub mod sim;
 pub mod truth;
 
 pub use config::{parse_config, run_config, TestbedConfig, DEFAULT_CONFIG};
+pub use config_axes::{is_multiaxis, parse_axis_config, run_axis_config, AxisConfig};
 pub use error::{Result, TestbedError};
 pub use experiments::{
     manifest, output_files, run_identification, run_standstill, truth_model, ExperimentData,

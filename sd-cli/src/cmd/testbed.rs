@@ -5,8 +5,9 @@ use crate::io::{emit, from_testbed, CliError};
 /// Arguments of `sdctl testbed`.
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
-    /// Configuration (TOML; format in the README). Absent: the virtual stage's defaults (docs/stage.md) with one
-    /// 5 kHz and one 1 kHz identification experiment.
+    /// Configuration (TOML; docs/formats.md). Absent: the virtual stage's defaults
+    /// (docs/stage.md) with one 5 kHz and one 1 kHz identification experiment. A `[stage]`
+    /// table instead of `[truth]` selects the multi-axis stage (several actuators and sensors).
     #[arg(long)]
     pub(crate) config: Option<String>,
     /// Output folder (created): experiments.toml, one CSV per experiment, truth.json.
@@ -24,20 +25,27 @@ impl Args {
             None => sd_testbed::DEFAULT_CONFIG.to_string(),
         };
         let label = config.as_deref().unwrap_or("default configuration");
-        let cfg = sd_testbed::parse_config(&text).map_err(|e| from_testbed(label, e))?;
-        let data = sd_testbed::run_config(&cfg).map_err(|e| from_testbed(label, e))?;
-        let truth = sd_testbed::truth_model(&cfg.truth).map_err(|e| from_testbed(label, e))?;
-        let files = sd_testbed::output_files(&data, &truth).map_err(|e| from_testbed(label, e))?;
+        let (count, files) = if sd_testbed::is_multiaxis(&text) {
+            // a multi-axis stage: one experiment per actuator and [[experiment]]
+            let cfg = sd_testbed::parse_axis_config(&text).map_err(|e| from_testbed(label, e))?;
+            let (data, files) =
+                sd_testbed::run_axis_config(&cfg).map_err(|e| from_testbed(label, e))?;
+            (data.len(), files)
+        } else {
+            let cfg = sd_testbed::parse_config(&text).map_err(|e| from_testbed(label, e))?;
+            let data = sd_testbed::run_config(&cfg).map_err(|e| from_testbed(label, e))?;
+            let truth = sd_testbed::truth_model(&cfg.truth).map_err(|e| from_testbed(label, e))?;
+            let files =
+                sd_testbed::output_files(&data, &truth).map_err(|e| from_testbed(label, e))?;
+            (data.len(), files)
+        };
         crate::io::write_folder(&out, |dir| {
             for (name, text) in &files {
                 emit(text, Some(&dir.join(name).to_string_lossy()))?;
             }
             Ok(())
         })?;
-        eprintln!(
-            "[testbed] {} experiments written to {out} (experiments.toml, truth.json)",
-            data.len()
-        );
+        eprintln!("[testbed] {count} experiments written to {out} (experiments.toml, truth.json)");
         Ok(())
     }
 }

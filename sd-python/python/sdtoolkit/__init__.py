@@ -452,7 +452,8 @@ def diagnose(manifest: Union[str, os.PathLike], model=None, alpha: float = 0.01,
 def testbed(config: Union[str, os.PathLike, None] = None, out: Union[str, os.PathLike, None] = None) -> Result:
     """The virtual wafer stage (``sdctl testbed``). ``config``: a TOML file or TOML text (None:
     identification at 5 kHz and 1 kHz). Returns ``experiments`` (name, rate_hz, period,
-    skip_periods, role, r, u, y arrays), ``truth`` (the continuous linear model) and, with
+    skip_periods, role, r, u, y arrays; for a multi-axis ``[stage]`` configuration r, u and y are
+    lists of arrays, one per actuator or sensor), ``truth`` (the continuous linear model) and, with
     ``out``, ``manifest`` (the path of the experiments.toml written there with the CSVs and
     truth.json)."""
     text = None
