@@ -844,6 +844,26 @@ fn other_corners(
     Ok(out)
 }
 
+/// The friction-damped rigid body without every slow extra ([`ModalBasis::slow_extras`])
+/// as a variant with its level fits, when it has extras: a fit of the model experiment may
+/// spend real poles on lines the friction distorts most at its level (the lowest lines,
+/// where the record's drift leaks in, or the stochastic distortion near the corner), which
+/// the other levels do not share; whether the bare corner models the levels better is
+/// decided on the training levels ([`choose`]).
+fn without_slow_extras(
+    damped: &ModalBasis,
+    data: &Data<'_>,
+    levels: &[Level<'_>],
+) -> Option<Variant> {
+    let extras = damped.slow_extras();
+    if extras.is_empty() {
+        return None;
+    }
+    let basis = damped.without_poles(&extras).ok()?;
+    let (cand, fits) = level_fits(&basis, data, levels)?;
+    Some(Variant { basis, cand, fits })
+}
+
 /// Of `variants`, the one whose amplitude model, fitted on the levels `on` (indices into
 /// `levels`), describes those same levels best (the pooled statistic of its predictions
 /// over all their lines): a structural choice made on the training levels only. Every
@@ -1030,6 +1050,7 @@ fn nonlinearity(
     }];
     if damped.is_damped() && levels.len() >= 3 {
         variants.extend(other_corners(j, data, &levels, alpha)?);
+        variants.extend(without_slow_extras(&damped, data, &levels));
     }
     let every: Vec<usize> = (0..levels.len()).collect();
     let chosen = choose(&variants, &levels, &every, data.h, alpha);

@@ -80,6 +80,9 @@ pub struct AxisConfig {
     pub experiments: Vec<AxisIdentification>,
 }
 
+/// Files to write: (file name, text).
+pub type Files = Vec<(String, String)>;
+
 /// Whether a configuration describes a multi-axis stage (it has a `[stage]` table).
 pub fn is_multiaxis(source: &str) -> bool {
     source
@@ -296,13 +299,13 @@ fn parse_axis_experiment(
 ///
 /// # Errors
 /// As the experiments; the truth cannot be written as JSON.
-pub fn run_axis_config(cfg: &AxisConfig) -> Result<(Vec<AxisData>, Vec<(String, String)>)> {
+pub fn run_axis_config(cfg: &AxisConfig) -> Result<(Vec<AxisData>, Files)> {
     let data = cfg
         .experiments
         .iter()
         .map(|x| run_multiaxis(&cfg.truth, x))
         .collect::<Result<Vec<_>>>()?;
-    let mut files: Vec<(String, String)> = data
+    let mut files: Files = data
         .iter()
         .map(|d| (format!("{}.csv", d.name), d.csv()))
         .collect();

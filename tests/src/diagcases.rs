@@ -575,6 +575,9 @@ pub fn level_case(
     if effect == LevelEffect::Coulomb {
         st.truth.coulomb = COULOMB * 0.5;
     }
+    if std::env::var_os("LEVEL_TRUTH").is_some() {
+        eprintln!("truth {:?} rate {}", st.truth, st.fast_rate);
+    }
     let mut list: Vec<f64> = levels.to_vec();
     if effect == LevelEffect::Drift {
         list.push(1.0);

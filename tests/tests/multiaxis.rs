@@ -7,8 +7,8 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use sd_ident::{
-    fit_common_poles, frf_of_experiments, FitOptions, Lines, MimoFitOptions, MultisineSpec,
-    Phases, Role, Weighting,
+    fit_common_poles, frf_of_experiments, FitOptions, Lines, MimoFitOptions, MultisineSpec, Phases,
+    Role, Weighting,
 };
 use sd_testbed::{
     decentralised_pid, run_multiaxis, AxisData, AxisIdentification, AxisNonIdealities,
@@ -58,7 +58,11 @@ pub fn orthogonal_set(
                         hold_delay: delay.to_vec(),
                         ..AxisNonIdealities::ideal(truth.inputs(), truth.outputs())
                     },
-                    role: if e == 0 { Role::Model } else { Role::Validation },
+                    role: if e == 0 {
+                        Role::Model
+                    } else {
+                        Role::Validation
+                    },
                     fine_steps: 16,
                 },
             )
@@ -77,11 +81,26 @@ fn frf(set: &[AxisData]) -> sd_ident::MimoFrfEstimate {
 fn two_axis_stage_through_the_mimo_chain() {
     let truth = MultiAxisTruth::two_axis();
     let t0 = std::time::Instant::now();
-    let fast = frf(&orthogonal_set(&truth, "fast", (5000.0, 5000, 2400.0), &[0.0, 0.0], 3));
-    let slow = frf(&orthogonal_set(&truth, "slow", (1000.0, 1000, 499.0), &[0.0, 0.0], 4));
+    let fast = frf(&orthogonal_set(
+        &truth,
+        "fast",
+        (5000.0, 5000, 2400.0),
+        &[0.0, 0.0],
+        3,
+    ));
+    let slow = frf(&orthogonal_set(
+        &truth,
+        "slow",
+        (1000.0, 1000, 499.0),
+        &[0.0, 0.0],
+        4,
+    ));
     let sim = t0.elapsed().as_secs_f64();
     assert_eq!(
-        (fast.frd.response()[0].nrows(), fast.frd.response()[0].ncols()),
+        (
+            fast.frd.response()[0].nrows(),
+            fast.frd.response()[0].ncols()
+        ),
         (3, 2)
     );
     let t1 = std::time::Instant::now();
