@@ -1872,3 +1872,56 @@ fn multiaxis_testbed_frf_fit() {
         "stage mode 2: 1 input and 2 output gains",
     );
 }
+
+/// `diagnose` on a multi-axis manifest: the MIMO diagnosis names the actuator whose hold is
+/// late (0.3 of each period on actuator 2 at 5 kHz, 2.5 kHz and 1 kHz), writes
+/// diagnosis.json (`kind = "mimo"`), model.json and report.md, and refuses `--model`.
+#[test]
+fn multiaxis_diagnose_names_the_actuator() {
+    let d = tmpdir("multiaxis_diag");
+    let exp = |name: &str, rate: f64, period: usize, fmax: f64, role: &str| {
+        format!(
+            "[[experiment]]\nname = \"{name}\"\nrate_hz = {rate}\nrole = \"{role}\"\nperiod = \
+             {period}\nperiods = 4\nf_max = {fmax}\n"
+        )
+    };
+    let cfg = write(
+        &d,
+        "axes.toml",
+        &format!(
+            "seed = 7\n[stage]\n[nonideal]\nhold_delay = [0.0, 0.3]\n{}{}{}",
+            exp("fast", 5000.0, 2500, 2400.0, "model"),
+            exp("mid", 2500.0, 1250, 1200.0, "validation"),
+            exp("slow", 1000.0, 500, 499.0, "validation")
+        ),
+    );
+    let data = d.join("data").to_string_lossy().into_owned();
+    sdctl_ok(&["testbed", "--config", &cfg, "--out", &data]);
+    let m = format!("{data}/experiments.toml");
+    let out = d.join("diag").to_string_lossy().into_owned();
+    let o = sdctl_ok(&["diagnose", &m, "--out", &out]);
+    let line = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(line.contains("actuator 2 hold delay"), "{line}");
+    let v = read_json(format!("{out}/diagnosis.json"));
+    assert_eq!(v["kind"], "mimo");
+    assert_eq!(v["verdict"], "discrepancy");
+    let named: Vec<&serde_json::Value> = v["channels"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|c| c["named"] == true)
+        .collect();
+    assert_eq!(named.len(), 1, "{v}");
+    assert_eq!(named[0]["kind"], "actuator");
+    assert_eq!(named[0]["channel"], 1);
+    assert!(v["gain"]["held_out"] == true && v["gain"]["ratio"].as_f64().unwrap() > 3.0);
+    let report = std::fs::read_to_string(format!("{out}/report.md")).unwrap();
+    assert!(report.contains("| actuator 2 |") && report.contains("What to do next"));
+    assert!(std::path::Path::new(&format!("{out}/model.json")).exists());
+    let model = format!("{out}/model.json");
+    let out2 = d.join("diag2").to_string_lossy().into_owned();
+    assert_input_error(
+        &sdctl(&["diagnose", &m, "--model", &model, "--out", &out2]),
+        "--model is for SISO experiments",
+    );
+}

@@ -1936,8 +1936,9 @@ pub fn diagnose_with_progress(
     }
     if let Some(e) = experiments.iter().find(|e| e.spec.is_mimo()) {
         return Err(DiagnoseError::Setup(format!(
-            "experiment `{}` has {} inputs and {} outputs: the diagnosis takes SISO experiments \
-             (one input column, one output column); diagnose one channel pair at a time",
+            "experiment `{}` has {} inputs and {} outputs: this diagnosis takes SISO \
+             experiments (one input column, one output column); diagnose_mimo (what `sdctl \
+             diagnose` runs on such a manifest) takes MIMO ones",
             e.spec.name,
             e.spec.inputs().len(),
             e.spec.outputs().len()

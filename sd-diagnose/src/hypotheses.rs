@@ -208,7 +208,7 @@ pub(crate) struct Modal<'a> {
 }
 
 /// Minimizes `f` on a grid of `n` cells over [lo, hi], then by golden section in the best cell.
-fn min1d(f: &mut dyn FnMut(f64) -> f64, lo: f64, hi: f64, n: usize) -> (f64, f64) {
+pub(crate) fn min1d(f: &mut dyn FnMut(f64) -> f64, lo: f64, hi: f64, n: usize) -> (f64, f64) {
     let n = n.max(1);
     let step = (hi - lo) / n as f64;
     let (mut best, mut bc) = (lo, f64::INFINITY);

@@ -66,6 +66,7 @@ mod data;
 mod findings;
 pub mod hypotheses;
 mod lemma6;
+pub mod mimo;
 pub mod modal;
 mod model;
 pub mod pieces;
@@ -77,6 +78,10 @@ mod diagnose;
 pub use diagnose::{diagnose, diagnose_with_progress};
 pub use hypotheses::RateTied;
 pub use lemma6::predict;
+pub use mimo::{
+    diagnose_mimo, ChannelFinding, ChannelKind, EntryCheck, MimoDiagnoseOptions, MimoDiagnosis,
+    MimoGain,
+};
 pub use pieces::Piece;
 pub use sd_ident::Role;
 pub use stats::Statistic;

@@ -71,8 +71,10 @@ impl ModalBasis {
         let mut real = Vec::new();
         let mut pairs = Vec::new();
         for s in ct {
-            if (s * scale).norm() < RIGID_SH && rigid < 2 {
-                rigid += 1;
+            if (s * scale).norm() < RIGID_SH {
+                // a SISO entry of a model with several rigid-body modes: one double
+                // integrator spans them all
+                rigid = (rigid + 1).min(2);
             } else if s.im.abs() <= 1e-9 * s.norm().max(1e-300) {
                 real.push(s.re);
             } else if s.im > 0.0 {

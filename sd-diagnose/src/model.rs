@@ -14,7 +14,7 @@ use sd_model::{Frd, SampleTime, StateSpace};
 /// Rigid-body poles suggested by the low-frequency slope of |G| (−2: two, −1: one), over the
 /// lowest octave pair of lines measured well (|G| above 3σ: a stiff loop leaves the lowest
 /// lines in the noise).
-fn rigid_body_count(frd: &Frd) -> usize {
+pub(crate) fn rigid_body_count(frd: &Frd) -> usize {
     let f = frd.freq_hz();
     let good = |i: usize| {
         let g = frd.response()[i][(0, 0)].norm();

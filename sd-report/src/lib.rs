@@ -5,6 +5,7 @@
 
 #[cfg(feature = "diagnosis")]
 pub mod diagnosis;
+pub mod mimo;
 pub mod plot;
 
 /// Errors of the report.
