@@ -88,13 +88,14 @@ pub fn frf_of_experiment(exp: &Experiment, req: &FrfRequest) -> Result<(Frd, Vec
 }
 
 /// The ny×nu FRF of a set of experiments with the same columns' counts: periodic ones (same
-/// rate, period and skipped periods) by [`frf_periodic_mimo`], one non-periodic open-loop
-/// record whose inputs are excited independently by the MIMO local polynomial method
-/// ([`lpm()`]); both with the covariance of `vec(G)`.
+/// rate, period and skipped periods) by [`frf_periodic_mimo`], one non-periodic record by the
+/// MIMO local polynomial method ([`lpm()`] in open loop with independently excited inputs,
+/// [`crate::lpm_closed_loop_mimo`] through one reference per input in closed loop); each with
+/// the covariance of `vec(G)`.
 ///
 /// # Errors
 /// No experiment, experiments that differ in rate, period, skipped periods or channel counts,
-/// several non-periodic records or a closed-loop non-periodic one, an `excited_fraction`
+/// several non-periodic records, an `excited_fraction`
 /// outside (0, 1), the estimators' errors (too few experiments for the inputs among them).
 pub fn frf_of_experiments(exps: &[&Experiment], req: &FrfRequest) -> Result<MimoFrfEstimate> {
     let first = exps
@@ -140,22 +141,29 @@ pub fn frf_of_experiments(exps: &[&Experiment], req: &FrfRequest) -> Result<Mimo
             frf_periodic_mimo(fs, &ch, &opt)
         }
         None => {
-            if exps.len() > 1 || !first.references().is_empty() {
+            if exps.len() > 1 {
                 return Err(IdentError::InvalidArgument(
-                    "a non-periodic MIMO FRF is estimated from one open-loop record whose \
-                     inputs are excited independently; several records, or references, need \
-                     periodic data"
+                    "a non-periodic MIMO FRF is estimated from one record (open loop with \
+                     independently excited inputs, or closed loop with one reference per \
+                     input); several records need periodic data"
                         .into(),
                 ));
             }
             let n = first.u.len();
             let cols = |v: Vec<&[f64]>| nalgebra::DMatrix::from_fn(n, v.len(), |t, j| v[j][t]);
-            let est = lpm(
-                fs,
-                &cols(first.inputs()),
-                &cols(first.outputs()),
-                &LpmOptions::default(),
-            )?;
+            let (u, y) = (cols(first.inputs()), cols(first.outputs()));
+            let est = if first.references().is_empty() {
+                lpm(fs, &u, &y, &LpmOptions::default())?
+            } else {
+                // closed loop: through the references
+                crate::lpm::lpm_closed_loop_mimo(
+                    fs,
+                    &cols(first.references()),
+                    &u,
+                    &y,
+                    &LpmOptions::default(),
+                )?
+            };
             Ok(MimoFrfEstimate {
                 frd: est.frd,
                 lines: Vec::new(),

@@ -46,7 +46,9 @@ pub use frf::{
     frf_periodic, DistortionReport, FrfEstimate, PeriodicOptions, MIN_INPUT_SNR, NL_NEIGHBOURS,
 };
 pub use frf_mimo::{frf_periodic_mimo, Channels, MimoFrfEstimate};
-pub use lpm::{lpm, lpm_closed_loop, lpm_closed_loop_snr, LpmEstimate, LpmOptions};
+pub use lpm::{
+    lpm, lpm_closed_loop, lpm_closed_loop_mimo, lpm_closed_loop_snr, LpmEstimate, LpmOptions,
+};
 pub use multisine::{
     crest_factor, design, orthogonal, write_csv, Lines, Multisine, MultisineSpec, Phases,
 };

@@ -299,3 +299,84 @@ pub fn lpm_closed_loop_snr(
         snr,
     ))
 }
+
+/// Closed-loop MIMO LPM: one LPM from the references `r` (N × nu) to `[y u]` gives
+/// `H = [G_yr; G_ur]` ((ny + nu) × nu) with the covariance of `vec(H)`; then
+/// `Ĝ = G_yr G_ur⁻¹` (ny × nu). To first order `dĜ = [I, −Ĝ] dH G_ur⁻¹`, so
+/// `vec(dĜ) = (G_ur⁻ᵀ ⊗ [I, −Ĝ]) vec(dH)` and `Cov vec(Ĝ) = M Cov vec(H) Mᴴ` (the references
+/// are known exactly; the noise on u and y, correlated through the loop, is in `Cov vec(H)`).
+/// The default window leaves `ν = ny + nu + 2` residual degrees of freedom (the open-loop
+/// default, `nx + 2`, would leave the `(ny + nu)`-square noise covariance singular); the
+/// covariance's Hotelling-type whitened error `eᴴĈ⁻¹e` then averages `ny·nu·ν/(ν − ny)`.
+/// Returns the estimate with per-entry variances and the covariance of `vec(Ĝ)` per line.
+///
+/// # Errors
+/// As [`lpm`]; references not one per input; a line where `G_ur` is singular (a reference that
+/// does not reach the inputs there).
+pub fn lpm_closed_loop_mimo(
+    fs: f64,
+    r: &DMatrix<f64>,
+    u: &DMatrix<f64>,
+    y: &DMatrix<f64>,
+    opt: &LpmOptions,
+) -> Result<LpmEstimate> {
+    let (n, nu, ny) = (r.nrows(), u.ncols(), y.ncols());
+    if r.ncols() != nu || u.nrows() != n || y.nrows() != n {
+        return Err(IdentError::Data(format!(
+            "closed-loop LPM: {} references for {nu} inputs, or records of different lengths \
+             (one reference per input, all of one length)",
+            r.ncols()
+        )));
+    }
+    let mut z = DMatrix::zeros(n, ny + nu);
+    z.view_mut((0, 0), (n, ny)).copy_from(y);
+    z.view_mut((0, ny), (n, nu)).copy_from(u);
+    // default window: ν = ny + nu + 2 residual degrees of freedom, so that the noise
+    // covariance of [y; u] is estimated with full rank and the covariance of vec(Ĝ) can be
+    // inverted (its whitened error then averages ny·nu·ν/(ν − ny))
+    let q = (nu + 1) * (opt.degree + 1);
+    let opt = LpmOptions {
+        half_width: opt
+            .half_width
+            .or(Some((q + ny + nu + 2).saturating_sub(1).div_ceil(2))),
+        ..*opt
+    };
+    let est = lpm(fs, r, &z, &opt)?;
+    let nz = ny + nu;
+    let (mut resp, mut var, mut cov) = (Vec::new(), Vec::new(), Vec::new());
+    for (k, h) in est.frd.response().iter().enumerate() {
+        let gyr = h.view((0, 0), (ny, nu)).into_owned();
+        let gur = h.view((ny, 0), (nu, nu)).into_owned();
+        let inv = gur.try_inverse().ok_or_else(|| {
+            IdentError::Data(format!(
+                "the references do not reach the inputs independently at {} Hz (G_ur singular)",
+                est.frd.freq_hz()[k]
+            ))
+        })?;
+        let g = &gyr * &inv;
+        // [I, −Ĝ] (ny × nz) and M = G_ur⁻ᵀ ⊗ [I, −Ĝ] (ny·nu × nz·nu)
+        let mut left = DMatrix::<C>::zeros(ny, nz);
+        left.view_mut((0, 0), (ny, ny))
+            .copy_from(&DMatrix::identity(ny, ny));
+        left.view_mut((0, ny), (ny, nu)).copy_from(&(-&g));
+        let inv_t = inv.transpose();
+        let mut m = DMatrix::<C>::zeros(ny * nu, nz * nu);
+        for a in 0..nu {
+            for b in 0..nu {
+                m.view_mut((a * ny, b * nz), (ny, nz))
+                    .copy_from(&(&left * inv_t[(a, b)]));
+            }
+        }
+        let c = &m * &est.covariance[k] * m.adjoint();
+        var.push(DMatrix::from_fn(ny, nu, |i, j| {
+            c[(j * ny + i, j * ny + i)].re.max(0.0)
+        }));
+        resp.push(g);
+        cov.push(c);
+    }
+    Ok(LpmEstimate {
+        frd: Frd::new(est.frd.freq_hz().to_vec(), resp, Some(var), est.frd.time())?,
+        noise_cov: est.noise_cov,
+        covariance: cov,
+    })
+}
