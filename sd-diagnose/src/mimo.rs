@@ -324,7 +324,7 @@ fn entry_models<'a>(
                 .map(|(j, est)| {
                     let m = model.select(&[j], &[i])?;
                     Ok(Modal {
-                        basis: ModalBasis::from_model(&m)?,
+                        basis: ModalBasis::from_model_entry(&m)?,
                         fast: est,
                         h,
                         alpha,

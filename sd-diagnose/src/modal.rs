@@ -56,6 +56,17 @@ fn natural(p: &C) -> (f64, f64) {
 impl ModalBasis {
     /// From the poles of a model at period `h` (`None`: continuous poles).
     pub(crate) fn from_model(model: &StateSpace) -> Result<Self> {
+        Self::from_poles_of(model, false)
+    }
+
+    /// [`ModalBasis::from_model`] of one entry of a MIMO model with several rigid-body modes:
+    /// rigid-body poles beyond two are dropped (one double integrator spans them all in a
+    /// single entry) instead of read as real poles at the origin.
+    pub(crate) fn from_model_entry(model: &StateSpace) -> Result<Self> {
+        Self::from_poles_of(model, true)
+    }
+
+    fn from_poles_of(model: &StateSpace, drop_extra_rigid: bool) -> Result<Self> {
         let poles = model.poles()?;
         let ct: Vec<C> = match model.ts() {
             Some(h) => poles
@@ -71,10 +82,11 @@ impl ModalBasis {
         let mut real = Vec::new();
         let mut pairs = Vec::new();
         for s in ct {
-            if (s * scale).norm() < RIGID_SH {
-                // a SISO entry of a model with several rigid-body modes: one double
-                // integrator spans them all
-                rigid = (rigid + 1).min(2);
+            let at_origin = (s * scale).norm() < RIGID_SH;
+            if at_origin && rigid < 2 {
+                rigid += 1;
+            } else if at_origin && drop_extra_rigid {
+                continue;
             } else if s.im.abs() <= 1e-9 * s.norm().max(1e-300) {
                 real.push(s.re);
             } else if s.im > 0.0 {
