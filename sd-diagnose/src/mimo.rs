@@ -147,6 +147,18 @@ pub struct MimoDiagnosis {
     pub validation: Vec<(Vec<String>, usize)>,
 }
 
+impl MimoDiagnosis {
+    /// The `diagnosis.json` form: the serde fields and `"kind": "mimo"`.
+    pub fn to_json(&self) -> serde_json::Value {
+        let mut v = serde_json::to_value(self)
+            .unwrap_or_else(|e| serde_json::json!({"error": e.to_string()}));
+        if let Some(o) = v.as_object_mut() {
+            o.insert("kind".into(), "mimo".into());
+        }
+        v
+    }
+}
+
 /// One rate's FRF, split into per-entry estimates.
 struct RateSet {
     names: Vec<String>,

@@ -240,9 +240,31 @@ fn diagnose(
     out: Option<&str>,
 ) -> PyResult<String> {
     let model = model.as_ref().map(sys_in).transpose()?;
+    let exps = py
+        .detach(|| sd_ident::load_experiments(Path::new(manifest), |_| true))
+        .map_err(py_err)?;
+    if exps.iter().any(|e| e.spec.is_mimo()) {
+        if model.is_some() {
+            return Err(value_err(
+                "model= is for SISO experiments: the MIMO diagnosis fits its common-pole model",
+            ));
+        }
+        let opt = sd_diagnose::MimoDiagnoseOptions {
+            alpha,
+            order: None,
+            max_order,
+        };
+        let d = py
+            .detach(|| sd_diagnose::diagnose_mimo(&exps, &opt, &mut |_| {}))
+            .map_err(py_err)?;
+        if let Some(dir) = out {
+            py.detach(|| sd_report::mimo::write_mimo(Path::new(dir), &d, manifest))
+                .map_err(|e| value_err(e.to_string()))?;
+        }
+        return json_text(&d.to_json());
+    }
     let d = py
         .detach(|| {
-            let exps = sd_ident::load_experiments(Path::new(manifest), |_| true)?;
             let opt = sd_diagnose::DiagnoseOptions {
                 model,
                 alpha,

@@ -32,6 +32,23 @@ def test_multiaxis_testbed(tmp_path, sdctl):
     assert g.response.shape[:2] == (3, 2)
 
 
+def test_multiaxis_diagnosis(tmp_path):
+    exp = ("[[experiment]]\nname = \"{}\"\nrate_hz = {}\nrole = \"{}\"\nperiod = {}\n"
+           "periods = 4\nf_max = {}\n")
+    cfg = ("seed = 9\n[stage]\n[nonideal]\nhold_delay = [0.0, 0.3]\n"
+           + exp.format("fast", 5000.0, "model", 2500, 2400.0)
+           + exp.format("slow", 1000.0, "validation", 500, 499.0))
+    d = sd.testbed(cfg, out=tmp_path / "axes")
+    r = sd.diagnose(d.manifest, out=tmp_path / "diag").to_dict()
+    assert r["kind"] == "mimo" and r["verdict"] == "discrepancy"
+    named = [c for c in r["channels"] if c["named"]]
+    assert [(c["kind"], c["channel"]) for c in named] == [("actuator", 1)]
+    assert abs(named[0]["fraction"] - 0.3125) < 0.01
+    # one slower set: the gain is measured on the data the delay was fitted on, and says so
+    assert r["gain"]["held_out"] is False
+    assert (tmp_path / "diag" / "report.md").exists()
+
+
 def test_frf_matches_sdctl_and_the_arrays_route(stage_data, sdctl):
     m = stage_data.manifest
     ours = sd.frf(m, "fast")

@@ -148,11 +148,8 @@ pub fn write_mimo(dir: &Path, d: &MimoDiagnosis, title: &str) -> Result<()> {
         path: dir.display().to_string(),
         source,
     })?;
-    let mut v = serde_json::to_value(d).map_err(|e| ReportError::Json(e.to_string()))?;
-    if let Some(o) = v.as_object_mut() {
-        o.insert("kind".into(), "mimo".into());
-    }
-    let js = serde_json::to_string_pretty(&v).map_err(|e| ReportError::Json(e.to_string()))?;
+    let js =
+        serde_json::to_string_pretty(&d.to_json()).map_err(|e| ReportError::Json(e.to_string()))?;
     crate::write_atomic(&dir.join("diagnosis.json"), &js)?;
     let model =
         sd_model::model_to_json_string(&d.model).map_err(|e| ReportError::Json(e.to_string()))?;

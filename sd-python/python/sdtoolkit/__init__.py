@@ -442,7 +442,10 @@ def diagnose(manifest: Union[str, os.PathLike], model=None, alpha: float = 0.01,
     """Why a model misses experiments at other rates (``sdctl diagnose``): the fields of
     ``diagnosis.json`` (docs/diagnosis.md) — ``verdict``, ``cause``, ``causes``, ``parameters``,
     ``gain``, ``experiments``, ``evidence``, … . ``model`` (a StateSpace at the model
-    experiment's rate) replaces the fitted one; ``out`` also writes the report folder."""
+    experiment's rate) replaces the fitted one; ``out`` also writes the report folder. A
+    manifest of MIMO experiments runs the MIMO diagnosis (``kind`` = ``"mimo"``: ``verdict``,
+    ``channels`` with each actuator's hold delay and each sensor's averaging window,
+    ``entries``, ``gain``; docs/diagnosis.md)."""
     m = None if model is None else _ss(model, "model")._tuple()
     text = _native.diagnose(os.fspath(manifest), m, float(alpha), int(max_order),
                             None if out is None else os.fspath(out))
