@@ -108,12 +108,37 @@ fn c2d_matrices(sys: &StateSpace, ts: f64, method: Discretization) -> Result<Sta
     }
 }
 
-/// `(A_d, B_d)` of the exact ZOH discretisation (Lemma 5) by one block exponential.
+/// `(A_d, B_d)` of the exact ZOH discretisation (Lemma 5) by one block exponential; block by
+/// block when `A` is block diagonal (a modal form: [`crate::linalg::blocks`]), each block
+/// `[Aᵢ Bᵢ; 0 0]` exponentiated alone (the same formula, O(Σ(nᵢ + nu)³) instead of
+/// O((n + nu)³)).
 pub fn zoh_blocks(
     a: &DMatrix<f64>,
     b: &DMatrix<f64>,
     h: f64,
 ) -> Result<(DMatrix<f64>, DMatrix<f64>)> {
+    let (n, nu) = (a.nrows(), b.ncols());
+    let groups = crate::linalg::blocks::components(a);
+    if crate::linalg::blocks::worth_splitting(&groups, n) {
+        let mut ad = DMatrix::zeros(n, n);
+        let mut bd = DMatrix::zeros(n, nu);
+        for g in &groups {
+            let ag = a.select_rows(g).select_columns(g);
+            let (x, y) = zoh_dense(&ag, &b.select_rows(g), h)?;
+            for (p, &i) in g.iter().enumerate() {
+                for (q, &j) in g.iter().enumerate() {
+                    ad[(i, j)] = x[(p, q)];
+                }
+                bd.row_mut(i).copy_from(&y.row(p));
+            }
+        }
+        return Ok((ad, bd));
+    }
+    zoh_dense(a, b, h)
+}
+
+/// [`zoh_blocks`] by one exponential of the whole `[A B; 0 0]·h`.
+fn zoh_dense(a: &DMatrix<f64>, b: &DMatrix<f64>, h: f64) -> Result<(DMatrix<f64>, DMatrix<f64>)> {
     let (n, nu) = (a.nrows(), b.ncols());
     let mut blk = DMatrix::zeros(n + nu, n + nu);
     blk.view_mut((0, 0), (n, n)).copy_from(&(a * h));
@@ -129,6 +154,22 @@ pub fn zoh_blocks(
 #[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
+
+    /// The 60-state stage in modal form: ZOH block by block equals the one big exponential to
+    /// a few ulps of its norm.
+    #[test]
+    fn blockwise_zoh_equals_the_dense_exponential() {
+        let st = crate::stage::stage60().unwrap();
+        let groups = crate::linalg::blocks::components(st.a());
+        assert!(crate::linalg::blocks::worth_splitting(&groups, st.n()), "{groups:?}");
+        for h in [2e-4, 1e-3] {
+            let (ab, bb) = zoh_blocks(st.a(), st.b(), h).unwrap();
+            let (ad, bd) = zoh_dense(st.a(), st.b(), h).unwrap();
+            let ea = (&ab - &ad).norm() / ad.norm();
+            let eb = (&bb - &bd).norm() / bd.norm();
+            assert!(ea < 1e-13 && eb < 1e-13, "h {h}: A {ea:e}, B {eb:e}");
+        }
+    }
 
     /// Every method keeps the model's name and signal names, and d2c keeps them on the way back.
     #[test]

@@ -4,6 +4,7 @@
 //! decomposition: eigenvalues, generalized eigenvalues, SVD) live in [`convert`]; the one
 //! least-squares solver of the toolkit (column-scaled QR + SVD, with covariance) is [`lstsq()`](fn@lstsq).
 
+pub mod blocks;
 pub mod convert;
 pub mod expm;
 pub mod golden;
