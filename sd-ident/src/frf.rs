@@ -200,6 +200,15 @@ fn nl_variances(
 }
 
 /// The DFT of a real record by a planned FFT of its length.
+/// The forward FFT plan of length `n`, from a planner kept per thread (planning a 200 000-point
+/// transform costs as much as running it).
+pub(crate) fn forward_plan(n: usize) -> std::sync::Arc<dyn rustfft::Fft<f64>> {
+    thread_local! {
+        static PLANNER: std::cell::RefCell<FftPlanner<f64>> = std::cell::RefCell::new(FftPlanner::new());
+    }
+    PLANNER.with(|p| p.borrow_mut().plan_fft_forward(n))
+}
+
 pub(crate) fn transform(fft: &dyn rustfft::Fft<f64>, x: &[f64]) -> Vec<C> {
     let mut buf: Vec<C> = x.iter().map(|&v| C::new(v, 0.0)).collect();
     fft.process(&mut buf);
@@ -225,16 +234,13 @@ pub fn frf_periodic(
     let (p, m) = (opt.period, steady_periods(fs, r, u, y, opt)?);
     let start = opt.skip_periods * p;
     let len = m * p;
-    // one plan for every record (each its own FFT: packing two real records into one complex
-    // FFT mixes their roundoff, and y in metres beside u in newtons loses digits)
-    let fft = FftPlanner::<f64>::new().plan_fft_forward(len);
+    // one plan for every record, cached per thread (each record its own FFT: packing two real
+    // records into one complex FFT mixes their roundoff, and y in metres beside u in newtons
+    // loses digits); the records transformed in parallel
+    let fft = forward_plan(len);
     let long = |x: &[f64]| transform(fft.as_ref(), &x[start..start + len]);
-    let ul = long(u);
-    let yl = long(y);
-    let exc_src = match r {
-        Some(r) => long(r),
-        None => ul.clone(),
-    };
+    let ((ul, yl), rl) = rayon::join(|| rayon::join(|| long(u), || long(y)), || r.map(long));
+    let exc_src: &[C] = rl.as_deref().unwrap_or(&ul);
     let mf = m as f64;
     let mean_at = |x: &[C], k: usize| x[k * m] / mf;
     // noise (co)variances of the period means from the bins between harmonics
