@@ -260,7 +260,7 @@ pub fn frf_periodic(
         (suu / s, syy / s, syu / s)
     };
     let half = p / 2;
-    let amp: Vec<f64> = (0..=half).map(|k| mean_at(&exc_src, k).norm()).collect();
+    let amp: Vec<f64> = (0..=half).map(|k| mean_at(exc_src, k).norm()).collect();
     let amax = amp[1..].iter().cloned().fold(0.0, f64::max);
     if amax == 0.0 {
         return Err(IdentError::Data(

@@ -161,7 +161,10 @@ mod tests {
     fn blockwise_zoh_equals_the_dense_exponential() {
         let st = crate::stage::stage60().unwrap();
         let groups = crate::linalg::blocks::components(st.a());
-        assert!(crate::linalg::blocks::worth_splitting(&groups, st.n()), "{groups:?}");
+        assert!(
+            crate::linalg::blocks::worth_splitting(&groups, st.n()),
+            "{groups:?}"
+        );
         for h in [2e-4, 1e-3] {
             let (ab, bb) = zoh_blocks(st.a(), st.b(), h).unwrap();
             let (ad, bd) = zoh_dense(st.a(), st.b(), h).unwrap();

@@ -189,7 +189,10 @@ mod tests {
             let (xd, yd) = power_held(pd.a(), pd.b(), f);
             assert!(rel(&xb, &xd) < 1e-13 && rel(&yb, &yd) < 1e-12, "F = {f}");
             let slow = c2d(&pc, 2e-4 * f as f64, Discretization::Zoh).unwrap();
-            assert!(rel(&xb, slow.a()) < 1e-10 && rel(&yb, slow.b()) < 1e-10, "F = {f}");
+            assert!(
+                rel(&xb, slow.a()) < 1e-10 && rel(&yb, slow.b()) < 1e-10,
+                "F = {f}"
+            );
         }
     }
 
