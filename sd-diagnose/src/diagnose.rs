@@ -1928,12 +1928,7 @@ pub fn diagnose_with_progress(
     opt: &DiagnoseOptions,
     progress: &mut dyn FnMut(&str),
 ) -> Result<Diagnosis> {
-    if !(opt.alpha > 0.0 && opt.alpha <= 0.5) {
-        return Err(DiagnoseError::Setup(format!(
-            "alpha {} is a false-alarm probability: give one in (0, 0.5], e.g. 0.01",
-            opt.alpha
-        )));
-    }
+    crate::stats::check_alpha(opt.alpha)?;
     if let Some(e) = experiments.iter().find(|e| e.spec.is_mimo()) {
         return Err(DiagnoseError::Setup(format!(
             "experiment `{}` has {} inputs and {} outputs: this diagnosis takes SISO \

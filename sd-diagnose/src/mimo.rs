@@ -571,12 +571,7 @@ pub fn diagnose_mimo(
     opt: &MimoDiagnoseOptions,
     progress: &mut dyn FnMut(&str),
 ) -> Result<MimoDiagnosis> {
-    if !(opt.alpha > 0.0 && opt.alpha <= 0.5) {
-        return Err(DiagnoseError::Setup(format!(
-            "alpha {} is a false-alarm probability: give one in (0, 0.5], e.g. 0.01",
-            opt.alpha
-        )));
-    }
+    crate::stats::check_alpha(opt.alpha)?;
     let shape = experiments
         .first()
         .map(|e| (e.spec.outputs().len(), e.spec.inputs().len()))

@@ -201,6 +201,17 @@ pub(crate) fn lpm_inflation(n: usize, degree: usize) -> f64 {
     c
 }
 
+/// `Err` unless `alpha` is a false-alarm probability in (0, 0.5].
+pub(crate) fn check_alpha(alpha: f64) -> crate::Result<()> {
+    if alpha > 0.0 && alpha <= 0.5 {
+        Ok(())
+    } else {
+        Err(crate::DiagnoseError::Setup(format!(
+            "alpha {alpha} is a false-alarm probability: give one in (0, 0.5], e.g. 0.01"
+        )))
+    }
+}
+
 #[cfg(test)]
 #[allow(clippy::unwrap_used)]
 mod tests {

@@ -84,27 +84,40 @@ pub(crate) fn power_held_blocks(
     (x, y)
 }
 
-/// [`power_held`] with nalgebra products (small blocks: no conversion to faer).
-fn power_small(a: &DMatrix<f64>, b: &DMatrix<f64>, factor: usize) -> (DMatrix<f64>, DMatrix<f64>) {
-    let (mut xb, mut yb) = (a.clone(), b.clone());
-    let mut acc: Option<(DMatrix<f64>, DMatrix<f64>)> = None;
+/// `(X, Y)` of `[A B; 0 I]^F` by binary powering on the pair, for any matrix type with
+/// products and sums (nalgebra for small blocks, faer for large ones): `[X Y; 0 I]·[X' Y'; 0 I]
+/// = [XX'  XY' + Y; 0 I]`, the identity block never formed; `None` for `F = 0`.
+fn binary_power<M: Clone>(a: M, b: M, factor: usize) -> Option<(M, M)>
+where
+    for<'a> &'a M: std::ops::Mul<&'a M, Output = M> + std::ops::Add<&'a M, Output = M>,
+{
+    // result R = (Xr, Yr), starts as the identity; base = (Xb, Yb) = (A, B)
+    let (mut xb, mut yb) = (a, b);
+    let mut acc: Option<(M, M)> = None;
     let mut f = factor;
     loop {
         if f & 1 == 1 {
             acc = Some(match acc {
                 None => (xb.clone(), yb.clone()),
-                Some((xr, yr)) => (&xr * &xb, &xr * &yb + &yr),
+                // R ← R·base = [Xr Xb, Xr Yb + Yr]
+                Some((xr, yr)) => (&xr * &xb, &(&xr * &yb) + &yr),
             });
         }
         f >>= 1;
         if f == 0 {
             break;
         }
-        let ny = &xb * &yb + &yb;
+        // base ← base² = [Xb², Xb Yb + Yb]
+        let ny = &(&xb * &yb) + &yb;
         xb = &xb * &xb;
         yb = ny;
     }
-    acc.unwrap_or_else(|| {
+    acc
+}
+
+/// [`power_held`] with nalgebra products (small blocks: no conversion to faer).
+fn power_small(a: &DMatrix<f64>, b: &DMatrix<f64>, factor: usize) -> (DMatrix<f64>, DMatrix<f64>) {
+    binary_power(a.clone(), b.clone(), factor).unwrap_or_else(|| {
         (
             DMatrix::identity(a.nrows(), a.nrows()),
             DMatrix::zeros(b.nrows(), b.ncols()),
@@ -119,29 +132,7 @@ pub(crate) fn power_held(
     factor: usize,
 ) -> (DMatrix<f64>, DMatrix<f64>) {
     let (n, nu) = (a.nrows(), b.ncols());
-    // result R = (Xr, Yr), starts as the identity; base = (Xb, Yb) = (A, B)
-    let mut xb = to_faer(a);
-    let mut yb = to_faer(b);
-    let mut acc: Option<(Mat<f64>, Mat<f64>)> = None;
-    let mut f = factor;
-    loop {
-        if f & 1 == 1 {
-            acc = Some(match acc {
-                None => (xb.clone(), yb.clone()),
-                // R ← R·base = [Xr Xb, Xr Yb + Yr]
-                Some((xr, yr)) => (&xr * &xb, &xr * &yb + &yr),
-            });
-        }
-        f >>= 1;
-        if f == 0 {
-            break;
-        }
-        // base ← base² = [Xb², Xb Yb + Yb]
-        let ny = &xb * &yb + &yb;
-        xb = &xb * &xb;
-        yb = ny;
-    }
-    match acc {
+    match binary_power::<Mat<f64>>(to_faer(a), to_faer(b), factor) {
         Some((x, y)) => (from_faer(x.as_ref()), from_faer(y.as_ref())),
         None => (DMatrix::identity(n, n), DMatrix::zeros(n, nu)),
     }

@@ -405,12 +405,16 @@ impl ExperimentData {
 ///
 /// Written with the `toml` serializer, so any experiment name is quoted and escaped.
 pub fn manifest(experiments: &[ExperimentData]) -> String {
-    let tables: Vec<toml::Value> = experiments
-        .iter()
-        .map(|e| toml::Value::Table(e.manifest_table()))
-        .collect();
+    manifest_of(experiments.iter().map(ExperimentData::manifest_table))
+}
+
+/// A manifest of `[[experiment]]` tables (single- and multi-axis alike).
+pub(crate) fn manifest_of(tables: impl Iterator<Item = toml::Table>) -> String {
     let mut doc = toml::Table::new();
-    doc.insert("experiment".into(), toml::Value::Array(tables));
+    doc.insert(
+        "experiment".into(),
+        toml::Value::Array(tables.map(toml::Value::Table).collect()),
+    );
     toml::to_string(&doc).unwrap_or_default()
 }
 

@@ -497,11 +497,5 @@ impl AxisData {
 
 /// A manifest listing multi-axis experiments.
 pub fn axis_manifest(experiments: &[AxisData]) -> String {
-    let tables: Vec<toml::Value> = experiments
-        .iter()
-        .map(|e| toml::Value::Table(e.manifest_table()))
-        .collect();
-    let mut doc = toml::Table::new();
-    doc.insert("experiment".into(), toml::Value::Array(tables));
-    toml::to_string(&doc).unwrap_or_default()
+    crate::experiments::manifest_of(experiments.iter().map(AxisData::manifest_table))
 }
