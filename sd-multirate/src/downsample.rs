@@ -68,7 +68,36 @@ pub(crate) fn power_held_blocks(
     }
     let mut x = DMatrix::zeros(n, n);
     let mut y = DMatrix::zeros(n, nu);
+    // factor ≤ MAX_FACTOR (checked by the callers) fits a u32
+    let f = u32::try_from(factor).unwrap_or(u32::MAX);
     for g in &groups {
+        // one input and a 1×1 or 2×2 block (a modal form's real pole or mode): the augmented
+        // [Aᵢ Bᵢ; 0 1] on the stack, powered by nalgebra's binary powering (its zero and one
+        // rows stay exact, so the blocks are the pair powering's to the last bit)
+        if nu == 1 && g.len() == 1 {
+            let i = g[0];
+            let m = nalgebra::Matrix2::new(a[(i, i)], b[(i, 0)], 0.0, 1.0).pow(f);
+            x[(i, i)] = m[(0, 0)];
+            y[(i, 0)] = m[(0, 1)];
+            continue;
+        }
+        if nu == 1 && g.len() == 2 {
+            let (i, j) = (g[0], g[1]);
+            #[rustfmt::skip]
+            let m = nalgebra::Matrix3::new(
+                a[(i, i)], a[(i, j)], b[(i, 0)],
+                a[(j, i)], a[(j, j)], b[(j, 0)],
+                0.0, 0.0, 1.0,
+            )
+            .pow(f);
+            x[(i, i)] = m[(0, 0)];
+            x[(i, j)] = m[(0, 1)];
+            x[(j, i)] = m[(1, 0)];
+            x[(j, j)] = m[(1, 1)];
+            y[(i, 0)] = m[(0, 2)];
+            y[(j, 0)] = m[(1, 2)];
+            continue;
+        }
         let (xg, yg) = power_small(
             &a.select_rows(g).select_columns(g),
             &b.select_rows(g),
