@@ -1917,6 +1917,10 @@ fn multiaxis_diagnose_names_the_actuator() {
     assert!(v["gain"]["held_out"] == true && v["gain"]["ratio"].as_f64().unwrap() > 3.0);
     let report = std::fs::read_to_string(format!("{out}/report.md")).unwrap();
     assert!(report.contains("| actuator 2 |") && report.contains("What to do next"));
+    // one Bode figure per entry at the slowest rate, linked from the report
+    let fig = std::fs::read_to_string(format!("{out}/entry_3_2.svg")).unwrap();
+    assert!(fig.starts_with("<svg") && fig.contains("extended model"));
+    assert!(report.contains("(entry_3_2.svg)"));
     assert!(std::path::Path::new(&format!("{out}/model.json")).exists());
     let model = format!("{out}/model.json");
     let out2 = d.join("diag2").to_string_lossy().into_owned();

@@ -279,7 +279,7 @@ impl Modal<'_> {
 
     /// The extension's prediction at every line of every target, residues refitted under its
     /// non-idealities (the profile the fit itself follows).
-    fn predictions(&self, p: &RateTied, targets: &[Target<'_>]) -> Result<Vec<Vec<C>>> {
+    pub(crate) fn predictions(&self, p: &RateTied, targets: &[Target<'_>]) -> Result<Vec<Vec<C>>> {
         let res = self.residues(p.nonideal())?;
         targets
             .iter()

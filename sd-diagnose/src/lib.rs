@@ -79,8 +79,8 @@ pub use diagnose::{diagnose, diagnose_with_progress};
 pub use hypotheses::RateTied;
 pub use lemma6::predict;
 pub use mimo::{
-    diagnose_mimo, ChannelFinding, ChannelKind, EntryCheck, MimoDiagnoseOptions, MimoDiagnosis,
-    MimoGain,
+    diagnose_mimo, ChannelFinding, ChannelKind, EntryCheck, EntryCurves, MimoDiagnoseOptions,
+    MimoDiagnosis, MimoGain,
 };
 pub use pieces::Piece;
 pub use sd_ident::Role;

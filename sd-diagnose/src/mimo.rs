@@ -117,6 +117,26 @@ pub struct MimoGain {
     pub held_out: bool,
 }
 
+/// One entry at the slowest rate: the measured FRF, the model's simulation and the extended
+/// model's (the report's figures).
+#[derive(Debug, Clone, PartialEq)]
+pub struct EntryCurves {
+    /// Output (0-based).
+    pub output: usize,
+    /// Input (0-based).
+    pub input: usize,
+    /// The slowest set's rate factor.
+    pub factor: usize,
+    /// Frequencies (Hz).
+    pub freq_hz: Vec<f64>,
+    /// Measured.
+    pub measured: Vec<num_complex::Complex64>,
+    /// The model's simulation (Lemma 6).
+    pub model: Vec<num_complex::Complex64>,
+    /// The extended model's.
+    pub extended: Vec<num_complex::Complex64>,
+}
+
 /// The diagnosis of a MIMO experiment set.
 #[derive(Debug, Clone, Serialize)]
 pub struct MimoDiagnosis {
@@ -145,6 +165,9 @@ pub struct MimoDiagnosis {
     pub model_experiments: Vec<String>,
     /// The slower sets: their experiments and rate factor.
     pub validation: Vec<(Vec<String>, usize)>,
+    /// Every entry at the slowest rate (figures; not serialised).
+    #[serde(skip)]
+    pub curves: Vec<EntryCurves>,
 }
 
 impl MimoDiagnosis {
@@ -560,6 +583,42 @@ fn gain(
     })
 }
 
+/// Every entry's measured FRF at the slowest set and the predictions without and with the
+/// extension `ext`.
+fn curves(
+    models: &[Vec<Modal<'_>>],
+    slowest: &RateSet,
+    ext: &Params,
+    zero: &Params,
+) -> Result<Vec<EntryCurves>> {
+    let mut out = Vec::new();
+    for (i, row) in slowest.entries.iter().enumerate() {
+        for (j, est) in row.iter().enumerate() {
+            let t = [Target {
+                factor: slowest.factor,
+                est,
+            }];
+            let pred = |p: &Params| -> Result<Vec<num_complex::Complex64>> {
+                Ok(models[i][j]
+                    .predictions(&p.of(i, j), &t)?
+                    .into_iter()
+                    .next()
+                    .unwrap_or_default())
+            };
+            out.push(EntryCurves {
+                output: i,
+                input: j,
+                factor: slowest.factor,
+                freq_hz: est.frd.freq_hz().to_vec(),
+                measured: est.frd.response().iter().map(|m| m[(0, 0)]).collect(),
+                model: pred(zero)?,
+                extended: pred(ext)?,
+            });
+        }
+    }
+    Ok(out)
+}
+
 /// Diagnoses a set of MIMO experiments (module documentation); `progress` receives one line
 /// per stage.
 ///
@@ -657,7 +716,12 @@ pub fn diagnose_mimo(
         progress("gain on held-out rates");
         Some(gain(&models, &sets, shape, (&named, &ext), opt.alpha)?)
     };
+    let curves = match sets.last() {
+        Some(slowest) => curves(&models, slowest, &ext, &zero)?,
+        None => Vec::new(),
+    };
     Ok(MimoDiagnosis {
+        curves,
         verdict,
         shape,
         order,

@@ -139,7 +139,68 @@ pub fn mimo_report(d: &MimoDiagnosis, title: &str) -> String {
     md
 }
 
-/// Writes `diagnosis.json` (with `"kind": "mimo"`), `model.json` and `report.md` into `dir`.
+/// `entry_<output>_<input>.svg` per entry (1-based): Bode plot of the measured FRF at the
+/// slowest rate with the model's simulation and the extended model's; the file names.
+fn entry_figures(dir: &Path, d: &MimoDiagnosis) -> Result<Vec<String>> {
+    use crate::plot::{bode_plot, Curve};
+    use plotters::style::RGBColor;
+    let db = |x: &[num_complex::Complex64]| -> Vec<f64> {
+        x.iter().map(|v| 20.0 * v.norm().log10()).collect()
+    };
+    let deg = |x: &[num_complex::Complex64]| -> Vec<f64> {
+        x.iter().map(|v| v.arg().to_degrees()).collect()
+    };
+    let mut names = Vec::new();
+    for c in &d.curves {
+        let (Some(&lo), Some(&hi)) = (c.freq_hz.first(), c.freq_hz.last()) else {
+            continue;
+        };
+        let name = format!("entry_{}_{}.svg", c.output + 1, c.input + 1);
+        let (dm, dp, de) = (db(&c.measured), db(&c.model), db(&c.extended));
+        let (pm, pp, pe) = (deg(&c.measured), deg(&c.model), deg(&c.extended));
+        let curves = [
+            Curve {
+                label: "measured",
+                freq_hz: &c.freq_hz,
+                db: &dm,
+                color: RGBColor(0, 0, 0),
+            },
+            Curve {
+                label: "model (Lemma 6)",
+                freq_hz: &c.freq_hz,
+                db: &dp,
+                color: RGBColor(200, 30, 30),
+            },
+            Curve {
+                label: "extended model",
+                freq_hz: &c.freq_hz,
+                db: &de,
+                color: RGBColor(20, 110, 200),
+            },
+        ];
+        let title = format!(
+            "output {} / input {} at 1/{} of the model rate [m/N]",
+            c.output + 1,
+            c.input + 1,
+            c.factor
+        );
+        let path = dir.join(&name).to_string_lossy().into_owned();
+        bode_plot(
+            &path,
+            &title,
+            &curves,
+            &[Some(&pm), Some(&pp), Some(&pe)],
+            lo,
+            hi,
+            &[],
+        )?;
+        names.push(name);
+    }
+    Ok(names)
+}
+
+/// Writes `diagnosis.json` (with `"kind": "mimo"`), `model.json`, `report.md` and one Bode
+/// figure per entry at the slowest rate (`entry_<output>_<input>.svg`) into `dir`.
 ///
 /// # Errors
 /// A file that cannot be written; the model cannot be serialised.
@@ -154,5 +215,16 @@ pub fn write_mimo(dir: &Path, d: &MimoDiagnosis, title: &str) -> Result<()> {
     let model =
         sd_model::model_to_json_string(&d.model).map_err(|e| ReportError::Json(e.to_string()))?;
     crate::write_atomic(&dir.join("model.json"), &model)?;
-    crate::write_atomic(&dir.join("report.md"), &mimo_report(d, title))
+    let figures = entry_figures(dir, d)?;
+    let mut md = mimo_report(d, title);
+    if !figures.is_empty() {
+        md.push_str(
+            "\n## Figures\n\nEach entry at the slowest rate: measured, the model's \
+            simulation and the extended model's (magnitude in dB of m/N, phase in degrees).\n\n",
+        );
+        for f in &figures {
+            md.push_str(&format!("- [{f}]({f})\n"));
+        }
+    }
+    crate::write_atomic(&dir.join("report.md"), &md)
 }
