@@ -48,15 +48,15 @@ impl Args {
         );
         let frd = sd_model::Frd::new(f.clone(), ev.eval_many(&f), None, sys.time())
             .map_err(|e| from_model(&model, e))?;
-        let txt = sd_model::frd_to_json_string(&frd).map_err(|e| from_model("output", e))?;
+        let mut txt = sd_model::frd_to_json_string(&frd).map_err(|e| from_model("output", e))?;
         // the FRD object gains `"eval_path"` (informational, ignored by the readers): spliced
-        // before its closing brace rather than re-serialising a large document
-        let body = txt.strip_suffix('}').ok_or_else(|| {
-            CliError::numerical("the FRD JSON writer returned no object".to_string())
-        })?;
-        emit(
-            &format!("{body},\"eval_path\":\"{key}\"}}"),
-            output.as_deref(),
-        )
+        // in place before its closing brace rather than copying a large document
+        if txt.pop() != Some('}') {
+            return Err(CliError::numerical(
+                "the FRD JSON writer returned no object".to_string(),
+            ));
+        }
+        txt.push_str(&format!(",\"eval_path\":\"{key}\"}}"));
+        emit(&txt, output.as_deref())
     }
 }
