@@ -192,18 +192,8 @@ struct RateSet {
 
 /// The entry `(i, j)` of a MIMO FRD as a single-channel estimate.
 fn entry(frd: &Frd, i: usize, j: usize, dof: f64) -> Result<Estimate> {
-    let pick = |m: &nalgebra::DMatrix<f64>| nalgebra::DMatrix::from_element(1, 1, m[(i, j)]);
-    let e = Frd::new(
-        frd.freq_hz().to_vec(),
-        frd.response()
-            .iter()
-            .map(|m| nalgebra::DMatrix::from_element(1, 1, m[(i, j)]))
-            .collect(),
-        frd.variance().map(|v| v.iter().map(pick).collect()),
-        frd.time(),
-    )?;
     Ok(Estimate {
-        frd: e,
+        frd: frd.entry(i, j)?,
         dof,
         inflation: 1.0,
         distortion: None,
@@ -264,11 +254,7 @@ fn rate_set(set: &[&Experiment], factor: usize) -> Result<(RateSet, Frd)> {
         )));
     }
     let dof = 4.0 * (est.periods as f64 - 1.0);
-    let (ny, nu) = est
-        .frd
-        .response()
-        .first()
-        .map_or((0, 0), |m| (m.nrows(), m.ncols()));
+    let (ny, nu) = est.frd.shape();
     let entries = (0..ny)
         .map(|i| (0..nu).map(|j| entry(&est.frd, i, j, dof)).collect())
         .collect::<Result<Vec<Vec<_>>>>()?;
@@ -284,10 +270,7 @@ fn rate_set(set: &[&Experiment], factor: usize) -> Result<(RateSet, Frd)> {
 
 /// The common-pole fit of the model set (module documentation).
 fn fit_model(frd: &Frd, opt: &MimoDiagnoseOptions) -> Result<(sd_ident::MimoFitResult, usize)> {
-    let (ny, nu) = frd
-        .response()
-        .first()
-        .map_or((0, 0), |m| (m.nrows(), m.ncols()));
+    let (ny, nu) = frd.shape();
     let rigid = (0..ny.min(nu))
         .map(|d| {
             entry(frd, d, d, f64::INFINITY)
@@ -319,26 +302,24 @@ fn fit_model(frd: &Frd, opt: &MimoDiagnoseOptions) -> Result<(sd_ident::MimoFitR
     let noise_drop = (ny + nu + 2) as f64;
     let mut best = fit(rigid + 2)?;
     let mut order = rigid + 2;
+    // the look-ahead fit is computed only when the next order alone does not pay
+    let pays = |best: &sd_ident::MimoFitResult, r: &sd_ident::MimoFitResult, pairs: f64| {
+        best.cost - r.cost > 3.0 * pairs * noise_drop
+    };
     while order + 2 <= opt.max_order {
-        let next = fit(order + 2).ok();
-        let after = if order + 4 <= opt.max_order {
-            fit(order + 4).ok()
-        } else {
-            None
+        let step = match fit(order + 2) {
+            Ok(next) if pays(&best, &next, 1.0) => Some((next, 2)),
+            _ if order + 4 <= opt.max_order => fit(order + 4)
+                .ok()
+                .filter(|after| pays(&best, after, 2.0))
+                .map(|after| (after, 4)),
+            _ => None,
         };
-        let gain = |r: &Option<sd_ident::MimoFitResult>, pairs: f64| {
-            r.as_ref()
-                .is_some_and(|r| best.cost - r.cost > 3.0 * pairs * noise_drop)
-        };
-        if gain(&next, 1.0) {
-            best = next.ok_or_else(|| DiagnoseError::Numerical("fit vanished".into()))?;
-            order += 2;
-        } else if gain(&after, 2.0) {
-            best = after.ok_or_else(|| DiagnoseError::Numerical("fit vanished".into()))?;
-            order += 4;
-        } else {
+        let Some((r, k)) = step else {
             break;
-        }
+        };
+        best = r;
+        order += k;
     }
     Ok((best, order))
 }
@@ -378,6 +359,22 @@ struct Params {
 }
 
 impl Params {
+    /// Every parameter 0 on an `(ny, nu)` plant.
+    fn zero((ny, nu): (usize, usize)) -> Self {
+        Params {
+            delay: vec![0.0; nu],
+            window: vec![0.0; ny],
+        }
+    }
+
+    /// Channel `(kind, c)`'s parameter.
+    fn get(&self, kind: ChannelKind, c: usize) -> f64 {
+        match kind {
+            ChannelKind::Actuator => self.delay[c],
+            ChannelKind::Sensor => self.window[c],
+        }
+    }
+
     fn of(&self, i: usize, j: usize) -> RateTied {
         RateTied {
             hold_delay: self.delay[j],
@@ -484,11 +481,7 @@ fn fit_params(
     which: &[(ChannelKind, usize)],
     alpha: f64,
 ) -> (Params, Vec<f64>) {
-    let (ny, nu) = shape;
-    let mut p = Params {
-        delay: vec![0.0; nu],
-        window: vec![0.0; ny],
-    };
+    let mut p = Params::zero(shape);
     let mut std = vec![f64::INFINITY; which.len()];
     for _ in 0..2 {
         for (k, &(kind, c)) in which.iter().enumerate() {
@@ -523,10 +516,7 @@ fn findings(
             let cl = cells(kind, c, shape);
             let before = pooled(models, sets, &cl, &with(p, kind, c, 0.0), alpha)?;
             let after = pooled(models, sets, &cl, p, alpha)?;
-            let v = match kind {
-                ChannelKind::Actuator => p.delay[c],
-                ChannelKind::Sensor => p.window[c],
-            };
+            let v = p.get(kind, c);
             let named =
                 !before.passes() && penalised(&after, 1) < penalised(&before, 0) && v > 3.0 * s;
             Ok(ChannelFinding {
@@ -554,10 +544,7 @@ fn gain(
     let all: Vec<(usize, usize)> = (0..shape.0)
         .flat_map(|i| (0..shape.1).map(move |j| (i, j)))
         .collect();
-    let zero = Params {
-        delay: vec![0.0; shape.1],
-        window: vec![0.0; shape.0],
-    };
+    let zero = Params::zero(shape);
     let (mut before, mut after, mut names) = (Vec::new(), Vec::new(), Vec::new());
     let held_out = sets.len() >= 2;
     for k in 0..sets.len() {
@@ -678,21 +665,10 @@ pub fn diagnose_mimo(
         .map(|c| (c.kind, c.channel))
         .collect();
     // the extension: the named channels' parameters, the others at 0
-    let mut ext = Params {
-        delay: vec![0.0; shape.1],
-        window: vec![0.0; shape.0],
-    };
-    for &(kind, c) in &named {
-        let v = match kind {
-            ChannelKind::Actuator => p.delay[c],
-            ChannelKind::Sensor => p.window[c],
-        };
-        ext = with(&ext, kind, c, v);
-    }
-    let zero = Params {
-        delay: vec![0.0; shape.1],
-        window: vec![0.0; shape.0],
-    };
+    let zero = Params::zero(shape);
+    let ext = named.iter().fold(zero.clone(), |e, &(kind, c)| {
+        with(&e, kind, c, p.get(kind, c))
+    });
     let mut entries = Vec::new();
     for i in 0..shape.0 {
         for j in 0..shape.1 {

@@ -26,7 +26,6 @@ use crate::error::{IdentError, Result};
 use crate::frf::PeriodicOptions;
 use nalgebra::DMatrix;
 use num_complex::Complex64 as C;
-use rustfft::FftPlanner;
 use sd_model::{Frd, SampleTime};
 
 /// One periodic experiment's channels (each a full record, same length).
@@ -91,7 +90,7 @@ fn spectra(
     }
     let m = total - opt.skip_periods;
     let (start, len) = (opt.skip_periods * p, m * p);
-    let fft = FftPlanner::<f64>::new().plan_fft_forward(len);
+    let fft = crate::frf::forward_plan(len);
     let long: Vec<Vec<C>> = all
         .iter()
         .map(|x| crate::frf::transform(fft.as_ref(), &x[start..start + len]))

@@ -125,12 +125,7 @@ pub fn zoh_blocks(
         for g in &groups {
             let ag = a.select_rows(g).select_columns(g);
             let (x, y) = zoh_dense(&ag, &b.select_rows(g), h)?;
-            for (p, &i) in g.iter().enumerate() {
-                for (q, &j) in g.iter().enumerate() {
-                    ad[(i, j)] = x[(p, q)];
-                }
-                bd.row_mut(i).copy_from(&y.row(p));
-            }
+            crate::linalg::blocks::scatter((&mut ad, &mut bd), g, (&x, &y));
         }
         return Ok((ad, bd));
     }

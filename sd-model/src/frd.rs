@@ -149,4 +149,24 @@ impl Frd {
         }
         Ok(self.response.iter().map(|r| r[(out, inp)]).collect())
     }
+
+    /// The entry `(out, inp)` as a SISO FRD with its variance (same lines and sample time).
+    ///
+    /// # Errors
+    /// A channel outside the FRD.
+    pub fn entry(&self, out: usize, inp: usize) -> Result<Frd> {
+        let g = self.siso(out, inp)?;
+        Frd::new(
+            self.freq_hz.clone(),
+            g.into_iter()
+                .map(|v| DMatrix::from_element(1, 1, v))
+                .collect(),
+            self.variance.as_ref().map(|v| {
+                v.iter()
+                    .map(|m| DMatrix::from_element(1, 1, m[(out, inp)]))
+                    .collect()
+            }),
+            self.time,
+        )
+    }
 }

@@ -401,7 +401,7 @@ pub fn frd_to_json_string(frd: &Frd) -> Result<String> {
     };
     // sized up front (about 25 bytes per number): a 200 000-point FRD is megabytes, and a
     // growing buffer would copy and fault it in several times
-    let entries = frd.response().first().map_or(0, |m| m.len());
+    let entries = frd.shape().0 * frd.shape().1;
     let numbers = frd.len() * (1 + entries * if frd.variance().is_some() { 3 } else { 2 });
     let mut buf = Vec::with_capacity(64 + 25 * numbers);
     serde_json::to_writer(&mut buf, &out).map_err(|e| parse_err("FRD", e))?;

@@ -103,12 +103,7 @@ pub(crate) fn power_held_blocks(
             &b.select_rows(g),
             factor,
         );
-        for (p, &i) in g.iter().enumerate() {
-            for (q, &j) in g.iter().enumerate() {
-                x[(i, j)] = xg[(p, q)];
-            }
-            y.row_mut(i).copy_from(&yg.row(p));
-        }
+        sd_model::linalg::blocks::scatter((&mut x, &mut y), g, (&xg, &yg));
     }
     (x, y)
 }

@@ -142,13 +142,15 @@ pub(crate) fn keys(t: &toml::Table, allowed: &[&str], place: &str) -> Result<()>
     sd_model::keys::check_keys(t.keys().map(String::as_str), allowed, ALIASES, place).map_err(err)
 }
 
+/// A TOML number (float or integer) as `f64`.
+pub(crate) fn as_number(v: &toml::Value) -> Option<f64> {
+    v.as_float().or_else(|| v.as_integer().map(|i| i as f64))
+}
+
 pub(crate) fn num(t: &toml::Table, key: &str, default: f64) -> Result<f64> {
     match t.get(key) {
         None => Ok(default),
-        Some(v) => v
-            .as_float()
-            .or_else(|| v.as_integer().map(|i| i as f64))
-            .ok_or_else(|| err(format!("`{key}` must be a number"))),
+        Some(v) => as_number(v).ok_or_else(|| err(format!("`{key}` must be a number"))),
     }
 }
 

@@ -36,7 +36,7 @@
 //! ```
 
 use crate::config::{
-    choice, err, int, keys, num, opt_num, parse_excitation, table, text, within_budget,
+    as_number, choice, err, int, keys, num, opt_num, parse_excitation, table, text, within_budget,
 };
 use crate::error::Result;
 use crate::experiments::{Injection, Noise};
@@ -95,10 +95,7 @@ fn per_channel(t: &toml::Table, key: &str, n: usize, what: &str) -> Result<Vec<f
     match t.get(key) {
         None => Ok(vec![0.0; n]),
         Some(toml::Value::Array(a)) => {
-            let v: Option<Vec<f64>> = a
-                .iter()
-                .map(|x| x.as_float().or_else(|| x.as_integer().map(|i| i as f64)))
-                .collect();
+            let v: Option<Vec<f64>> = a.iter().map(as_number).collect();
             match v {
                 Some(v) if v.len() == n => Ok(v),
                 _ => Err(err(format!(
@@ -115,7 +112,7 @@ fn gains(t: &toml::Table, key: &str, place: &str) -> Result<Vec<f64>> {
     let bad = || err(format!("{place}: `{key}` must be a list of numbers"));
     let a = t.get(key).and_then(|v| v.as_array()).ok_or_else(bad)?;
     a.iter()
-        .map(|x| x.as_float().or_else(|| x.as_integer().map(|i| i as f64)))
+        .map(as_number)
         .collect::<Option<Vec<f64>>>()
         .ok_or_else(bad)
 }

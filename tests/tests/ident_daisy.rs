@@ -229,18 +229,7 @@ fn daisy_cd_player_common_poles() {
     let per_entry = |order: usize| {
         let (mut cost, mut states) = (0.0, 0);
         for (a, b) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
-            let entry = |m: &DMatrix<sd_model::Complex64>| DMatrix::from_element(1, 1, m[(a, b)]);
-            let e = sd_model::Frd::new(
-                frd.freq_hz().to_vec(),
-                frd.response().iter().map(entry).collect(),
-                frd.variance().map(|v| {
-                    v.iter()
-                        .map(|m| DMatrix::from_element(1, 1, m[(a, b)]))
-                        .collect()
-                }),
-                frd.time(),
-            )
-            .unwrap();
+            let e = frd.entry(a, b).unwrap();
             let r = fit(
                 &e,
                 &FitOptions {

@@ -174,20 +174,7 @@ fn two_axis_stage_through_the_mimo_chain() {
     let (mut entry_cost, mut entry_states) = (0.0, 0);
     for i in 0..3 {
         for j in 0..2 {
-            let pick = |m: &nalgebra::DMatrix<sd_model::Complex64>| {
-                nalgebra::DMatrix::from_element(1, 1, m[(i, j)])
-            };
-            let e = sd_model::Frd::new(
-                fast.frd.freq_hz().to_vec(),
-                fast.frd.response().iter().map(pick).collect(),
-                fast.frd.variance().map(|v| {
-                    v.iter()
-                        .map(|m| nalgebra::DMatrix::from_element(1, 1, m[(i, j)]))
-                        .collect()
-                }),
-                fast.frd.time(),
-            )
-            .unwrap();
+            let e = fast.frd.entry(i, j).unwrap();
             let opt = FitOptions {
                 order: 8,
                 rigid_body: 2,

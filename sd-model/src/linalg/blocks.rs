@@ -41,6 +41,21 @@ pub fn components(a: &DMatrix<f64>) -> Vec<Vec<usize>> {
     groups
 }
 
+/// Writes a block's results into the whole: `x[g, g] = xg` and `y[g, :] = yg` (`g` the
+/// block's indices).
+pub fn scatter(
+    (x, y): (&mut DMatrix<f64>, &mut DMatrix<f64>),
+    g: &[usize],
+    (xg, yg): (&DMatrix<f64>, &DMatrix<f64>),
+) {
+    for (p, &i) in g.iter().enumerate() {
+        for (q, &j) in g.iter().enumerate() {
+            x[(i, j)] = xg[(p, q)];
+        }
+        y.row_mut(i).copy_from(&yg.row(p));
+    }
+}
+
 /// Whether splitting by [`components`] pays: more than one component and none above half the
 /// dimension.
 pub fn worth_splitting(groups: &[Vec<usize>], n: usize) -> bool {
