@@ -1847,6 +1847,21 @@ fn multiaxis_testbed_frf_fit() {
             "{truth} Hz not among {freqs:?}"
         );
     }
+    assert_eq!(f["input_delay"], serde_json::json!([0, 0]));
+    let fit_delay = |v: &str| {
+        sdctl(&[
+            "fit",
+            &frd,
+            "--order",
+            "8",
+            "--rigid-body",
+            "2",
+            "--input-delay",
+            v,
+        ])
+    };
+    assert_input_error(&fit_delay("-1,0,2"), "3 input delays given for 2 inputs");
+    assert_input_error(&fit_delay("aut0"), "is not an input delay");
     let bad = |name: &str, text: &str, needle: &str| {
         let p = write(&d, name, text);
         let o = d.join(format!("{name}.out")).to_string_lossy().into_owned();

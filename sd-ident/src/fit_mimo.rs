@@ -41,6 +41,7 @@ use crate::fit::{
     numerator_basis, reflect, sigma_zeros, starting_poles, weights_entry, Data, FitOptions,
     FitProgress, Weighting,
 };
+use crate::input_delay::{shift_inputs, DelayScan, InputDelay};
 use faer::Mat;
 use nalgebra::DMatrix;
 use num_complex::Complex64 as C;
@@ -88,6 +89,9 @@ pub struct MimoFitOptions {
     pub rank: ResidueRank,
     /// False-alarm probability of each rank test ([`ResidueRank::Select`]).
     pub alpha: f64,
+    /// Whole-sample input delays (leads included) fitted outside the rational part
+    /// ([`crate::input_delay`]; default none).
+    pub input_delay: InputDelay,
 }
 
 impl Default for MimoFitOptions {
@@ -96,6 +100,7 @@ impl Default for MimoFitOptions {
             fit: FitOptions::default(),
             rank: ResidueRank::Select,
             alpha: 0.01,
+            input_delay: InputDelay::None,
         }
     }
 }
@@ -120,8 +125,14 @@ pub struct MimoMode {
 /// A common-pole fit.
 #[derive(Debug, Clone)]
 pub struct MimoFitResult {
-    /// The modal realisation at the FRD's sample time (ny outputs, nu inputs).
+    /// The modal realisation at the FRD's sample time (ny outputs, nu inputs) of `H`: the
+    /// response to the inputs shifted by `input_delay` (none by default).
     pub model: StateSpace,
+    /// Each input's delay in samples, `G(z) = H(z)·diag(z^{−δ_j})` (negative: the outputs
+    /// respond before the input as recorded; [`crate::input_delay`]).
+    pub input_delay: Vec<i32>,
+    /// The cost of each input's column at each delay tried, when they were estimated.
+    pub delay_scans: Vec<DelayScan>,
     /// Cost V with the ranks used.
     pub cost: f64,
     /// Cost with free (full-rank) residues at the same poles.
@@ -885,6 +896,15 @@ pub fn fit_common_poles_with_progress(
     progress: &mut dyn FnMut(&FitProgress),
 ) -> Result<MimoFitResult> {
     let fo = &opt.fit;
+    crate::fit::check_options(fo)?;
+    let (delay, scans) = crate::input_delay::resolve(frd, opt)?;
+    let shifted;
+    let frd = if delay.iter().any(|d| *d != 0) {
+        shifted = shift_inputs(frd, &delay)?;
+        &shifted
+    } else {
+        frd
+    };
     let (ts, e) = entries(frd, fo)?;
     let (ny, nu) = (e.ny, e.nu);
     if let ResidueRank::Fixed(k) = opt.rank {
@@ -925,7 +945,10 @@ pub fn fit_common_poles_with_progress(
         None => PoleFit::at(&e, real, pairs, m, feed)?,
     };
     let pf = lm_common(&e, start, fo, &mut history, progress)?;
-    finish(&e, pf, opt, history, ts)
+    let mut r = finish(&e, pf, opt, history, ts)?;
+    r.input_delay = delay;
+    r.delay_scans = scans;
+    Ok(r)
 }
 
 /// Ranks, the rank-constrained residues, the realisation and the report of a pole fit.
@@ -998,6 +1021,8 @@ fn finish(
         poles,
         modes,
         median_rel_error: median_rel_error(e, &xs_final, &pf.real, &pf.pairs, m, feed),
+        input_delay: vec![0; nu],
+        delay_scans: Vec::new(),
     })
 }
 

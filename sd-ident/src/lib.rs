@@ -22,6 +22,7 @@ pub mod fit;
 pub mod fit_mimo;
 pub mod frf;
 pub mod frf_mimo;
+pub mod input_delay;
 pub mod lpm;
 pub mod multisine;
 pub mod quality;
@@ -46,6 +47,7 @@ pub use frf::{
     frf_periodic, DistortionReport, FrfEstimate, PeriodicOptions, MIN_INPUT_SNR, NL_NEIGHBOURS,
 };
 pub use frf_mimo::{frf_periodic_mimo, Channels, MimoFrfEstimate};
+pub use input_delay::{shift_inputs, DelayScan, InputDelay};
 pub use lpm::{
     lpm, lpm_closed_loop, lpm_closed_loop_mimo, lpm_closed_loop_snr, LpmEstimate, LpmOptions,
 };

@@ -50,6 +50,12 @@ pub struct LpmEstimate {
     /// Covariance of `vec(Ĝ_k)` per line (`nz·nx` square, columns stacked: index `j·nz + i`
     /// for entry (i, j)): `C_V(i, i')·[(KᴴK)⁻¹]_{jj'}` (module documentation).
     pub covariance: Vec<DMatrix<C>>,
+    /// Residual degrees of freedom `q` of each local fit (window lines minus local
+    /// parameters). The variance estimates carry them: for a model equal to the true FRF the
+    /// whitened squared error `|Ĝ − G|²/σ̂²` of an entry is F(2, 2q) distributed, mean
+    /// `q/(q − 1)` (Pintelon & Schoukens, *System Identification*, 2nd ed., §7.2.2 for the
+    /// LPM's noise estimate) — the level "within the LPM noise" means.
+    pub dof: usize,
 }
 
 fn dft_columns(x: &DMatrix<f64>) -> Vec<Vec<C>> {
@@ -124,6 +130,7 @@ pub fn lpm(fs: f64, x: &DMatrix<f64>, z: &DMatrix<f64>, opt: &LpmOptions) -> Res
         frd: Frd::new(freq, resp, Some(var), SampleTime::discrete(1.0 / fs)?)?,
         noise_cov: noise,
         covariance: covs,
+        dof: w - q,
     })
 }
 
@@ -378,5 +385,6 @@ pub fn lpm_closed_loop_mimo(
         frd: Frd::new(est.frd.freq_hz().to_vec(), resp, Some(var), est.frd.time())?,
         noise_cov: est.noise_cov,
         covariance: cov,
+        dof: est.dof,
     })
 }

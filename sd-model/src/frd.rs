@@ -150,6 +150,31 @@ impl Frd {
         Ok(self.response.iter().map(|r| r[(out, inp)]).collect())
     }
 
+    /// The column of input `inp` as an ny×1 FRD with its variances (same lines and sample
+    /// time).
+    ///
+    /// # Errors
+    /// An input outside the FRD.
+    pub fn column(&self, inp: usize) -> Result<Frd> {
+        let (ny, nu) = self.shape();
+        if inp >= nu {
+            return Err(ModelError::InvalidArgument(format!(
+                "input {inp} outside {ny}x{nu}"
+            )));
+        }
+        Frd::new(
+            self.freq_hz.clone(),
+            self.response
+                .iter()
+                .map(|r| r.columns(inp, 1).into_owned())
+                .collect(),
+            self.variance
+                .as_ref()
+                .map(|v| v.iter().map(|m| m.columns(inp, 1).into_owned()).collect()),
+            self.time,
+        )
+    }
+
     /// The entry `(out, inp)` as a SISO FRD with its variance (same lines and sample time).
     ///
     /// # Errors

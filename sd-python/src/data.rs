@@ -6,7 +6,7 @@ use numpy::ndarray::Array3;
 use numpy::{Complex64, IntoPyArray, PyArray1, PyArray3};
 use numpy::{PyReadonlyArray1, PyReadonlyArray3};
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyDict, PyList};
 use sd_model::{Frd, SampleTime};
 use std::path::Path;
 
@@ -141,7 +141,7 @@ fn frf_from_arrays<'py>(
 /// "select", "full" or a number): the model, cost, full-rank cost, entry costs, median
 /// relative error, poles and per-mode ranks and singular values.
 #[pyfunction]
-#[pyo3(signature = (freq_hz, response, variance, dt, order, rigid_body, strictly_proper, weighting, min_damping, rank))]
+#[pyo3(signature = (freq_hz, response, variance, dt, order, rigid_body, strictly_proper, weighting, min_damping, rank, input_delay))]
 fn fit<'py>(
     py: Python<'py>,
     freq_hz: PyReadonlyArray1<'py, f64>,
@@ -154,7 +154,11 @@ fn fit<'py>(
     weighting: &str,
     min_damping: f64,
     rank: &str,
+    input_delay: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let input_delay: sd_ident::InputDelay = input_delay
+        .parse()
+        .map_err(|e: String| value_err(format!("input_delay: {e}")))?;
     let frd = frd_in(&freq_hz, &response, variance.as_ref(), dt)?;
     let weighting = match weighting {
         "variance" => sd_ident::Weighting::Variance,
@@ -175,7 +179,12 @@ fn fit<'py>(
         ..Default::default()
     };
     if frd.shape() != (1, 1) {
-        return fit_mimo(py, &frd, opt, rank);
+        return fit_mimo(py, &frd, opt, rank, input_delay);
+    }
+    if input_delay != sd_ident::InputDelay::None {
+        return Err(value_err(
+            "input_delay applies to a MIMO FRD; a SISO fit absorbs a delay with its poles",
+        ));
     }
     let r = py.detach(|| sd_ident::fit(&frd, &opt)).map_err(py_err)?;
     let d = PyDict::new(py);
@@ -196,6 +205,7 @@ fn fit_mimo<'py>(
     frd: &sd_model::Frd,
     fit: sd_ident::FitOptions,
     rank: &str,
+    input_delay: sd_ident::InputDelay,
 ) -> PyResult<Bound<'py, PyDict>> {
     let rank: sd_ident::ResidueRank = rank
         .parse()
@@ -203,6 +213,7 @@ fn fit_mimo<'py>(
     let opt = sd_ident::MimoFitOptions {
         fit,
         rank,
+        input_delay,
         ..Default::default()
     };
     let r = py
@@ -224,6 +235,17 @@ fn fit_mimo<'py>(
     let sv: Vec<Vec<f64>> = r.modes.iter().map(|m| m.singular_values.clone()).collect();
     d.set_item("singular_values", sv)?;
     d.set_item("states", r.model.n())?;
+    d.set_item("input_delay", r.input_delay.clone())?;
+    let scans = PyList::empty(py);
+    for s in &r.delay_scans {
+        let e = PyDict::new(py);
+        e.set_item("input", s.input)?;
+        e.set_item("delay", s.delay)?;
+        e.set_item("cost", s.cost.clone())?;
+        e.set_item("threshold", s.threshold)?;
+        scans.append(e)?;
+    }
+    d.set_item("delay_scans", scans)?;
     Ok(d)
 }
 

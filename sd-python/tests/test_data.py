@@ -113,3 +113,17 @@ def test_fit_of_a_mimo_frd_matches_sdctl(sdctl, tmp_path):
     assert cli["states"] == 4
     with pytest.raises(ValueError, match="rank"):
         sd.fit(frd, 4, rank="two")
+    # input 1 recorded 3 samples late: the outputs lead it (G·diag(z^3, 1)); a fixed delay
+    # list takes it back exactly, and the CLI gives the same fit
+    lead = g.copy()
+    lead[:, 0, :] *= z ** 3
+    frd3 = sd.Frd(f, lead, None, ts)
+    r3 = sd.fit(frd3, 4, strictly_proper=True, input_delay=[-3, 0])
+    assert list(r3.input_delay) == [-3, 0] and r3.median_rel_error < 1e-8
+    p3 = tmp_path / "g3.json"
+    p3.write_text(frd3.to_json())
+    cli3 = json.loads(sdctl("fit", p3, "--order", 4, "--strictly-proper", "--input-delay", "-3,0", "--json"))
+    assert cli3["input_delay"] == [-3, 0]
+    assert r3.cost == pytest.approx(cli3["cost"], rel=1e-6, abs=1e-20)
+    with pytest.raises(ValueError, match="input_delay"):
+        sd.fit(frd, 4, input_delay="soon")

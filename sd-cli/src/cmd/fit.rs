@@ -35,11 +35,20 @@ pub(crate) struct Args {
     /// data support, a χ² test at 1 % per pole; default), `full`, or a number (every pole).
     #[arg(long, default_value = "select", value_parser = |s: &str| s.parse::<sd_ident::ResidueRank>())]
     pub(crate) rank: sd_ident::ResidueRank,
+    /// A MIMO FRD's whole-sample input delays, fitted outside the rational part: `none`
+    /// (default), `auto` (each input's delay estimated in ±8 samples), `auto:N`, or one number
+    /// per input (`-5,0`). Negative: the outputs respond before the input as recorded
+    /// (misaligned channels or a non-causally filtered input). The model then maps the
+    /// shifted inputs, u_j(t − δ_j).
+    #[arg(long, default_value = "none", allow_hyphen_values = true, value_parser = |s: &str| s.parse::<sd_ident::InputDelay>())]
+    pub(crate) input_delay: sd_ident::InputDelay,
     /// Write a JSON object instead of the model: `model` (model JSON), `cost`,
     /// `median_rel_error`, and for a SISO FRD `lines` (each line's `freq_hz` and `cost` term)
     /// and `warnings`; for a MIMO FRD `full_rank_cost`, `entry_cost` (ny × nu), `states` and
     /// `modes` (per free pole `freq_hz`, `damping`, `singular_values`, `rank`,
-    /// `output_direction`, `input_direction`).
+    /// `output_direction`, `input_direction`), `input_delay` (samples per input) and
+    /// `delay_scans` (per estimated input: `input`, `delay`, `cost` as [δ, V] pairs,
+    /// `threshold`).
     #[arg(long)]
     pub(crate) json: bool,
     #[arg(help = crate::commands::OUTPUT_HELP, short, long)]
@@ -57,6 +66,7 @@ impl Args {
             weighting,
             min_damping,
             rank,
+            input_delay,
             json,
             output,
         } = self;
@@ -75,7 +85,19 @@ impl Args {
             ..Default::default()
         };
         if data.shape() != (1, 1) {
-            return run_mimo(&frd, &data, opt, rank, json, output.as_deref());
+            let opt = sd_ident::MimoFitOptions {
+                fit: opt,
+                rank,
+                input_delay,
+                ..Default::default()
+            };
+            return run_mimo(&frd, &data, &opt, json, output.as_deref());
+        }
+        if input_delay != sd_ident::InputDelay::None {
+            return Err(CliError::input(format!(
+                "{frd}: --input-delay applies to a MIMO FRD; a SISO fit absorbs a delay with \
+                 its poles (drop the option or fit the MIMO FRD)"
+            )));
         }
         let r = sd_ident::fit_with_progress(&data, &opt, &mut |p| {
             eprintln!(
@@ -123,17 +145,11 @@ impl Args {
 fn run_mimo(
     name: &str,
     data: &sd_model::Frd,
-    fit: sd_ident::FitOptions,
-    rank: sd_ident::ResidueRank,
+    opt: &sd_ident::MimoFitOptions,
     json: bool,
     output: Option<&str>,
 ) -> Result<(), CliError> {
-    let opt = sd_ident::MimoFitOptions {
-        fit,
-        rank,
-        ..Default::default()
-    };
-    let r = sd_ident::fit_common_poles_with_progress(data, &opt, &mut |p| {
+    let r = sd_ident::fit_common_poles_with_progress(data, opt, &mut |p| {
         eprintln!(
             "[fit] {} iteration {:>3}: cost {:.6e}",
             p.stage, p.iteration, p.cost
@@ -151,6 +167,19 @@ fn run_mimo(
         r.modes.iter().map(|m| m.rank).collect::<Vec<_>>(),
         100.0 * r.median_rel_error
     );
+    for (j, &d) in r.input_delay.iter().enumerate().filter(|(_, d)| **d != 0) {
+        let what = if d < 0 {
+            "the outputs respond before it is recorded: check the channels' alignment, or a \
+             non-causal filter on this input"
+        } else {
+            "a transport or computation delay"
+        };
+        eprintln!(
+            "[fit] input {}: delay {d} samples ({what}); the model maps u{}(t - ({d}))",
+            j + 1,
+            j + 1
+        );
+    }
     if !json {
         return emit(&model_json(&r.model)?, output);
     }
@@ -167,6 +196,8 @@ fn run_mimo(
         "median_rel_error": r.median_rel_error,
         "states": r.model.n(),
         "modes": r.modes,
+        "input_delay": r.input_delay,
+        "delay_scans": r.delay_scans,
     });
     emit(&serde_json::to_string_pretty(&out).map_err(bad)?, output)
 }

@@ -419,20 +419,26 @@ def frf_from_arrays(r, u, y, fs: float, period: Optional[int] = None, skip_perio
 
 
 def fit(frd: Frd, order: int, rigid_body: int = 0, strictly_proper: bool = False, weighting: str = "variance",
-        min_damping: float = 0.0, rank: Union[str, int] = "select") -> Result:
+        min_damping: float = 0.0, rank: Union[str, int] = "select",
+        input_delay: Union[str, Sequence[int]] = "none") -> Result:
     """A discrete-time rational model of a SISO FRD (order up to ~60; SK iterations then
     Levenberg–Marquardt on the variance-weighted cost; ``rigid_body`` poles fixed at z = 1):
     ``model`` (StateSpace), ``cost``, ``median_rel_error``, ``line_cost``, ``poles``,
     ``warnings``. A MIMO FRD gets one set of poles for every entry (``order`` counts them once)
     with residue matrices of rank ``rank`` (``"select"``: the rank the data support;
     ``"full"``; or a number): ``model``, ``cost``, ``full_rank_cost``, ``entry_cost``,
-    ``median_rel_error``, ``poles``, ``ranks``, ``singular_values``, ``states``."""
+    ``median_rel_error``, ``poles``, ``ranks``, ``singular_values``, ``states``, and with
+    ``input_delay`` (MIMO only: ``"none"``, ``"auto"`` (±8 samples), ``"auto:N"`` or one whole
+    number of samples per input; negative: the outputs respond before that input is recorded)
+    ``input_delay`` (the delays used; the model maps u_j(t − δ_j)) and ``delay_scans`` (per
+    estimated input: ``input``, ``delay``, ``cost`` as (δ, V) pairs, ``threshold``)."""
     if not isinstance(frd, Frd):
         frd = Frd.from_control(frd)
     if frd.dt is None:
         raise ValueError("fit needs a discrete-time FRD (its dt fixes z = e^{jωT})")
     d = _native.fit(frd.freq_hz, frd.response, frd.variance, frd.dt, int(order), int(rigid_body),
-                    bool(strictly_proper), weighting, float(min_damping), str(rank))
+                    bool(strictly_proper), weighting, float(min_damping), str(rank),
+                    input_delay if isinstance(input_delay, str) else ",".join(str(int(v)) for v in input_delay))
     d["model"] = _from_tuple(d["model"])
     return Result(d)
 
