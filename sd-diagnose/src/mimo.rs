@@ -1,6 +1,6 @@
 //! The diagnosis of experiments with several inputs and outputs: one model with poles shared
-//! by every channel, rate-tied causes with one parameter per actuator (hold delay) and per
-//! sensor (averaging window), as the physics says.
+//! by every channel, rate-tied causes with one parameter per actuator (hold delay), per
+//! sensor (averaging window) and per slower set (its sample clock), as the physics says.
 //!
 //! **Data.** The experiments are grouped by sample rate; the set holding the model experiments
 //! (role `model`; else the fastest) is the model set, every slower set must run at an integer
@@ -25,12 +25,16 @@
 //! curvature of the score sum (the negative log-likelihood of the exponential scores) at the
 //! optimum. A channel's parameter is named when the plain model fails on that channel's
 //! entries, the parameter lowers the penalised criterion (score sum plus `½ ln K'` per
-//! parameter) and lies more than three standard errors from 0.
+//! parameter) and lies more than three standard errors from 0. A slower set's clock error
+//! `e` (true period `T(1 + e)`: its lines sit at `f/(1 + e)` on the model's axis) acts on
+//! every entry of that set only; it is fitted on a 0.1 % grid over ±3 %, then a 0.01 % grid
+//! over ±0.1 % around the best, and named by the same rule on that set's entries.
 //!
 //! **Gain.** With two or more slower sets, each is held out in turn: the parameters are fitted
 //! on the others and the held-out set is predicted; the gain is the plain model's pooled
 //! statistic over the held-out sets over the extension's. With one slower set the ratio is
-//! measured on the data the parameters were fitted on and labelled as such.
+//! measured on the data the parameters were fitted on and labelled as such. A named clock is
+//! fitted on its set's earlier steady periods and the set judged on its later ones.
 
 use crate::data::Estimate;
 use crate::hypotheses::{penalised, Modal, RateTied, Target};
@@ -70,6 +74,9 @@ pub enum ChannelKind {
     Actuator,
     /// A sensor (a plant output): its averaging window.
     Sensor,
+    /// The sample clock of a slower set (`channel` indexes `validation`): its experiments'
+    /// true period is nominal·(1 + e). One clock drives every channel of an experiment.
+    Clock,
 }
 
 /// One channel's rate-tied parameter.
@@ -80,7 +87,7 @@ pub struct ChannelFinding {
     /// The channel (0-based).
     pub channel: usize,
     /// Hold delay (actuator) or averaging window (sensor), as a fraction of each
-    /// experiment's own sample period.
+    /// experiment's own sample period; a clock's relative error e.
     pub fraction: f64,
     /// Its standard error.
     pub fraction_std: f64,
@@ -186,6 +193,8 @@ impl MimoDiagnosis {
 struct RateSet {
     names: Vec<String>,
     factor: usize,
+    /// Position among the slower sets (0 for the model set).
+    index: usize,
     /// `[output][input]`.
     entries: Vec<Vec<Estimate>>,
 }
@@ -244,7 +253,7 @@ fn rate_sets(experiments: &[Experiment]) -> Result<(Vec<&Experiment>, Vec<SlowSe
 }
 
 /// The FRF of a set of experiments as per-entry estimates.
-fn rate_set(set: &[&Experiment], factor: usize) -> Result<(RateSet, Frd)> {
+fn rate_set(set: &[&Experiment], factor: usize, index: usize) -> Result<(RateSet, Frd)> {
     let est = sd_ident::frf_of_experiments(set, &Default::default())?;
     if est.periods < 2 {
         return Err(DiagnoseError::Setup(format!(
@@ -262,6 +271,7 @@ fn rate_set(set: &[&Experiment], factor: usize) -> Result<(RateSet, Frd)> {
         RateSet {
             names: set.iter().map(|e| e.spec.name.clone()).collect(),
             factor,
+            index,
             entries,
         },
         est.frd,
@@ -351,19 +361,25 @@ fn entry_models<'a>(
         .collect()
 }
 
-/// Per-channel parameters: `delay[j]` per actuator, `window[i]` per sensor.
+/// Per-channel parameters: `delay[j]` per actuator, `window[i]` per sensor, `clock[s]` per
+/// slower set.
 #[derive(Clone, Debug)]
 struct Params {
     delay: Vec<f64>,
     window: Vec<f64>,
+    clock: Vec<f64>,
 }
 
+/// The plant's shape and the number of slower sets.
+type Shape = ((usize, usize), usize);
+
 impl Params {
-    /// Every parameter 0 on an `(ny, nu)` plant.
-    fn zero((ny, nu): (usize, usize)) -> Self {
+    /// Every parameter 0 on an `(ny, nu)` plant with `slow` slower sets.
+    fn zero(((ny, nu), slow): Shape) -> Self {
         Params {
             delay: vec![0.0; nu],
             window: vec![0.0; ny],
+            clock: vec![0.0; slow],
         }
     }
 
@@ -372,6 +388,7 @@ impl Params {
         match kind {
             ChannelKind::Actuator => self.delay[c],
             ChannelKind::Sensor => self.window[c],
+            ChannelKind::Clock => self.clock[c],
         }
     }
 
@@ -399,7 +416,8 @@ fn lines_of(
                 factor: s.factor,
                 est: &s.entries[i][j],
             };
-            out.push(models[i][j].lines_for(&rt, 0.0, &t, false)?);
+            let clock = p.clock.get(s.index).copied().unwrap_or(0.0);
+            out.push(models[i][j].lines_for(&rt, clock, &t, false)?);
         }
     }
     Ok(out)
@@ -417,12 +435,21 @@ fn pooled(
     Ok(statistic(lines.iter().map(|l| (l.as_slice(), 1.0)), alpha))
 }
 
-/// The entries of a channel.
+/// The entries of a channel (a clock: every entry).
 fn cells(kind: ChannelKind, c: usize, (ny, nu): (usize, usize)) -> Vec<(usize, usize)> {
     match kind {
         ChannelKind::Actuator => (0..ny).map(|i| (i, c)).collect(),
         ChannelKind::Sensor => (0..nu).map(|j| (c, j)).collect(),
+        ChannelKind::Clock => (0..ny).flat_map(|i| (0..nu).map(move |j| (i, j))).collect(),
     }
+}
+
+/// The slower sets a channel's parameter acts on: a clock its own set only.
+fn sets_of<'a>(kind: ChannelKind, c: usize, sets: &[&'a RateSet]) -> Vec<&'a RateSet> {
+    sets.iter()
+        .copied()
+        .filter(|s| kind != ChannelKind::Clock || s.index == c)
+        .collect()
 }
 
 /// The parameters with channel `(kind, c)` set to `v`.
@@ -431,8 +458,17 @@ fn with(p: &Params, kind: ChannelKind, c: usize, v: f64) -> Params {
     match kind {
         ChannelKind::Actuator => q.delay[c] = v,
         ChannelKind::Sensor => q.window[c] = v,
+        ChannelKind::Clock => q.clock[c] = v,
     }
     q
+}
+
+/// The clock of set `c` fitted to its entries' score sum: a 0.1 % grid over ±3 % (the score
+/// oscillates in e as the lines slide past the modes), then a 0.01 % grid over ±0.1 % around
+/// the best, golden section in the best cell of each.
+fn fit_clock(score: &mut dyn FnMut(f64) -> f64) -> (f64, f64) {
+    let (e, _) = crate::hypotheses::min1d(score, -0.03, 0.03, 60);
+    crate::hypotheses::min1d(score, e - 1e-3, e + 1e-3, 20)
 }
 
 /// One channel's parameter fitted to its entries' pooled score sum, with its standard error
@@ -445,18 +481,29 @@ fn fit_channel(
     alpha: f64,
 ) -> (f64, f64) {
     let cl = cells(kind, c, shape);
+    let own = sets_of(kind, c, sets);
+    if kind == ChannelKind::Clock {
+        return fit_clock_of(models, &own, &cl, p, alpha);
+    }
     let mut score = |v: f64| {
-        pooled(models, sets, &cl, &with(p, kind, c, v), alpha)
+        pooled(models, &own, &cl, &with(p, kind, c, v), alpha)
             .map_or(f64::INFINITY, |s| s.value * s.effective_lines)
     };
-    let (hi, n) = match kind {
-        ChannelKind::Actuator => (sd_multirate::MAX_HOLD_DELAY.min(2.0), 20),
-        ChannelKind::Sensor => (1.0, 10),
+    let (lo, hi, d, (v, s0)) = match kind {
+        ChannelKind::Actuator => {
+            let hi = sd_multirate::MAX_HOLD_DELAY.min(2.0);
+            let m = crate::hypotheses::min1d(&mut score, 0.0, hi, 20);
+            (0.0, hi, 0.01 * hi, m)
+        }
+        _ => (
+            0.0,
+            1.0,
+            0.01,
+            crate::hypotheses::min1d(&mut score, 0.0, 1.0, 10),
+        ),
     };
-    let (v, s0) = crate::hypotheses::min1d(&mut score, 0.0, hi, n);
     // curvature by central differences (one-sided at a bound)
-    let d = 0.01 * hi;
-    let (a, b) = ((v - d).max(0.0), (v + d).min(hi));
+    let (a, b) = ((v - d).max(lo), (v + d).min(hi));
     let (sa, sb) = (score(a), score(b));
     let curv = if b - v > 0.0 && v - a > 0.0 {
         (sa - 2.0 * s0 + sb) / ((b - v) * (v - a))
@@ -464,12 +511,56 @@ fn fit_channel(
         let (x, sx) = if b > v { (b, sb) } else { (a, sa) };
         2.0 * (sx - s0).max(0.0) / (x - v).powi(2)
     };
-    let std = if curv > 0.0 {
+    (v, std_of(curv))
+}
+
+/// A standard error from the score sum's curvature.
+fn std_of(curv: f64) -> f64 {
+    if curv > 0.0 {
         curv.recip().sqrt()
     } else {
         f64::INFINITY
+    }
+}
+
+/// The clock of `set` (one set: [`sets_of`]) fitted over its entries `cl` with the other
+/// parameters at `p`; the residues do not depend on the clock and are fitted once per entry.
+fn fit_clock_of(
+    models: &[Vec<Modal<'_>>],
+    set: &[&RateSet],
+    cl: &[(usize, usize)],
+    p: &Params,
+    alpha: f64,
+) -> (f64, f64) {
+    let Some(s) = set.first() else {
+        return (0.0, f64::INFINITY);
     };
-    (v, std)
+    let res: Vec<_> = cl
+        .iter()
+        .map(|&(i, j)| models[i][j].residues(p.of(i, j).nonideal()).ok())
+        .collect();
+    let mut score = |e: f64| -> f64 {
+        let mut lines = Vec::with_capacity(cl.len());
+        for (&(i, j), r) in cl.iter().zip(&res) {
+            let t = Target {
+                factor: s.factor,
+                est: &s.entries[i][j],
+            };
+            match r
+                .as_ref()
+                .map(|r| models[i][j].lines(r, p.of(i, j).nonideal(), e, &t))
+            {
+                Some(Ok(l)) => lines.push(l),
+                _ => return f64::INFINITY,
+            }
+        }
+        let st = statistic(lines.iter().map(|l| (l.as_slice(), 1.0)), alpha);
+        st.value * st.effective_lines
+    };
+    let (v, s0) = fit_clock(&mut score);
+    let d = 1e-5;
+    let curv = (score(v - d) - 2.0 * s0 + score(v + d)) / (d * d);
+    (v, std_of(curv))
 }
 
 /// The channels' parameters fitted alternately (two rounds) on the slower sets `sets`, each
@@ -477,11 +568,11 @@ fn fit_channel(
 fn fit_params(
     models: &[Vec<Modal<'_>>],
     sets: &[&RateSet],
-    shape: (usize, usize),
+    (shape, slow): Shape,
     which: &[(ChannelKind, usize)],
     alpha: f64,
 ) -> (Params, Vec<f64>) {
-    let mut p = Params::zero(shape);
+    let mut p = Params::zero((shape, slow));
     let mut std = vec![f64::INFINITY; which.len()];
     for _ in 0..2 {
         for (k, &(kind, c)) in which.iter().enumerate() {
@@ -493,11 +584,12 @@ fn fit_params(
     (p, std)
 }
 
-/// Every channel: actuators, then sensors.
-fn every_channel((ny, nu): (usize, usize)) -> Vec<(ChannelKind, usize)> {
+/// Every channel: actuators, sensors, then the slower sets' clocks.
+fn every_channel(((ny, nu), slow): Shape) -> Vec<(ChannelKind, usize)> {
     (0..nu)
         .map(|j| (ChannelKind::Actuator, j))
         .chain((0..ny).map(|i| (ChannelKind::Sensor, i)))
+        .chain((0..slow).map(|s| (ChannelKind::Clock, s)))
         .collect()
 }
 
@@ -505,7 +597,7 @@ fn every_channel((ny, nu): (usize, usize)) -> Vec<(ChannelKind, usize)> {
 fn findings(
     models: &[Vec<Modal<'_>>],
     sets: &[&RateSet],
-    shape: (usize, usize),
+    shape: Shape,
     (p, std): (&Params, &[f64]),
     alpha: f64,
 ) -> Result<Vec<ChannelFinding>> {
@@ -513,12 +605,14 @@ fn findings(
         .into_iter()
         .zip(std)
         .map(|((kind, c), s)| {
-            let cl = cells(kind, c, shape);
-            let before = pooled(models, sets, &cl, &with(p, kind, c, 0.0), alpha)?;
-            let after = pooled(models, sets, &cl, p, alpha)?;
+            let cl = cells(kind, c, shape.0);
+            let own = sets_of(kind, c, sets);
+            let before = pooled(models, &own, &cl, &with(p, kind, c, 0.0), alpha)?;
+            let after = pooled(models, &own, &cl, p, alpha)?;
             let v = p.get(kind, c);
-            let named =
-                !before.passes() && penalised(&after, 1) < penalised(&before, 0) && v > 3.0 * s;
+            let named = !before.passes()
+                && penalised(&after, 1) < penalised(&before, 0)
+                && v.abs() > 3.0 * s;
             Ok(ChannelFinding {
                 kind,
                 channel: c,
@@ -533,34 +627,66 @@ fn findings(
 }
 
 /// The extension's gain: each slower set held out in turn (parameters of the named channels
-/// refitted on the others), or in-sample with one set.
+/// refitted on the others), or in-sample with one set. A named clock belongs to its own set:
+/// it is fitted on the set's earlier periods and the set is judged on its later ones
+/// (`halves`; in-sample when the set has fewer than four steady periods). Only the sets a
+/// named parameter acts on are judged (a clock's own set; every set for a hold delay or an
+/// averaging window).
 fn gain(
     models: &[Vec<Modal<'_>>],
     sets: &[&RateSet],
-    shape: (usize, usize),
+    shape: Shape,
     (named, p): (&[(ChannelKind, usize)], &Params),
+    halves: &[Option<(RateSet, RateSet)>],
     alpha: f64,
 ) -> Result<MimoGain> {
-    let all: Vec<(usize, usize)> = (0..shape.0)
-        .flat_map(|i| (0..shape.1).map(move |j| (i, j)))
-        .collect();
+    let all = cells(ChannelKind::Clock, 0, shape.0);
     let zero = Params::zero(shape);
     let (mut before, mut after, mut names) = (Vec::new(), Vec::new(), Vec::new());
-    let held_out = sets.len() >= 2;
-    for k in 0..sets.len() {
-        let fitted = if held_out {
+    let timing_named = named.iter().any(|(k, _)| *k != ChannelKind::Clock);
+    let mut held_out = sets.len() >= 2 || !timing_named;
+    for (k, &set) in sets.iter().enumerate() {
+        let own_clock = (ChannelKind::Clock, set.index);
+        if !timing_named && !named.contains(&own_clock) {
+            // nothing named acts on this set
+            continue;
+        }
+        let mut fitted = if sets.len() >= 2 {
             let rest: Vec<&RateSet> = (0..sets.len())
                 .filter(|&q| q != k)
                 .map(|q| sets[q])
                 .collect();
-            fit_params(models, &rest, shape, named, alpha).0
+            let others: Vec<(ChannelKind, usize)> =
+                named.iter().copied().filter(|c| *c != own_clock).collect();
+            fit_params(models, &rest, shape, &others, alpha).0
         } else {
             p.clone()
         };
-        let one = [sets[k]];
+        let judged = match halves.get(set.index).and_then(Option::as_ref) {
+            Some((early, late)) if named.contains(&own_clock) => {
+                let (e, _) = fit_channel(
+                    models,
+                    &[early],
+                    (ChannelKind::Clock, set.index, shape.0),
+                    &fitted,
+                    alpha,
+                );
+                fitted.clock[set.index] = e;
+                names.extend(set.names.iter().map(|n| format!("{n} (later periods)")));
+                late
+            }
+            _ => {
+                if named.contains(&own_clock) {
+                    held_out = false;
+                    fitted.clock[set.index] = p.clock[set.index];
+                }
+                names.extend(set.names.iter().cloned());
+                set
+            }
+        };
+        let one = [judged];
         before.extend(lines_of(models, &one, &all, &zero)?);
         after.extend(lines_of(models, &one, &all, &fitted)?);
-        names.extend(sets[k].names.iter().cloned());
     }
     let stat = |l: &[Vec<Line>]| statistic(l.iter().map(|x| (x.as_slice(), 1.0)), alpha);
     Ok(MimoGain {
@@ -568,6 +694,45 @@ fn gain(
         measured_on: names,
         held_out,
     })
+}
+
+/// A set's earlier and later steady periods as two sets (`None` when an experiment is not
+/// periodic or has fewer than four steady periods: each half needs two for its variances).
+fn half_sets(set: &[&Experiment], factor: usize, index: usize) -> Option<(RateSet, RateSet)> {
+    let cut = |e: &Experiment, later: bool| -> Option<Experiment> {
+        let period = e.spec.period_samples?.max(1);
+        let total = e.u.len() / period;
+        let skip = e.spec.skip_periods;
+        let steady = total.checked_sub(skip).filter(|s| *s >= 4)?;
+        let (lo, hi) = if later {
+            (skip + steady / 2, total)
+        } else {
+            (skip, skip + steady / 2)
+        };
+        let c = |x: &Vec<f64>| x.get(lo * period..hi * period).map(<[f64]>::to_vec);
+        let many = |v: &[Vec<f64>]| v.iter().map(c).collect::<Option<Vec<_>>>();
+        let mut x = e.clone();
+        x.spec.skip_periods = 0;
+        x.u = c(&e.u)?;
+        x.y = c(&e.y)?;
+        x.r = match &e.r {
+            Some(r) => Some(c(r)?),
+            None => None,
+        };
+        x.extra.u = many(&e.extra.u)?;
+        x.extra.y = many(&e.extra.y)?;
+        x.extra.r = many(&e.extra.r)?;
+        Some(x)
+    };
+    let part = |later: bool| -> Option<RateSet> {
+        let exps = set
+            .iter()
+            .map(|e| cut(e, later))
+            .collect::<Option<Vec<_>>>()?;
+        let refs: Vec<&Experiment> = exps.iter().collect();
+        rate_set(&refs, factor, index).ok().map(|x| x.0)
+    };
+    Some((part(false)?, part(true)?))
 }
 
 /// Every entry's measured FRF at the slowest set and the predictions without and with the
@@ -586,8 +751,10 @@ fn curves(
                 est,
             }];
             let pred = |p: &Params| -> Result<Vec<num_complex::Complex64>> {
+                let mut rt = p.of(i, j);
+                rt.clock_error = vec![p.clock.get(slowest.index).copied().unwrap_or(0.0)];
                 Ok(models[i][j]
-                    .predictions(&p.of(i, j), &t)?
+                    .predictions(&rt, &t)?
                     .into_iter()
                     .next()
                     .unwrap_or_default())
@@ -645,27 +812,29 @@ pub fn diagnose_mimo(
         ));
     }
     progress("MIMO FRFs of every rate");
-    let (fast, fast_frd) = rate_set(&model_set, 1)?;
+    let (fast, fast_frd) = rate_set(&model_set, 1, 0)?;
     let slow: Vec<RateSet> = slow_sets
         .iter()
-        .map(|(s, f)| rate_set(s, *f).map(|x| x.0))
+        .enumerate()
+        .map(|(k, (s, f))| rate_set(s, *f, k).map(|x| x.0))
         .collect::<Result<_>>()?;
+    let sh: Shape = (shape, slow.len());
     progress("common-pole fit of the model set");
     let (fit, order) = fit_model(&fast_frd, opt)?;
     let h = fast_frd.time().ts().unwrap_or(1.0);
     let models = entry_models(&fit.model, &fast, h, opt.alpha)?;
     let sets: Vec<&RateSet> = slow.iter().collect();
-    progress("per-channel hold delays and averaging windows");
-    let channels_all = every_channel(shape);
-    let (p, std) = fit_params(&models, &sets, shape, &channels_all, opt.alpha);
-    let channels = findings(&models, &sets, shape, (&p, &std), opt.alpha)?;
+    progress("per-channel hold delays and averaging windows, per-set clocks");
+    let channels_all = every_channel(sh);
+    let (p, std) = fit_params(&models, &sets, sh, &channels_all, opt.alpha);
+    let channels = findings(&models, &sets, sh, (&p, &std), opt.alpha)?;
     let named: Vec<(ChannelKind, usize)> = channels
         .iter()
         .filter(|c| c.named)
         .map(|c| (c.kind, c.channel))
         .collect();
     // the extension: the named channels' parameters, the others at 0
-    let zero = Params::zero(shape);
+    let zero = Params::zero(sh);
     let ext = named.iter().fold(zero.clone(), |e, &(kind, c)| {
         with(&e, kind, c, p.get(kind, c))
     });
@@ -690,7 +859,24 @@ pub fn diagnose_mimo(
         None
     } else {
         progress("gain on held-out rates");
-        Some(gain(&models, &sets, shape, (&named, &ext), opt.alpha)?)
+        let halves: Vec<Option<(RateSet, RateSet)>> = slow_sets
+            .iter()
+            .enumerate()
+            .map(|(k, (s, f))| {
+                named
+                    .contains(&(ChannelKind::Clock, k))
+                    .then(|| half_sets(s, *f, k))
+                    .flatten()
+            })
+            .collect();
+        Some(gain(
+            &models,
+            &sets,
+            sh,
+            (&named, &ext),
+            &halves,
+            opt.alpha,
+        )?)
     };
     let curves = match sets.last() {
         Some(slowest) => curves(&models, slowest, &ext, &zero)?,

@@ -7,11 +7,23 @@ use sd_diagnose::{ChannelKind, MimoDiagnosis, Verdict};
 use std::fmt::Write as _;
 use std::path::Path;
 
-/// A channel's name as the report prints it (1-based).
-fn channel_name(kind: ChannelKind, c: usize) -> String {
+/// A channel's name as the report prints it (1-based; a clock by its set's experiments).
+fn channel_name(d: &MimoDiagnosis, kind: ChannelKind, c: usize) -> String {
     match kind {
         ChannelKind::Actuator => format!("actuator {}", c + 1),
         ChannelKind::Sensor => format!("sensor {}", c + 1),
+        ChannelKind::Clock => d.validation.get(c).map_or_else(
+            || format!("clock of slower set {}", c + 1),
+            |(names, f)| format!("clock of {} (F = {f})", names.join(", ")),
+        ),
+    }
+}
+
+/// A channel's parameter with its standard error, in the report's units.
+fn parameter_text(kind: ChannelKind, v: f64, std: f64) -> String {
+    match kind {
+        ChannelKind::Clock => format!("{:+.4} % ± {:.4} % of the period", 100.0 * v, 100.0 * std),
+        _ => format!("{v:.4} ± {std:.4} of the sample period"),
     }
 }
 
@@ -24,12 +36,12 @@ pub fn mimo_causes_text(d: &MimoDiagnosis) -> Vec<String> {
             let what = match c.kind {
                 ChannelKind::Actuator => "hold delay",
                 ChannelKind::Sensor => "averaging window",
+                ChannelKind::Clock => "error",
             };
             format!(
-                "{} {what} {:.4} ± {:.4} of the sample period",
-                channel_name(c.kind, c.channel),
-                c.fraction,
-                c.fraction_std
+                "{} {what} {}",
+                channel_name(d, c.kind, c.channel),
+                parameter_text(c.kind, c.fraction, c.fraction_std)
             )
         })
         .collect()
@@ -70,18 +82,18 @@ pub fn mimo_report(d: &MimoDiagnosis, title: &str) -> String {
     );
     md.push_str(
         "## Channels\n\nEach actuator's hold delay acts on its column, each sensor's averaging \
-         window on its row. Statistic: the mean score over the channel's entries' lines at the \
-         slower rates (1 at the noise level), without and with the parameter.\n\n\
-         | channel | fraction of the period | named | without | with | threshold |\n\
+         window on its row, each slower set's clock error (true period = nominal·(1 + e)) on \
+         every entry of that set. Statistic: the mean score over the channel's entries' lines at \
+         the slower rates it acts on (1 at the noise level), without and with the parameter.\n\n\
+         | channel | parameter | named | without | with | threshold |\n\
          |---|---|---|---|---|---|\n",
     );
     for c in &d.channels {
         let _ = writeln!(
             md,
-            "| {} | {:.4} ± {:.4} | {} | {:.2} | {:.2} | {:.2} |",
-            channel_name(c.kind, c.channel),
-            c.fraction,
-            c.fraction_std,
+            "| {} | {} | {} | {:.2} | {:.2} | {:.2} |",
+            channel_name(d, c.kind, c.channel),
+            parameter_text(c.kind, c.fraction, c.fraction_std),
             if c.named { "yes" } else { "no" },
             c.before.value,
             c.after.value,
@@ -111,7 +123,8 @@ pub fn mimo_report(d: &MimoDiagnosis, title: &str) -> String {
             g.measured_on.join(", "),
             g.ratio,
             if g.held_out {
-                " (each slower set held out of the parameters' fit in turn)"
+                " (each slower set held out of the parameters' fit in turn; a set with a named \
+                 clock error judged on its later periods, its clock fitted on the earlier ones)"
             } else {
                 " (measured on the data the parameters were fitted on: with one slower set \
                  nothing is held out)"
@@ -126,8 +139,9 @@ pub fn mimo_report(d: &MimoDiagnosis, title: &str) -> String {
         (Verdict::Discrepancy, false) => "Model the named channels' timing in the plant at the \
             controller's rate (a hold that switches the named fraction of the period late on \
             that actuator's input, or the averaging window on that sensor's output), or fix the \
-            actuator's or sensor's timing in the hardware; the entries above show what the \
-            extension leaves."
+            actuator's or sensor's timing in the hardware; a named clock error means that set's \
+            sample clock is off (check the timer's crystal or divider: its period, not the \
+            plant, differs); the entries above show what the extension leaves."
             .to_string(),
         (Verdict::Discrepancy, true) => "The slower rates disagree and no channel's delay or \
             averaging explains it: look at the entries with the largest statistic (a mode the \

@@ -317,6 +317,14 @@ fn daisy_cd_player_common_poles() {
         entry_states.push(n);
     }
     let ps: usize = entry_states.iter().sum();
+    // every pole an entry needs is in the common model: no common model within the noise has
+    // fewer states than the most demanding entry's fit
+    let floor = *entry_states.iter().max().unwrap();
+    println!(
+        "  the most demanding entry needs {floor} states alone, and a common-pole model within \
+         the noise needs its poles ({:.0} % of the four fits' {ps} states)",
+        100.0 * floor as f64 / ps as f64
+    );
     let each = cmin.model.n().div_ceil(4);
     let pc_same: f64 = [(0, 0), (0, 1), (1, 0), (1, 1)]
         .iter()
