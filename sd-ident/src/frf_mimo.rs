@@ -90,11 +90,18 @@ fn spectra(
     }
     let m = total - opt.skip_periods;
     let (start, len) = (opt.skip_periods * p, m * p);
-    let fft = crate::frf::forward_plan(len);
+    // bins 0 … len/2 of each record; above, X_b = conj(X_{len − b})
     let long: Vec<Vec<C>> = all
         .iter()
-        .map(|x| crate::frf::transform(fft.as_ref(), &x[start..start + len]))
+        .map(|x| crate::frf::transform_real(&x[start..start + len]))
         .collect();
+    let bin = |x: &[C], b: usize| {
+        if b < x.len() {
+            x[b]
+        } else {
+            x[len - b].conj()
+        }
+    };
     let mf = m as f64;
     let half = p / 2;
     let mean: Vec<Vec<C>> = (0..=half)
@@ -111,7 +118,7 @@ fn spectra(
                         if b >= len {
                             continue;
                         }
-                        let z = DMatrix::from_fn(nz, 1, |i, _| long[i][b]);
+                        let z = DMatrix::from_fn(nz, 1, |i, _| bin(&long[i], b));
                         s += &z * z.adjoint();
                         cnt += 1.0;
                     }
