@@ -103,18 +103,26 @@ pub fn read_model(path: &str) -> Result<StateSpace, CliError> {
 
 /// Writes `text` to `out` atomically, or to stdout when `out` is None.
 pub fn emit(text: &str, out: Option<&str>) -> Result<(), CliError> {
+    emit_parts(&[text.as_bytes()], out)
+}
+
+/// [`emit`] of the concatenation of `parts` (a large output formatted in pieces is written
+/// piece by piece, not copied into one string), with the closing newline.
+pub fn emit_parts(parts: &[&[u8]], out: Option<&str>) -> Result<(), CliError> {
+    let mut all: Vec<&[u8]> = parts.to_vec();
+    all.push(b"\n");
     match out {
         None => {
             use std::io::Write;
             let mut so = std::io::stdout().lock();
-            so.write_all(text.as_bytes())
-                .and_then(|_| so.write_all(b"\n"))
+            all.iter()
+                .try_for_each(|p| so.write_all(p))
                 .map_err(|e| CliError {
                     code: 1,
                     message: format!("cannot write stdout: {e}"),
                 })
         }
-        Some(path) => sd_report::write_atomic(Path::new(path), &format!("{text}\n"))
+        Some(path) => sd_report::write_atomic_parts(Path::new(path), &all)
             .map_err(|e| CliError::input(e.to_string())),
     }
 }

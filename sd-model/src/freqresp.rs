@@ -38,10 +38,98 @@ enum Block {
     },
 }
 
+/// The simple poles as arrays for the vectorised sum `Σ_k R_k/(s − t_k)`, `R_k = c_k b_kᵀ`
+/// (`r_*[e·np + k]` for entry `e` of the column-major ny×nu response).
+#[derive(Debug, Clone, Default)]
+struct SimplePoles {
+    t_re: Vec<f64>,
+    t_im: Vec<f64>,
+    r_re: Vec<f64>,
+    r_im: Vec<f64>,
+}
+
+/// Poles per pass of [`SimplePoles::accumulate`] (its reciprocals live on the stack).
+const POLE_CHUNK: usize = 64;
+
+/// Clusters up to this size are evaluated on the stack.
+const SMALL_CLUSTER: usize = 8;
+
+impl SimplePoles {
+    fn new(blocks: &[Block], ny: usize, nu: usize) -> Self {
+        let simple: Vec<(&C, &Vec<C>, &Vec<C>)> = blocks
+            .iter()
+            .filter_map(|b| match b {
+                Block::Simple { t, b, c } => Some((t, b, c)),
+                Block::Cluster { .. } => None,
+            })
+            .collect();
+        let np = simple.len();
+        let mut sp = SimplePoles {
+            t_re: simple.iter().map(|p| p.0.re).collect(),
+            t_im: simple.iter().map(|p| p.0.im).collect(),
+            r_re: vec![0.0; np * ny * nu],
+            r_im: vec![0.0; np * ny * nu],
+        };
+        for (k, (_, b, c)) in simple.iter().enumerate() {
+            for j in 0..nu {
+                for i in 0..ny {
+                    let r = c[i] * b[j];
+                    let e = j * ny + i;
+                    sp.r_re[e * np + k] = r.re;
+                    sp.r_im[e * np + k] = r.im;
+                }
+            }
+        }
+        sp
+    }
+
+    /// `g += Σ_k R_k/(s − t_k)`: per chunk of poles the reciprocals `1/(s − t_k)` (one real
+    /// division each), then per entry a complex dot product in four lanes (plain loops over
+    /// arrays, which the compiler vectorises).
+    fn accumulate(&self, s: C, g: &mut [C]) {
+        let np = self.t_re.len();
+        let (mut ire, mut iim) = ([0.0f64; POLE_CHUNK], [0.0f64; POLE_CHUNK]);
+        let mut start = 0;
+        while start < np {
+            let len = POLE_CHUNK.min(np - start);
+            let (tr, ti) = (&self.t_re[start..start + len], &self.t_im[start..start + len]);
+            for k in 0..len {
+                let (dr, di) = (s.re - tr[k], s.im - ti[k]);
+                let inv = 1.0 / (dr * dr + di * di);
+                ire[k] = dr * inv;
+                iim[k] = -di * inv;
+            }
+            for (e, ge) in g.iter_mut().enumerate() {
+                let rr = &self.r_re[e * np + start..e * np + start + len];
+                let ri = &self.r_im[e * np + start..e * np + start + len];
+                let (mut ar, mut ai) = ([0.0f64; 4], [0.0f64; 4]);
+                let mut k = 0;
+                while k + 4 <= len {
+                    for l in 0..4 {
+                        ar[l] += rr[k + l] * ire[k + l] - ri[k + l] * iim[k + l];
+                        ai[l] += rr[k + l] * iim[k + l] + ri[k + l] * ire[k + l];
+                    }
+                    k += 4;
+                }
+                let (mut sr, mut si) = (ar[0] + ar[1] + ar[2] + ar[3], ai[0] + ai[1] + ai[2] + ai[3]);
+                while k < len {
+                    sr += rr[k] * ire[k] - ri[k] * iim[k];
+                    si += rr[k] * iim[k] + ri[k] * ire[k];
+                    k += 1;
+                }
+                *ge += C::new(sr, si);
+            }
+            start += len;
+        }
+    }
+}
+
 /// A model prepared for fast evaluation at many points.
 #[derive(Debug, Clone)]
 pub struct FreqRespEvaluator {
     blocks: Vec<Block>,
+    /// The simple blocks of `blocks` as arrays (what the per-point sum runs on).
+    simple: SimplePoles,
     d: DMatrix<C>,
     time: SampleTime,
     /// The Hessenberg form when the block form failed its accuracy check.
@@ -194,7 +282,7 @@ impl FreqRespEvaluator {
             &to_complex(&cb),
             SPLIT_BOUND,
         )?;
-        let blocks = bd
+        let blocks: Vec<Block> = bd
             .blocks
             .iter()
             .map(|&(st, sz)| {
@@ -213,8 +301,10 @@ impl FreqRespEvaluator {
                 }
             })
             .collect();
+        let simple = SimplePoles::new(&blocks, sys.ny(), sys.nu());
         let mut ev = FreqRespEvaluator {
             blocks,
+            simple,
             d: to_complex(sys.d()),
             time: sys.time(),
             hess: None,
@@ -295,15 +385,28 @@ impl FreqRespEvaluator {
     /// Adds `Σ_b C̃_b (sI − T_b)⁻¹ B̃_b` to `g` (column-major ny×nu), without allocating for
     /// simple poles.
     fn accumulate(&self, s: C, g: &mut [C], ny: usize) {
+        self.simple.accumulate(s, g);
         for blk in &self.blocks {
             match blk {
-                Block::Simple { t, b, c } => {
-                    let inv = C::new(1.0, 0.0) / (s - t);
-                    for (j, bj) in b.iter().enumerate() {
-                        let w = bj * inv;
-                        let col = &mut g[j * ny..(j + 1) * ny];
-                        for (gi, ci) in col.iter_mut().zip(c.iter()) {
-                            *gi += ci * w;
+                Block::Simple { .. } => {}
+                Block::Cluster { t, b, c } if t.nrows() <= SMALL_CLUSTER => {
+                    // back substitution per input column on the stack (no allocation)
+                    let m = t.nrows();
+                    let mut x = [C::new(0.0, 0.0); SMALL_CLUSTER];
+                    for j in 0..b.ncols() {
+                        for i in (0..m).rev() {
+                            let mut acc = b[(i, j)];
+                            for l in (i + 1)..m {
+                                acc += t[(i, l)] * x[l];
+                            }
+                            x[i] = acc / (s - t[(i, i)]);
+                        }
+                        for (r, gr) in g[j * ny..(j + 1) * ny].iter_mut().enumerate() {
+                            let mut v = C::new(0.0, 0.0);
+                            for (i, xi) in x.iter().enumerate().take(m) {
+                                v += c[(r, i)] * xi;
+                            }
+                            *gr += v;
                         }
                     }
                 }
@@ -384,6 +487,21 @@ impl FreqRespEvaluator {
             .with_min_len(1024)
             .map(|&f| self.eval_hz(f))
             .collect()
+    }
+
+    /// `G` at many frequencies into one flat buffer (parallel): point `k`'s ny·nu entries at
+    /// `k·ny·nu`, column-major as [`Self::eval_hz_into`]; no allocation per point.
+    pub fn eval_many_flat(&self, freq_hz: &[f64]) -> Vec<C> {
+        let m = self.d.nrows() * self.d.ncols();
+        let mut out = vec![C::new(0.0, 0.0); freq_hz.len() * m];
+        if m == 0 {
+            return out;
+        }
+        out.par_chunks_mut(m)
+            .with_min_len(1024)
+            .zip(freq_hz.par_iter())
+            .for_each(|(o, &f)| self.eval_hz_into(f, o));
+        out
     }
 
     /// Block sizes of the reduced form (1 for each simple pole).

@@ -45,8 +45,8 @@ pub use error::{ModelError, Result};
 pub use frd::Frd;
 pub use freqresp::{grid, EvalPath, FreqRespEvaluator};
 pub use json::{
-    frd_from_json_str, frd_to_json_string, model_from_json_str, model_to_json_string, read_model,
-    write_model,
+    frd_from_json_str, frd_json_chunks, frd_to_json_string, model_from_json_str,
+    model_to_json_string, read_model, write_model,
 };
 pub use norms::HinfNorm;
 pub use num_complex::Complex64;

@@ -47,6 +47,16 @@ pub struct ReadmeDoctest;
 /// # Errors
 /// The file cannot be written or renamed into place.
 pub fn write_atomic(path: &std::path::Path, text: &str) -> Result<()> {
+    write_atomic_parts(path, &[text.as_bytes()])
+}
+
+/// [`write_atomic`] of the concatenation of `parts`, written one after the other (a large
+/// output formatted in pieces is not copied into one buffer first).
+///
+/// # Errors
+/// As [`write_atomic`].
+pub fn write_atomic_parts(path: &std::path::Path, parts: &[&[u8]]) -> Result<()> {
+    use std::io::Write;
     let io = |source| ReportError::Io {
         path: path.display().to_string(),
         source,
@@ -59,7 +69,16 @@ pub fn write_atomic(path: &std::path::Path, text: &str) -> Result<()> {
     })?;
     let name = name.to_string_lossy();
     let tmp = path.with_file_name(format!(".{name}.tmp{}", std::process::id()));
-    std::fs::write(&tmp, text).map_err(io)?;
+    let written = std::fs::File::create(&tmp).and_then(|mut f| {
+        for p in parts {
+            f.write_all(p)?;
+        }
+        Ok(())
+    });
+    if let Err(e) = written {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(io(e));
+    }
     std::fs::rename(&tmp, path).map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
         io(e)

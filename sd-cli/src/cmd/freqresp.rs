@@ -1,7 +1,7 @@
 //! `sdctl freqresp`.
 
 use crate::commands::parse_grid;
-use crate::io::{emit, from_model, read_model, CliError};
+use crate::io::{emit_parts, from_model, read_model, CliError};
 
 /// Arguments of `sdctl freqresp`.
 #[derive(clap::Args, Debug)]
@@ -46,17 +46,31 @@ impl Args {
             sys.n(),
             f.len()
         );
-        let frd = sd_model::Frd::new(f.clone(), ev.eval_many(&f), None, sys.time())
-            .map_err(|e| from_model(&model, e))?;
-        let mut txt = sd_model::frd_to_json_string(&frd).map_err(|e| from_model("output", e))?;
-        // the FRD object gains `"eval_path"` (informational, ignored by the readers): spliced
-        // in place before its closing brace rather than copying a large document
-        if txt.pop() != Some('}') {
-            return Err(CliError::numerical(
-                "the FRD JSON writer returned no object".to_string(),
+        // one flat buffer evaluated in parallel, formatted in parallel chunks and written
+        // chunk by chunk (no matrix per point, no single copy of the document)
+        let flat = ev.eval_many_flat(&f);
+        let m = sys.ny() * sys.nu();
+        if let Some(k) = flat.iter().position(|v| !(v.re.is_finite() && v.im.is_finite())) {
+            return Err(from_model(
+                &model,
+                sd_model::ModelError::NonFinite {
+                    what: format!(
+                        "FRD response at {} Hz (a pole on the frequency axis?)",
+                        f[k / m.max(1)]
+                    ),
+                },
             ));
         }
-        txt.push_str(&format!(",\"eval_path\":\"{key}\"}}"));
-        emit(&txt, output.as_deref())
+        // the FRD object gains `"eval_path"` (informational, ignored by the readers)
+        let chunks = sd_model::frd_json_chunks(
+            &f,
+            (sys.ny(), sys.nu()),
+            &flat,
+            sys.time().ts(),
+            &format!(",\"eval_path\":\"{key}\""),
+        )
+        .map_err(|e| from_model("output", e))?;
+        let parts: Vec<&[u8]> = chunks.iter().map(Vec::as_slice).collect();
+        emit_parts(&parts, output.as_deref())
     }
 }
