@@ -92,7 +92,10 @@ impl SimplePoles {
         let mut start = 0;
         while start < np {
             let len = POLE_CHUNK.min(np - start);
-            let (tr, ti) = (&self.t_re[start..start + len], &self.t_im[start..start + len]);
+            let (tr, ti) = (
+                &self.t_re[start..start + len],
+                &self.t_im[start..start + len],
+            );
             for k in 0..len {
                 let (dr, di) = (s.re - tr[k], s.im - ti[k]);
                 let inv = 1.0 / (dr * dr + di * di);
@@ -111,7 +114,8 @@ impl SimplePoles {
                     }
                     k += 4;
                 }
-                let (mut sr, mut si) = (ar[0] + ar[1] + ar[2] + ar[3], ai[0] + ai[1] + ai[2] + ai[3]);
+                let (mut sr, mut si) =
+                    (ar[0] + ar[1] + ar[2] + ar[3], ai[0] + ai[1] + ai[2] + ai[3]);
                 while k < len {
                     sr += rr[k] * ire[k] - ri[k] * iim[k];
                     si += rr[k] * iim[k] + ri[k] * ire[k];

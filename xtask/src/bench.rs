@@ -155,7 +155,8 @@ fn bench_dare_loopshape(ctx: &Ctx) -> Result<DareLoopshape, String> {
     let sol = sol.map_err(err)?;
     let dare = json!({"name": "dare", "size": "60-state stage at 5 kHz, Q = C'C, R = 1",
         "ours_s": t_dare, "ours_rel_residual": sol.residual, "ours_closed_loop_radius": sol.closed_loop,
-        "ours_condition_estimate": sol.condition});
+        "ours_condition_estimate": sol.condition, "ours_doubling_steps": sol.doubling_steps,
+        "ours_refinement_steps": sol.refinement_steps});
     let p1k = c2d(
         &sd_model::stage::paper_stage(0.01).map_err(err)?,
         1e-3,
@@ -579,10 +580,13 @@ pub fn run(quick: bool) -> Result<(), String> {
     let (fmin, fmax) = (0.1, 2500.0);
     let (t_fr_lib, t_fr_proc, frd) = bench_freqresp(&ctx, &sdctl, (fmin, fmax, nfreq))?;
     let (downsample, t_ds, direct_1khz) = bench_downsample(&ctx)?;
+    let peak = crate::physical::peak();
+    let memory = crate::physical::memory(&sdctl, &ctx.dir)?;
     let mut e = Entries {
         c2d: json!({"name": "c2d_zoh", "size": "60 states, 1 input, h = 0.2 ms", "ours_s": t_c2d}),
         freqresp: json!({"name": "freqresp", "size": format!("60 states, {nfreq} frequencies"),
                          "ours_library_s": t_fr_lib, "ours_sdctl_process_s": t_fr_proc}),
+
         downsample,
         dare,
         loopshape,
@@ -619,7 +623,10 @@ pub fn run(quick: bool) -> Result<(), String> {
         eprintln!("[bench] python-control/slycot not importable: peers skipped (pip install control slycot scipy)");
         Value::Null
     };
+    physical_bounds(&mut e, &ctx, &peak, (t_fr_lib, nfreq, t_dare))?;
     let entries = vec![
+        peak,
+        memory,
         e.c2d,
         e.freqresp,
         e.downsample,
@@ -636,6 +643,32 @@ pub fn run(quick: bool) -> Result<(), String> {
         &ctx.dir,
         json!({"quick": quick, "python": python, "entries": entries, "scaling": scaling}),
     )
+}
+
+/// The flops of the freqresp and DARE algorithms next to their times, and the fraction of the
+/// measured peak they reach (freqresp runs on every core, the doubling on one).
+fn physical_bounds(
+    e: &mut Entries,
+    ctx: &Ctx,
+    peak: &Value,
+    (t_fr_lib, nfreq, t_dare): (f64, usize, f64),
+) -> Result<(), String> {
+    let num = |v: &Value| v.as_f64().unwrap_or(f64::NAN);
+    let ev = sd_model::FreqRespEvaluator::new(&ctx.pd).map_err(err)?;
+    let fpp =
+        crate::physical::freqresp_flops_per_point(&ev.block_sizes(), ctx.pd.ny(), ctx.pd.nu());
+    let rate = fpp * nfreq as f64 / t_fr_lib;
+    e.freqresp["flops_per_point"] = json!(fpp);
+    e.freqresp["achieved_gflops"] = json!(rate / 1e9);
+    e.freqresp["fraction_of_all_cores_peak"] = json!(rate / 1e9 / num(&peak["all_cores_gflops"]));
+    let n = ctx.pd.n();
+    let steps = e.dare["ours_doubling_steps"].as_u64().unwrap_or(0) as f64;
+    let per = crate::physical::dare_flops_per_step(n);
+    let rate = steps * per / t_dare;
+    e.dare["flops_per_doubling_step"] = json!(per);
+    e.dare["achieved_gflops_doubling_only"] = json!(rate / 1e9);
+    e.dare["fraction_of_one_core_peak"] = json!(rate / 1e9 / num(&peak["one_core_gflops"]));
+    Ok(())
 }
 
 fn finish(dir: &Path, res: Value) -> Result<(), String> {

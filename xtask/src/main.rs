@@ -5,10 +5,12 @@
 //!   sensor's averaging window as a fraction of each period (default 0.6).
 //! - `cargo xtask bench [--quick]`: medians of our operations and, where python-control and
 //!   slycot import, of the same operations on the same inputs in python-control/scipy, with the
-//!   ratio; written to `target/bench/results.json`.
+//!   ratio; the machine's measured peak with the fraction of it freqresp and the DARE reach,
+//!   and the max RSS of whole processes (`physical`); written to `target/bench/results.json`.
 
 mod bench;
 mod paper;
+mod physical;
 mod scaling;
 mod uncertainty;
 

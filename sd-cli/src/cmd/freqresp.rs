@@ -50,7 +50,10 @@ impl Args {
         // chunk by chunk (no matrix per point, no single copy of the document)
         let flat = ev.eval_many_flat(&f);
         let m = sys.ny() * sys.nu();
-        if let Some(k) = flat.iter().position(|v| !(v.re.is_finite() && v.im.is_finite())) {
+        if let Some(k) = flat
+            .iter()
+            .position(|v| !(v.re.is_finite() && v.im.is_finite()))
+        {
             return Err(from_model(
                 &model,
                 sd_model::ModelError::NonFinite {
