@@ -1824,16 +1824,13 @@ fn multiaxis_testbed_frf_fit() {
         "-o",
         &frd,
     ]);
-    let o = sdctl_ok(&[
-        "fit",
-        &frd,
-        "--order",
-        "8",
-        "--rigid-body",
-        "2",
-        "--strictly-proper",
-        "--json",
-    ]);
+    let fit_with = |extra: &[&str]| {
+        let mut args = vec!["fit", frd.as_str(), "--order", "8", "--rigid-body", "2"];
+        args.extend_from_slice(extra);
+        sdctl(&args)
+    };
+    let o = fit_with(&["--strictly-proper", "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let f: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let freqs: Vec<f64> = f["modes"]
         .as_array()
@@ -1848,18 +1845,7 @@ fn multiaxis_testbed_frf_fit() {
         );
     }
     assert_eq!(f["input_delay"], serde_json::json!([0, 0]));
-    let fit_delay = |v: &str| {
-        sdctl(&[
-            "fit",
-            &frd,
-            "--order",
-            "8",
-            "--rigid-body",
-            "2",
-            "--input-delay",
-            v,
-        ])
-    };
+    let fit_delay = |v: &str| fit_with(&["--input-delay", v]);
     assert_input_error(&fit_delay("-1,0,2"), "3 input delays given for 2 inputs");
     assert_input_error(&fit_delay("aut0"), "is not an input delay");
     let bad = |name: &str, text: &str, needle: &str| {
