@@ -215,6 +215,37 @@ pub(crate) fn transform(fft: &dyn rustfft::Fft<f64>, x: &[f64]) -> Vec<C> {
     buf
 }
 
+/// Spectrum buffers handed back by [`recycle_spectra`], kept for the next estimate (a
+/// 200 000-sample record's spectrum is 1.6 MB: allocated afresh, its pages are faulted in on
+/// every call). At most [`POOL_BYTES`] are kept.
+static SPECTRA: std::sync::Mutex<Vec<Vec<C>>> = std::sync::Mutex::new(Vec::new());
+
+/// Largest total size of the kept spectrum buffers.
+const POOL_BYTES: usize = 64 << 20;
+
+/// An empty buffer with room for `cap` bins (a kept one when one is large enough).
+fn spectrum_buffer(cap: usize) -> Vec<C> {
+    let kept = SPECTRA.lock().ok().and_then(|mut p| {
+        let i = p.iter().position(|v| v.capacity() >= cap)?;
+        Some(p.swap_remove(i))
+    });
+    let mut v = kept.unwrap_or_else(|| Vec::with_capacity(cap));
+    v.clear();
+    v
+}
+
+/// Hands spectra back for reuse (dropped when the kept ones would exceed [`POOL_BYTES`]).
+pub(crate) fn recycle_spectra(vs: impl IntoIterator<Item = Vec<C>>) {
+    if let Ok(mut p) = SPECTRA.lock() {
+        for v in vs {
+            let held: usize = p.iter().map(|x| x.capacity()).sum();
+            if (held + v.capacity()) * std::mem::size_of::<C>() <= POOL_BYTES {
+                p.push(v);
+            }
+        }
+    }
+}
+
 /// An in-place FFT with a scratch buffer kept per thread (`process` allocates and zeroes one
 /// on every call: for a 100 000-point transform that is a few percent of its time).
 fn process_reusing_scratch(fft: &dyn rustfft::Fft<f64>, buf: &mut [C]) {
@@ -273,7 +304,7 @@ pub(crate) fn transform_real(x: &[f64]) -> Vec<C> {
     let h = n / 2;
     // one buffer: Z, then X in place (bins k and h − k depend on Z_k and Z_{h−k} only), then
     // X_{n/2} appended
-    let mut z: Vec<C> = Vec::with_capacity(h + 1);
+    let mut z: Vec<C> = spectrum_buffer(h + 1);
     z.extend(x.chunks_exact(2).map(|p| C::new(p[0], p[1])));
     process_reusing_scratch(forward_plan(h).as_ref(), &mut z);
     let tw = quarter_twiddles(n);
@@ -400,6 +431,7 @@ pub fn frf_periodic(
     let nl_variance = (m >= 2)
         .then(|| nl_variances(&lines, &um, &|j| (mean_at(&yl, j).norm_sqr(), noise(j).1)))
         .flatten();
+    recycle_spectra([ul, yl].into_iter().chain(rl));
     Ok(FrfEstimate {
         frd,
         lines,

@@ -127,6 +127,7 @@ fn spectra(
             })
             .collect()
     });
+    crate::frf::recycle_spectra(long);
     Ok((Spectra { mean, cov }, m))
 }
 
