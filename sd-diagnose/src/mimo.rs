@@ -440,8 +440,13 @@ fn cells(kind: ChannelKind, c: usize, (ny, nu): (usize, usize)) -> Vec<(usize, u
     match kind {
         ChannelKind::Actuator => (0..ny).map(|i| (i, c)).collect(),
         ChannelKind::Sensor => (0..nu).map(|j| (c, j)).collect(),
-        ChannelKind::Clock => (0..ny).flat_map(|i| (0..nu).map(move |j| (i, j))).collect(),
+        ChannelKind::Clock => every_entry((ny, nu)),
     }
+}
+
+/// Every entry, row by row.
+fn every_entry((ny, nu): (usize, usize)) -> Vec<(usize, usize)> {
+    (0..ny).flat_map(|i| (0..nu).map(move |j| (i, j))).collect()
 }
 
 /// The slower sets a channel's parameter acts on: a clock its own set only.
@@ -483,7 +488,10 @@ fn fit_channel(
     let cl = cells(kind, c, shape);
     let own = sets_of(kind, c, sets);
     if kind == ChannelKind::Clock {
-        return fit_clock_of(models, &own, &cl, p, alpha);
+        return match own.first() {
+            Some(set) => fit_clock_of(models, set, &cl, p, alpha),
+            None => (0.0, f64::INFINITY),
+        };
     }
     let mut score = |v: f64| {
         pooled(models, &own, &cl, &with(p, kind, c, v), alpha)
@@ -523,18 +531,15 @@ fn std_of(curv: f64) -> f64 {
     }
 }
 
-/// The clock of `set` (one set: [`sets_of`]) fitted over its entries `cl` with the other
-/// parameters at `p`; the residues do not depend on the clock and are fitted once per entry.
+/// The clock of set `s` fitted over its entries `cl` with the other parameters at `p`; the
+/// residues do not depend on the clock and are fitted once per entry.
 fn fit_clock_of(
     models: &[Vec<Modal<'_>>],
-    set: &[&RateSet],
+    s: &RateSet,
     cl: &[(usize, usize)],
     p: &Params,
     alpha: f64,
 ) -> (f64, f64) {
-    let Some(s) = set.first() else {
-        return (0.0, f64::INFINITY);
-    };
     let res: Vec<_> = cl
         .iter()
         .map(|&(i, j)| models[i][j].residues(p.of(i, j).nonideal()).ok())
@@ -640,7 +645,7 @@ fn gain(
     halves: &[Option<(RateSet, RateSet)>],
     alpha: f64,
 ) -> Result<MimoGain> {
-    let all = cells(ChannelKind::Clock, 0, shape.0);
+    let all = every_entry(shape.0);
     let zero = Params::zero(shape);
     let (mut before, mut after, mut names) = (Vec::new(), Vec::new(), Vec::new());
     let timing_named = named.iter().any(|(k, _)| *k != ChannelKind::Clock);
@@ -849,7 +854,7 @@ pub fn diagnose_mimo(
             });
         }
     }
-    let all: Vec<(usize, usize)> = entries.iter().map(|e| (e.output, e.input)).collect();
+    let all = every_entry(shape);
     let verdict = if pooled(&models, &sets, &all, &zero, opt.alpha)?.passes() {
         Verdict::Consistent
     } else {

@@ -896,7 +896,6 @@ pub fn fit_common_poles_with_progress(
     progress: &mut dyn FnMut(&FitProgress),
 ) -> Result<MimoFitResult> {
     let fo = &opt.fit;
-    crate::fit::check_options(fo)?;
     let (delay, scans) = crate::input_delay::resolve(frd, opt)?;
     let shifted;
     let frd = if delay.iter().any(|d| *d != 0) {

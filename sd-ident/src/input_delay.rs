@@ -98,13 +98,7 @@ pub struct DelayScan {
 /// A continuous-time FRD, or a delay list whose length is not the number of inputs.
 pub fn shift_inputs(frd: &Frd, delay: &[i32]) -> Result<Frd> {
     let ts = crate::fit::discrete_ts(frd)?;
-    let nu = frd.shape().1;
-    if delay.len() != nu {
-        return Err(IdentError::InvalidArgument(format!(
-            "{} input delays given for {nu} inputs: give one per input",
-            delay.len()
-        )));
-    }
+    one_per_input(delay, frd.shape().1)?;
     let resp = frd
         .freq_hz()
         .iter()
@@ -126,6 +120,17 @@ pub fn shift_inputs(frd: &Frd, delay: &[i32]) -> Result<Frd> {
     )?)
 }
 
+/// A delay list must give one delay per input.
+fn one_per_input(delay: &[i32], nu: usize) -> Result<()> {
+    if delay.len() == nu {
+        return Ok(());
+    }
+    Err(IdentError::InvalidArgument(format!(
+        "{} input delays given for {nu} inputs: give one per input",
+        delay.len()
+    )))
+}
+
 /// The delays `opt` asks for, with the scans when they are estimated.
 pub(crate) fn resolve(
     frd: &Frd,
@@ -135,15 +140,12 @@ pub(crate) fn resolve(
     match &opt.input_delay {
         InputDelay::None => Ok((vec![0; nu], Vec::new())),
         InputDelay::Fixed(d) => {
-            if d.len() != nu {
-                return Err(IdentError::InvalidArgument(format!(
-                    "{} input delays given for {nu} inputs: give one per input",
-                    d.len()
-                )));
-            }
+            one_per_input(d, nu)?;
             Ok((d.clone(), Vec::new()))
         }
         InputDelay::Estimate { max } => {
+            // the scan's column fits derive their order from these settings
+            crate::fit::check_options(&opt.fit)?;
             let scans = (0..nu)
                 .map(|j| scan(frd, opt, j, *max))
                 .collect::<Result<Vec<_>>>()?;
@@ -182,23 +184,17 @@ fn scan(frd: &Frd, opt: &crate::MimoFitOptions, j: usize, max: usize) -> Result<
         .iter()
         .find(|(d, _)| *d == 0)
         .map_or(f64::INFINITY, |c| c.1);
-    let m = (2 * frd.len() * ny) as f64;
-    let threshold = at_zero * (1.0 - 5.0 * (2.0 / m).sqrt());
-    let best = cost
-        .iter()
-        .copied()
-        .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.abs().cmp(&b.0.abs())))
-        .unwrap_or((0, at_zero));
+    // five relative standard deviations of a χ² cost with the column's M real equations
+    let five_sd = 5.0 * (2.0 / (2 * frd.len() * ny) as f64).sqrt();
+    let threshold = at_zero * (1.0 - five_sd);
+    let best = cost.iter().map(|c| c.1).fold(f64::INFINITY, f64::min);
     // the shift nearest 0 that explains the column as well as the best, within the band
-    let band = best.1 * (1.0 + 5.0 * (2.0 / m).sqrt());
-    let delay = if best.1 < threshold {
-        cost.iter()
-            .filter(|(_, v)| *v <= band && *v < threshold)
-            .min_by(|a, b| a.0.abs().cmp(&b.0.abs()).then(a.1.total_cmp(&b.1)))
-            .map_or(best.0, |c| c.0)
-    } else {
-        0
-    };
+    let band = best * (1.0 + five_sd);
+    let delay = cost
+        .iter()
+        .filter(|(_, v)| *v <= band && *v < threshold)
+        .min_by(|a, b| a.0.abs().cmp(&b.0.abs()).then(a.1.total_cmp(&b.1)))
+        .map_or(0, |c| c.0);
     Ok(DelayScan {
         input: j,
         delay,

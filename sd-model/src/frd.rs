@@ -6,6 +6,13 @@ use crate::time::SampleTime;
 use nalgebra::DMatrix;
 use num_complex::Complex64 as C;
 
+/// The error of a response that is not finite at `f_hz`.
+pub(crate) fn non_finite_response(f_hz: f64) -> ModelError {
+    ModelError::NonFinite {
+        what: format!("FRD response at {f_hz} Hz (a pole on the frequency axis?)"),
+    }
+}
+
 /// Frequency-response data.
 ///
 /// Invariants (checked by [`Frd::new`]): one ny×nu response per frequency, all of one shape;
@@ -52,12 +59,7 @@ impl Frd {
                 ));
             }
             if r.iter().any(|v| !(v.re.is_finite() && v.im.is_finite())) {
-                return Err(ModelError::NonFinite {
-                    what: format!(
-                        "FRD response at {} Hz (a pole on the frequency axis?)",
-                        freq_hz[i]
-                    ),
-                });
+                return Err(non_finite_response(freq_hz[i]));
             }
         }
         if let Some(var) = &variance {

@@ -15,9 +15,7 @@
 
 use crate::error::{ModelError, Result};
 use crate::frd::Frd;
-use crate::linalg::schur::{
-    block_diagonalize, shifted_triangular_solve, to_complex, BlockDiagonal, SPLIT_BOUND,
-};
+use crate::linalg::schur::{block_diagonalize, to_complex, BlockDiagonal, SPLIT_BOUND};
 use crate::ss::StateSpace;
 use crate::time::SampleTime;
 use nalgebra::DMatrix;
@@ -25,17 +23,13 @@ use num_complex::Complex64 as C;
 use rayon::prelude::*;
 use std::f64::consts::PI;
 
-/// One diagonal block of the reduced form with its input and output maps.
+/// A cluster of the reduced form: upper-triangular `t` (m×m) with its input map `b` (m×nu)
+/// and output map `c` (ny×m).
 #[derive(Debug, Clone)]
-enum Block {
-    /// A simple pole `t` with `B̃` row `b` (nu) and `C̃` column `c` (ny).
-    Simple { t: C, b: Vec<C>, c: Vec<C> },
-    /// A cluster: upper-triangular `t` (m×m), `b` (m×nu), `c` (ny×m).
-    Cluster {
-        t: DMatrix<C>,
-        b: DMatrix<C>,
-        c: DMatrix<C>,
-    },
+struct Cluster {
+    t: DMatrix<C>,
+    b: DMatrix<C>,
+    c: DMatrix<C>,
 }
 
 /// The simple poles as arrays for the vectorised sum `Σ_k R_k/(s − t_k)`, `R_k = c_k b_kᵀ`
@@ -51,29 +45,25 @@ struct SimplePoles {
 /// Poles per pass of [`SimplePoles::accumulate`] (its reciprocals live on the stack).
 const POLE_CHUNK: usize = 64;
 
-/// Clusters up to this size are evaluated on the stack.
+/// Clusters up to this size are solved in a stack buffer.
 const SMALL_CLUSTER: usize = 8;
 
 impl SimplePoles {
-    fn new(blocks: &[Block], ny: usize, nu: usize) -> Self {
-        let simple: Vec<(&C, &Vec<C>, &Vec<C>)> = blocks
-            .iter()
-            .filter_map(|b| match b {
-                Block::Simple { t, b, c } => Some((t, b, c)),
-                Block::Cluster { .. } => None,
-            })
-            .collect();
+    /// The size-one blocks of `bd` (`R_k = C̃ column k · B̃ row k`).
+    fn new(bd: &BlockDiagonal) -> Self {
+        let (ny, nu) = (bd.ct.nrows(), bd.bt.ncols());
+        let simple: Vec<usize> = bd.blocks.iter().filter(|b| b.1 == 1).map(|b| b.0).collect();
         let np = simple.len();
         let mut sp = SimplePoles {
-            t_re: simple.iter().map(|p| p.0.re).collect(),
-            t_im: simple.iter().map(|p| p.0.im).collect(),
+            t_re: simple.iter().map(|&k| bd.t[(k, k)].re).collect(),
+            t_im: simple.iter().map(|&k| bd.t[(k, k)].im).collect(),
             r_re: vec![0.0; np * ny * nu],
             r_im: vec![0.0; np * ny * nu],
         };
-        for (k, (_, b, c)) in simple.iter().enumerate() {
+        for (k, &st) in simple.iter().enumerate() {
             for j in 0..nu {
                 for i in 0..ny {
-                    let r = c[i] * b[j];
+                    let r = bd.ct[(i, st)] * bd.bt[(st, j)];
                     let e = j * ny + i;
                     sp.r_re[e * np + k] = r.re;
                     sp.r_im[e * np + k] = r.im;
@@ -131,9 +121,10 @@ impl SimplePoles {
 /// A model prepared for fast evaluation at many points.
 #[derive(Debug, Clone)]
 pub struct FreqRespEvaluator {
-    blocks: Vec<Block>,
-    /// The simple blocks of `blocks` as arrays (what the per-point sum runs on).
+    /// The size-one blocks, as arrays (what the per-point sum runs on).
     simple: SimplePoles,
+    /// The larger blocks.
+    clusters: Vec<Cluster>,
     d: DMatrix<C>,
     time: SampleTime,
     /// The Hessenberg form when the block form failed its accuracy check.
@@ -286,29 +277,19 @@ impl FreqRespEvaluator {
             &to_complex(&cb),
             SPLIT_BOUND,
         )?;
-        let blocks: Vec<Block> = bd
+        let clusters: Vec<Cluster> = bd
             .blocks
             .iter()
-            .map(|&(st, sz)| {
-                if sz == 1 {
-                    Block::Simple {
-                        t: bd.t[(st, st)],
-                        b: bd.bt.row(st).iter().cloned().collect(),
-                        c: bd.ct.column(st).iter().cloned().collect(),
-                    }
-                } else {
-                    Block::Cluster {
-                        t: bd.t.view((st, st), (sz, sz)).into_owned(),
-                        b: bd.bt.rows(st, sz).into_owned(),
-                        c: bd.ct.columns(st, sz).into_owned(),
-                    }
-                }
+            .filter(|b| b.1 > 1)
+            .map(|&(st, sz)| Cluster {
+                t: bd.t.view((st, st), (sz, sz)).into_owned(),
+                b: bd.bt.rows(st, sz).into_owned(),
+                c: bd.ct.columns(st, sz).into_owned(),
             })
             .collect();
-        let simple = SimplePoles::new(&blocks, sys.ny(), sys.nu());
         let mut ev = FreqRespEvaluator {
-            blocks,
-            simple,
+            simple: SimplePoles::new(&bd),
+            clusters,
             d: to_complex(sys.d()),
             time: sys.time(),
             hess: None,
@@ -386,40 +367,35 @@ impl FreqRespEvaluator {
         }
     }
 
-    /// Adds `Σ_b C̃_b (sI − T_b)⁻¹ B̃_b` to `g` (column-major ny×nu), without allocating for
-    /// simple poles.
+    /// Adds `Σ_b C̃_b (sI − T_b)⁻¹ B̃_b` to `g` (column-major ny×nu): the simple poles as
+    /// arrays, each cluster by back substitution per input column (in a stack buffer up to
+    /// [`SMALL_CLUSTER`], so the usual small clusters allocate nothing).
     fn accumulate(&self, s: C, g: &mut [C], ny: usize) {
         self.simple.accumulate(s, g);
-        for blk in &self.blocks {
-            match blk {
-                Block::Simple { .. } => {}
-                Block::Cluster { t, b, c } if t.nrows() <= SMALL_CLUSTER => {
-                    // back substitution per input column on the stack (no allocation)
-                    let m = t.nrows();
-                    let mut x = [C::new(0.0, 0.0); SMALL_CLUSTER];
-                    for j in 0..b.ncols() {
-                        for i in (0..m).rev() {
-                            let mut acc = b[(i, j)];
-                            for l in (i + 1)..m {
-                                acc += t[(i, l)] * x[l];
-                            }
-                            x[i] = acc / (s - t[(i, i)]);
-                        }
-                        for (r, gr) in g[j * ny..(j + 1) * ny].iter_mut().enumerate() {
-                            let mut v = C::new(0.0, 0.0);
-                            for (i, xi) in x.iter().enumerate().take(m) {
-                                v += c[(r, i)] * xi;
-                            }
-                            *gr += v;
-                        }
+        for Cluster { t, b, c } in &self.clusters {
+            let m = t.nrows();
+            let mut stack = [C::new(0.0, 0.0); SMALL_CLUSTER];
+            let mut heap = Vec::new();
+            let x: &mut [C] = if m <= SMALL_CLUSTER {
+                &mut stack[..m]
+            } else {
+                heap.resize(m, C::new(0.0, 0.0));
+                &mut heap
+            };
+            for j in 0..b.ncols() {
+                for i in (0..m).rev() {
+                    let mut acc = b[(i, j)];
+                    for l in (i + 1)..m {
+                        acc += t[(i, l)] * x[l];
                     }
+                    x[i] = acc / (s - t[(i, i)]);
                 }
-                Block::Cluster { t, b, c } => {
-                    let x = shifted_triangular_solve(t, s, b);
-                    let cx = c * x;
-                    for (gi, v) in g.iter_mut().zip(cx.iter()) {
-                        *gi += v;
+                for (r, gr) in g[j * ny..(j + 1) * ny].iter_mut().enumerate() {
+                    let mut v = C::new(0.0, 0.0);
+                    for (i, xi) in x.iter().enumerate() {
+                        v += c[(r, i)] * xi;
                     }
+                    *gr += v;
                 }
             }
         }
@@ -508,14 +484,10 @@ impl FreqRespEvaluator {
         out
     }
 
-    /// Block sizes of the reduced form (1 for each simple pole).
+    /// Block sizes of the reduced form: 1 for each simple pole, then each cluster's size.
     pub fn block_sizes(&self) -> Vec<usize> {
-        self.blocks
-            .iter()
-            .map(|b| match b {
-                Block::Simple { .. } => 1,
-                Block::Cluster { t, .. } => t.nrows(),
-            })
+        std::iter::repeat_n(1, self.simple.t_re.len())
+            .chain(self.clusters.iter().map(|c| c.t.nrows()))
             .collect()
     }
 }

@@ -415,7 +415,8 @@ pub fn frd_to_json_string(frd: &Frd) -> Result<String> {
 /// brace. For large FRDs (`sdctl freqresp`): no per-point matrices, no single growing buffer.
 ///
 /// # Errors
-/// A response whose length is not `freq_hz.len()·ny·nu`.
+/// A response whose length is not `freq_hz.len()·ny·nu`, or that is not finite (as
+/// [`Frd::new`] refuses it).
 pub fn frd_json_chunks(
     freq_hz: &[f64],
     (ny, nu): (usize, usize),
@@ -431,6 +432,12 @@ pub fn frd_json_chunks(
             freq_hz.len() * m,
             resp.len(),
         ));
+    }
+    if let Some(k) = resp
+        .iter()
+        .position(|v| !(v.re.is_finite() && v.im.is_finite()))
+    {
+        return Err(crate::frd::non_finite_response(freq_hz[k / m]));
     }
     const POINTS: usize = 8192;
     let num = |buf: &mut Vec<u8>, x: f64| {
@@ -512,7 +519,8 @@ mod tests {
     }
 
     /// The chunked writer gives the streamed writer's text, byte for byte, on a 2×3 FRD of
-    /// 20 000 points (three chunks), and on an empty one.
+    /// 20 000 points (three chunks), and on an empty one; a wrong length and a non-finite
+    /// response are refused.
     #[test]
     fn chunked_frd_json_equals_the_streamed_one() {
         let n = 20_000;
@@ -550,6 +558,13 @@ mod tests {
             frd_to_json_string(&e).unwrap()
         );
         assert!(frd_json_chunks(&f, (2, 2), &flat, None, "").is_err());
+        // a non-finite response is refused as Frd::new refuses it, naming its frequency
+        let mut bad = flat.clone();
+        bad[6 * 5 + 2] = C::new(f64::INFINITY, 0.0);
+        let e = frd_json_chunks(&f, (2, 3), &bad, None, "")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(&format!("at {} Hz", f[5])), "{e}");
     }
 
     #[test]

@@ -83,7 +83,9 @@ const TRUTH_KEYS: &[&str] = &[
     "mode",
 ];
 const MODE_KEYS: &[&str] = &["freq_hz", "zeta", "residue", "cubic"];
-const NONIDEAL_KEYS: &[&str] = &["hold_delay", "averaging", "clock_error", "quantization"];
+/// The keys of `[nonideal]` (the multi-axis configuration's too, where each may be a list).
+pub(crate) const NONIDEAL_KEYS: &[&str] =
+    &["hold_delay", "averaging", "clock_error", "quantization"];
 /// The keys of an `[[experiment]]` table (both kinds; the module docs say which applies).
 const EXPERIMENT_KEYS: &[&str] = &[
     "kind",

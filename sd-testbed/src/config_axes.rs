@@ -49,7 +49,7 @@ use sd_ident::Role;
 const TOP_KEYS: &[&str] = &["seed", "stage", "nonideal", "experiment"];
 const STAGE_KEYS: &[&str] = &["mode"];
 const MODE_KEYS: &[&str] = &["freq_hz", "zeta", "input", "output"];
-const NONIDEAL_KEYS: &[&str] = &["hold_delay", "averaging", "clock_error", "quantization"];
+use crate::config::NONIDEAL_KEYS;
 const EXPERIMENT_KEYS: &[&str] = &[
     "kind",
     "name",

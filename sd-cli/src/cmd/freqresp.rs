@@ -49,21 +49,6 @@ impl Args {
         // one flat buffer evaluated in parallel, formatted in parallel chunks and written
         // chunk by chunk (no matrix per point, no single copy of the document)
         let flat = ev.eval_many_flat(&f);
-        let m = sys.ny() * sys.nu();
-        if let Some(k) = flat
-            .iter()
-            .position(|v| !(v.re.is_finite() && v.im.is_finite()))
-        {
-            return Err(from_model(
-                &model,
-                sd_model::ModelError::NonFinite {
-                    what: format!(
-                        "FRD response at {} Hz (a pole on the frequency axis?)",
-                        f[k / m.max(1)]
-                    ),
-                },
-            ));
-        }
         // the FRD object gains `"eval_path"` (informational, ignored by the readers)
         let chunks = sd_model::frd_json_chunks(
             &f,
@@ -72,7 +57,7 @@ impl Args {
             sys.time().ts(),
             &format!(",\"eval_path\":\"{key}\""),
         )
-        .map_err(|e| from_model("output", e))?;
+        .map_err(|e| from_model(&model, e))?;
         let parts: Vec<&[u8]> = chunks.iter().map(Vec::as_slice).collect();
         emit_parts(&parts, output.as_deref())
     }
