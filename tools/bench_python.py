@@ -7,6 +7,7 @@ CASES.json: {"c2d": {"model": path, "ts": h, "repeats": k},
              "downsample": {"model": path (DT), "factor": F, "repeats": k},   (optional)
              "dare": {"model": path (DT), "repeats": k},                     (optional)
              "loopshape": {"plant": path, "w1": path, "repeats": k},         (optional)
+             "loopshape60": {"plant": path, "w1": path, "repeats": k},       (optional; the 60-state one)
              "frf": {"u": f64 file, "y": f64 file, "period": P, "skip": S, "repeats": k}}
 The c2d and freqresp cases are also timed through our own Python package (`sdtoolkit`, from
 `pip install ./sd-python`) when it is importable: the cost of calling the library from Python.
@@ -141,19 +142,28 @@ if dr:
         res["dare_python_control"] = {"median_s": t, "rel_residual": rr, "closed_loop_radius": rho}
     except Exception as e:
         res["dare_python_control"] = {"error": str(e).strip().splitlines()[0][:200]}
-ls = cases.get("loopshape")
-if ls:
+def shaped_gamma_min(case):
+    """gamma_min of W1*P from scipy's two DAREs (control and filter), the peer of our design."""
     import scipy.linalg
-    (pa, pb, pc, pd_), pts = load(ls["plant"])
-    (wa, wb, wc, wd), _ = load(ls["w1"])
+    (pa, pb, pc, pd_), pts = load(case["plant"])
+    (wa, wb, wc, wd), _ = load(case["w1"])
     def gamma_min():
         gs = control.series(control.ss(wa, wb, wc, wd, pts), control.ss(pa, pb, pc, pd_, pts))
         a, b, c = np.asarray(gs.A), np.asarray(gs.B), np.asarray(gs.C)
         x = scipy.linalg.solve_discrete_are(a, b, c.T @ c, np.eye(b.shape[1]))
         z = scipy.linalg.solve_discrete_are(a.T, c.T, b @ b.T, np.eye(c.shape[0]))
         return float(np.sqrt(1 + max(abs(np.linalg.eigvals(x @ z)))))
-    t, g = median_time(gamma_min, ls["repeats"])
-    res["loopshape_scipy_gamma_min"] = {"median_s": t, "gamma_min": g}
+    t, g = median_time(gamma_min, case["repeats"])
+    return {"median_s": t, "gamma_min": g}
+
+
+if cases.get("loopshape"):
+    res["loopshape_scipy_gamma_min"] = shaped_gamma_min(cases["loopshape"])
+if cases.get("loopshape60"):
+    try:
+        res["loopshape60_scipy_two_dares"] = shaped_gamma_min(cases["loopshape60"])
+    except Exception as e:
+        res["loopshape60_scipy_two_dares"] = {"error": str(e).strip().splitlines()[0][:200]}
 fr = cases.get("frf")
 if fr:
     u = np.fromfile(fr["u"], dtype="<f8"); y = np.fromfile(fr["y"], dtype="<f8")

@@ -28,7 +28,7 @@ pub mod weights;
 
 pub use error::{HinfError, Result};
 pub use loopshape::{gamma_min, loopshape, Loopshape, LoopshapeOptions, RiccatiReport};
-pub use riccati::{care, dare, RiccatiSolution};
+pub use riccati::{care, care_residual_of, dare, RiccatiSolution};
 
 /// The crate README's example, compiled and run as a doctest.
 #[cfg(doctest)]

@@ -377,6 +377,33 @@ fn care_residual(d: &Data, x: &DMatrix<f64>) -> Result<(DMatrix<f64>, f64, DMatr
     Ok((res.clone(), res.norm() / scale.max(f64::MIN_POSITIVE), k))
 }
 
+/// The relative residual of a given symmetric `x` in the CARE `(a, b, q, r, s)` (the measure
+/// [`care`] reports: `‖AᵀX + XA − (XB + S)R⁻¹(BᵀX + Sᵀ) + Q‖_F` over the sum of the terms'
+/// norms). For a solution obtained otherwise, e.g. the DARE solution that the exact bilinear
+/// map carries over unchanged (loopshaping).
+///
+/// # Errors
+/// As [`care`]: shapes, NaN, asymmetry, R not positive definite; `x` not n×n.
+pub fn care_residual_of(
+    a: &DMatrix<f64>,
+    b: &DMatrix<f64>,
+    q: &DMatrix<f64>,
+    r: &DMatrix<f64>,
+    s: Option<&DMatrix<f64>>,
+    x: &DMatrix<f64>,
+) -> Result<f64> {
+    let d = check(a, b, q, r, s)?;
+    if x.shape() != a.shape() {
+        return Err(ModelError::dim(
+            "X",
+            format!("{}x{}", a.nrows(), a.ncols()),
+            format!("{}x{}", x.nrows(), x.ncols()),
+        )
+        .into());
+    }
+    Ok(care_residual(&d, x)?.1)
+}
+
 /// Stabilizing solution of the CARE (module documentation). R must be positive definite.
 ///
 /// # Errors

@@ -23,3 +23,6 @@ pub const PBH: f64 = 1e-10;
 /// Relative agreement required between γ_min from the discrete Riccati equations and from the
 /// bilinear continuous problem.
 pub const GAMMA_AGREE: f64 = 1e-6;
+/// Relative CARE residual up to which the DARE solutions are taken as the solutions of the
+/// bilinear continuous problem (they are the same matrices; above it the CAREs are solved).
+pub const BILINEAR_RESIDUAL: f64 = 1e-10;

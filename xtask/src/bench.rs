@@ -71,6 +71,7 @@ struct Entries {
     downsample: Value,
     dare: Value,
     loopshape: Value,
+    loopshape60: Value,
     frf: Value,
     fit: Value,
     testbed: Value,
@@ -85,6 +86,9 @@ struct Ours {
     t_ds: f64,
     t_dare: f64,
     t_ls: f64,
+    t_ls60: f64,
+    gamma_min60: f64,
+    p60_path: PathBuf,
     t_frf: f64,
     gamma_min: f64,
     frd: sd_model::Frd,
@@ -173,7 +177,7 @@ fn bench_dare_loopshape(ctx: &Ctx) -> Result<DareLoopshape, String> {
     write_model(&p1k_path, &p1k)?;
     write_model(&w1_path, &w1)?;
     let ls = json!({"name": "loopshape", "size": "paper stage at 1 kHz (4 states) with a PID-like W1 (3 states)",
-        "ours_full_design_s": t_ls, "ours_gamma_min": design.gamma_min});
+        "ours_full_design_s": t_ls, "ours_gamma_min": design.gamma_min, "ours_achieved": design.achieved});
     Ok(DareLoopshape {
         dare,
         loopshape: ls,
@@ -183,6 +187,45 @@ fn bench_dare_loopshape(ctx: &Ctx) -> Result<DareLoopshape, String> {
         p1k_path,
         w1_path,
     })
+}
+
+/// Loopshaping of the 60-state stage at 1 kHz (Lemma 6 of the 5 kHz stage) with the PID-like
+/// W1 of the 4-state entry: the library call and the whole `sdctl loopshape` process (reading
+/// both models, the design, its checks, the controller written as JSON). Returns the entry, the
+/// process time, γ_min and the plant's file for the peer.
+fn bench_loopshape60(
+    ctx: &Ctx,
+    sdctl: &Path,
+    w1_path: &Path,
+) -> Result<(Value, f64, f64, PathBuf), String> {
+    eprintln!("[bench] loopshaping of the 60-state stage at 1 kHz (library and sdctl process)...");
+    let slow = sd_multirate::downsample(&ctx.pd, 5).map_err(err)?;
+    let w1 = sd_hinf::weights::pid(65.0, 20.0, Some(1e-3), &Default::default()).map_err(err)?;
+    let (t_lib, design) = time_it(ctx.reps, || {
+        sd_hinf::loopshape(&slow, Some(&w1), None, &Default::default())
+    });
+    let design = design.map_err(err)?;
+    let plant_path = ctx.dir.join("stage60_1khz.json");
+    write_model(&plant_path, &slow)?;
+    let out_path = ctx.dir.join("loopshape60_k.json");
+    let (t_proc, ok) = time_it(ctx.reps, || {
+        Command::new(sdctl)
+            .args(["loopshape", &plant_path.to_string_lossy(), "--w1"])
+            .arg(w1_path)
+            .args(["-o", &out_path.to_string_lossy()])
+            .status()
+            .map(|s| s.success())
+            .unwrap_or(false)
+    });
+    if !ok {
+        return Err("sdctl loopshape of the 60-state stage failed".into());
+    }
+    let entry = json!({"name": "loopshape_stage60",
+        "size": "60-state stage at 1 kHz (Lemma 6 of the 5 kHz stage) with a PID-like W1 (3 states)",
+        "ours_library_s": t_lib, "ours_sdctl_process_s": t_proc, "ours_gamma_min": design.gamma_min,
+        "ours_achieved": design.achieved, "ours_gamma": design.gamma,
+        "ours_closed_loop_stable": design.closed_loop_stable});
+    Ok((entry, t_proc, design.gamma_min, plant_path))
 }
 
 /// Periodic FRF estimation: the 5 kHz stage driven by a multisine, 21 periods of 10 000
@@ -440,6 +483,7 @@ fn run_peers(root: &Path, ctx: &Ctx, o: &Ours) -> Result<Value, String> {
         "downsample": {"model": ctx.dt_path, "factor": 5, "repeats": reps * 10},
         "dare": {"model": ctx.dt_path, "repeats": reps},
         "loopshape": {"plant": o.p1k_path, "w1": o.w1_path, "repeats": reps * 4},
+        "loopshape60": {"plant": o.p60_path, "w1": o.w1_path, "repeats": reps},
         "frf": {"u": o.u_path, "y": o.y_path, "period": 10_000, "skip": 1, "repeats": reps},
         "fit": {"frd": ctx.dir.join(FIT_FRD), "poles": 60, "repeats": ctx.few()},
     });
@@ -529,6 +573,12 @@ fn compare_others(py: &Value, o: &Ours, e: &mut Entries) {
         json!(num(&pl["median_s"]) / o.t_ls);
     e.loopshape["gamma_min_rel_difference"] =
         json!((num(&pl["gamma_min"]) - o.gamma_min).abs() / o.gamma_min);
+    let pl = &py["loopshape60_scipy_two_dares"];
+    e.loopshape60["peer"] = json!({"scipy_two_dares_and_gamma_min_only": pl});
+    e.loopshape60["ratio_scipy_two_dares_over_our_sdctl_process"] =
+        json!(num(&pl["median_s"]) / o.t_ls60);
+    e.loopshape60["gamma_min_rel_difference"] =
+        json!((num(&pl["gamma_min"]) - o.gamma_min60).abs() / o.gamma_min60);
     let pf = &py["frf_numpy_periodic_average"];
     e.frf["peer"] = json!({"numpy_fft_period_average": pf});
     e.frf["ratio_numpy_over_ours"] = json!(num(&pf["median_s"]) / o.t_frf);
@@ -572,6 +622,7 @@ pub fn run(quick: bool) -> Result<(), String> {
         p1k_path,
         w1_path,
     } = bench_dare_loopshape(&ctx)?;
+    let (loopshape60, t_ls60, gamma_min60, p60_path) = bench_loopshape60(&ctx, &sdctl, &w1_path)?;
     let (frf, t_frf, u_path, y_path) = bench_frf(&ctx)?;
     let fit = bench_fit(&ctx)?;
     eprintln!("[bench] an order-60 common-pole fit of the two-axis stage (2x2 x 2500 lines)...");
@@ -590,6 +641,7 @@ pub fn run(quick: bool) -> Result<(), String> {
         downsample,
         dare,
         loopshape,
+        loopshape60,
         frf,
         fit,
         testbed,
@@ -602,6 +654,9 @@ pub fn run(quick: bool) -> Result<(), String> {
         t_ds,
         t_dare,
         t_ls,
+        t_ls60,
+        gamma_min60,
+        p60_path,
         t_frf,
         gamma_min,
         frd,
@@ -632,6 +687,7 @@ pub fn run(quick: bool) -> Result<(), String> {
         e.downsample,
         e.dare,
         e.loopshape,
+        e.loopshape60,
         e.frf,
         e.fit,
         fit_mimo,
