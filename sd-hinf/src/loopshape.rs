@@ -132,29 +132,19 @@ impl CoprimeData {
 pub fn gamma_min(gs: &StateSpace) -> Result<(f64, RiccatiSolution, RiccatiSolution)> {
     let (a, b, c) = (gs.a(), gs.b(), gs.c());
     let k = CoprimeData::new(gs);
-    let (x, z) = if gs.time().is_continuous() {
-        (
-            care(a, b, &k.q, &k.r, Some(&k.cross_x))?,
-            care(
-                &a.transpose(),
-                &c.transpose(),
-                &k.bbt,
-                &k.s,
-                Some(&k.cross_z),
-            )?,
-        )
+    let solve = if gs.time().is_continuous() {
+        care
     } else {
-        (
-            dare(a, b, &k.q, &k.r, Some(&k.cross_x))?,
-            dare(
-                &a.transpose(),
-                &c.transpose(),
-                &k.bbt,
-                &k.s,
-                Some(&k.cross_z),
-            )?,
-        )
+        dare
     };
+    let x = solve(a, b, &k.q, &k.r, Some(&k.cross_x))?;
+    let z = solve(
+        &a.transpose(),
+        &c.transpose(),
+        &k.bbt,
+        &k.s,
+        Some(&k.cross_z),
+    )?;
     Ok((gamma_of(&x.x, &z.x)?, x, z))
 }
 
@@ -172,8 +162,9 @@ fn gamma_of(x: &DMatrix<f64>, z: &DMatrix<f64>) -> Result<f64> {
 /// solutions over unchanged (`X_c = X_d`, `Z_c = Z_d`: the stable invariant subspace of the
 /// Hamiltonian is the Cayley image of the symplectic pencil's stable deflating subspace, and
 /// both are the graph of the same X), so the DARE solutions are checked by their residuals in
-/// the CAREs (O(n³) products instead of two ordered Schur forms of order 2n; measured
-/// `‖X_c − X_d‖/‖X_c‖` = 1.7e-14 on the 60-state stage with a PID weight). When a residual
+/// the CAREs (O(n³) products instead of two ordered Schur forms of order 2n; the test
+/// `loopshaping::discrete_design_reuses_the_dare_solutions` measures `‖X_c − X_d‖/‖X_c‖` on the
+/// 60-state stage with a PID weight: 1.4e-15). When a residual
 /// exceeds [`crate::tol::BILINEAR_RESIDUAL`] (an ill-conditioned problem), the CAREs are solved
 /// and γ_min from both routes must agree within [`crate::tol::GAMMA_AGREE`].
 fn continuous_solutions(

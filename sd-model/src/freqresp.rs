@@ -149,7 +149,7 @@ const CHECKED_SIMPLE: usize = 64;
 
 /// A point near eigenvalue `lam` on the stability boundary (`delta` away, relative) where the
 /// reduced forms are checked against dense solves.
-fn check_point(time: SampleTime, lam: C, delta: f64) -> C {
+pub(crate) fn check_point(time: SampleTime, lam: C, delta: f64) -> C {
     match time {
         SampleTime::Continuous => {
             C::new(0.0, lam.im) + C::new(1.0, 1.0) * (delta * lam.norm().max(1.0))

@@ -14,7 +14,7 @@
 //!   `z = (1 + s)/(1 − s)` (H∞ norm invariant; ωh = 2 atan ν).
 
 use crate::error::{ModelError, Result};
-use crate::freqresp::FreqRespEvaluator;
+use crate::freqresp::{check_point, FreqRespEvaluator};
 use crate::linalg::convert::eigenvalues;
 use crate::linalg::expm::norm1;
 use crate::linalg::lyap::{lyap, LyapKind};
@@ -151,7 +151,7 @@ fn bilinear_to_ct(sys: &StateSpace) -> Result<StateSpace> {
 /// through the block-diagonal [`FreqRespEvaluator`] (a complex Schur form: most of the time of
 /// a 126-state closed loop's norm before).
 fn hinf_ct(sys: &StateSpace, poles: &[C]) -> Result<(f64, f64)> {
-    if let Some(m) = Modal::new(sys, poles) {
+    if let Some(m) = Modal::new(sys) {
         let sig = |w: f64| sigma_max(&m.eval(C::new(0.0, w)));
         let (v, w) = hinf_search(sys, poles, &sig)?;
         if !w.is_finite() {
@@ -185,10 +185,10 @@ struct Modal {
 }
 
 impl Modal {
-    fn new(sys: &StateSpace, poles: &[C]) -> Option<Self> {
+    fn new(sys: &StateSpace) -> Option<Self> {
         use faer::linalg::solvers::Solve;
         let n = sys.n();
-        if n == 0 || poles.iter().any(|p| p.re.abs() == 0.0) {
+        if n == 0 {
             return None;
         }
         let (ab, dv) = crate::linalg::expm::balance_diag(sys.a());
@@ -220,13 +220,15 @@ impl Modal {
             wb,
             d: crate::linalg::schur::to_complex(sys.d()),
         };
-        let cond = |k: usize| {
-            let vk: f64 = (0..n).map(|i| v[(i, k)].norm_sqr()).sum();
-            let wk: f64 = (0..n).map(|i| vinv[(k, i)].norm_sqr()).sum();
-            (vk * wk).sqrt()
-        };
+        let cond: Vec<f64> = (0..n)
+            .map(|k| {
+                let vk: f64 = (0..n).map(|i| v[(i, k)].norm_sqr()).sum();
+                let wk: f64 = (0..n).map(|i| vinv[(k, i)].norm_sqr()).sum();
+                (vk * wk).sqrt()
+            })
+            .collect();
         let mut by_cond: Vec<usize> = (0..n).collect();
-        by_cond.sort_by(|&a, &b| cond(b).total_cmp(&cond(a)));
+        by_cond.sort_by(|&a, &b| cond[b].total_cmp(&cond[a]));
         let mut by_axis: Vec<usize> = (0..n).collect();
         by_axis.sort_by(|&a, &b| m.lam[a].re.abs().total_cmp(&m.lam[b].re.abs()));
         let ok = by_cond
@@ -234,8 +236,7 @@ impl Modal {
             .take(8)
             .chain(by_axis.iter().take(8))
             .all(|&k| {
-                let lam = m.lam[k];
-                let s = C::new(0.0, lam.im) + C::new(1.0, 1.0) * (1e-3 * lam.norm().max(1.0));
+                let s = check_point(SampleTime::Continuous, m.lam[k], 1e-3);
                 match sys.eval_direct(s) {
                     Ok(g) => {
                         let gn = g.norm();
