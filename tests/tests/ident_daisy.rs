@@ -214,8 +214,9 @@ fn daisy_robot_arm_halves_are_consistent() {
 ///    four SISO fits (each entry its own lowest order 8, 12, … up to 64), and the cost of
 ///    four SISO fits with the common fit's state count between them.
 ///
-/// Slower alternatives: `CD_ORDERS=6,8,12,16,20,24,32,40 cargo test --release -p sd-tests
-/// --test ident_daisy common_poles -- --nocapture` prints the cost of both at those orders.
+/// Slower alternatives: `CD_ORDERS=16,24,32,40,48,56,60 cargo test --release -p sd-tests
+/// --test ident_daisy common_poles -- --nocapture` prints the cost of both at those orders,
+/// without and with the estimated input delays.
 #[test]
 fn daisy_cd_player_common_poles() {
     let d = load("CD_player_arm.dat", 4);
@@ -249,23 +250,6 @@ fn daisy_cd_player_common_poles() {
         .unwrap();
         (r.cost, r.model.n())
     };
-    let orders: Vec<usize> = std::env::var("CD_ORDERS").map_or(Vec::new(), |s| {
-        s.split(',').map(|x| x.parse().unwrap()).collect()
-    });
-    for order in orders {
-        let (c, t) = common(order, sd_ident::InputDelay::None);
-        let (pc, ps) = [(0, 0), (0, 1), (1, 0), (1, 1)]
-            .iter()
-            .map(|&ab| per_entry(frd, order, ab))
-            .fold((0.0, 0), |(c, n), (ci, ni)| (c + ci, n + ni));
-        println!(
-            "CD player order {order}, no input delay: common poles {:.2} per entry line, {} \
-             states, {t:.2} s; four SISO fits {:.2}, {ps} states",
-            c.cost / lines,
-            c.model.n(),
-            pc / lines
-        );
-    }
     // 1. the input delays, estimated with the order-60 fit
     let (c60, t) = common(60, sd_ident::InputDelay::Estimate { max: 8 });
     let delay = c60.input_delay.clone();
@@ -296,12 +280,32 @@ fn daisy_cd_player_common_poles() {
     assert_eq!((c60.model.ny(), c60.model.nu()), (2, 2));
     // 2.-3. the fewest states within the noise
     let fixed = sd_ident::InputDelay::Fixed(delay.clone());
+    let orders: Vec<usize> = std::env::var("CD_ORDERS").map_or(Vec::new(), |s| {
+        s.split(',').map(|x| x.parse().unwrap()).collect()
+    });
+    let shifted = sd_ident::shift_inputs(frd, &delay).unwrap();
+    for order in orders {
+        for (shift, data) in [(sd_ident::InputDelay::None, frd), (fixed.clone(), &shifted)] {
+            let (c, t) = common(order, shift.clone());
+            let (pc, ps) = [(0, 0), (0, 1), (1, 0), (1, 1)]
+                .iter()
+                .map(|&ab| per_entry(data, order, ab))
+                .fold((0.0, 0), |(c, n), (ci, ni)| (c + ci, n + ni));
+            println!(
+                "CD player order {order}, input delays {shift:?}: common poles {:.3} per entry \
+                 line, {} states, {t:.2} s; four SISO fits {:.3}, {ps} states (noise {noise:.3})",
+                c.cost / lines,
+                c.model.n(),
+                pc / lines
+            );
+        }
+    }
+
     let (cmin, order_c) = (40..=64)
         .step_by(4)
         .map(|o| (common(o, fixed.clone()).0, o))
         .find(|(r, _)| r.cost / lines <= noise)
         .expect("a common-pole fit within the noise");
-    let shifted = sd_ident::shift_inputs(frd, &delay).unwrap();
     let mut entry_states = Vec::new();
     for ab in [(0, 0), (0, 1), (1, 0), (1, 1)] {
         let (o, n) = (8..=64)
