@@ -137,14 +137,14 @@ pub fn gamma_min(gs: &StateSpace) -> Result<(f64, RiccatiSolution, RiccatiSoluti
     } else {
         dare
     };
-    let x = solve(a, b, &k.q, &k.r, Some(&k.cross_x))?;
-    let z = solve(
-        &a.transpose(),
-        &c.transpose(),
-        &k.bbt,
-        &k.s,
-        Some(&k.cross_z),
-    )?;
+    // the two equations are independent: one on each core
+    let at = a.transpose();
+    let ct = c.transpose();
+    let (x, z) = rayon::join(
+        || solve(a, b, &k.q, &k.r, Some(&k.cross_x)),
+        || solve(&at, &ct, &k.bbt, &k.s, Some(&k.cross_z)),
+    );
+    let (x, z) = (x?, z?);
     Ok((gamma_of(&x.x, &z.x)?, x, z))
 }
 
@@ -443,10 +443,14 @@ pub fn loopshape(
             (gm, gamma, ks)
         }
     };
-    let achieved = four_block(&gs, &ks)?.hinf_norm()?.value;
     let controller = series(&series(&w2, &ks)?, &w1)?;
     let cl = feedback(plant, &controller, -1.0)?;
-    let (closed_loop_radius, closed_loop_stable) = pole_measure(&cl)?;
+    // the achieved norm and the closed loop's poles are independent: one on each core
+    let (achieved, poles) = rayon::join(
+        || -> Result<f64> { Ok(four_block(&gs, &ks)?.hinf_norm()?.value) },
+        || pole_measure(&cl),
+    );
+    let (achieved, (closed_loop_radius, closed_loop_stable)) = (achieved?, poles?);
     Ok(Loopshape {
         gamma_min: gamma_min_v,
         gamma,

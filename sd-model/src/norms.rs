@@ -82,7 +82,12 @@ impl StateSpace {
 
     /// H∞ norm and its peak frequency (L∞ for unstable models without boundary poles).
     pub fn hinf_norm(&self) -> Result<HinfNorm> {
-        let poles = self.poles()?;
+        // one eigendecomposition gives the poles and the basis σ_max is evaluated in
+        let eig = Eigen::of(self.a());
+        let poles = match &eig {
+            Some(e) => e.lam.clone(),
+            None => self.poles()?,
+        };
         let scale = norm1(self.a()).max(1.0);
         let (on_boundary, stable, h) = match self.time() {
             SampleTime::Continuous => (
@@ -115,7 +120,9 @@ impl StateSpace {
                 poles.iter().map(|z| (z - 1.0) / (z + 1.0)).collect(),
             ),
         };
-        let (val, w) = hinf_ct(&ct, &ct_poles)?;
+        // the bilinear image has the same eigenvectors (A_c = (A + I)⁻¹(A − I))
+        let modal = eig.and_then(|e| Modal::new(&ct, &e, ct_poles.clone()));
+        let (val, w) = hinf_ct(&ct, &ct_poles, modal)?;
         let peak_hz = match h {
             None => w / (2.0 * PI),
             Some(ts) => 2.0 * w.atan() / (2.0 * PI * ts),
@@ -150,8 +157,8 @@ fn bilinear_to_ct(sys: &StateSpace) -> Result<StateSpace> {
 /// value; the two must agree within [`MODAL_AGREE`]); otherwise, and whenever they disagree,
 /// through the block-diagonal [`FreqRespEvaluator`] (a complex Schur form: most of the time of
 /// a 126-state closed loop's norm before).
-fn hinf_ct(sys: &StateSpace, poles: &[C]) -> Result<(f64, f64)> {
-    if let Some(m) = Modal::new(sys) {
+fn hinf_ct(sys: &StateSpace, poles: &[C], modal: Option<Modal>) -> Result<(f64, f64)> {
+    if let Some(m) = modal {
         let sig = |w: f64| sigma_max(&m.eval(C::new(0.0, w)));
         let (v, w) = hinf_search(sys, poles, &sig)?;
         if !w.is_finite() {
@@ -184,18 +191,37 @@ struct Modal {
     d: DMatrix<C>,
 }
 
-impl Modal {
-    fn new(sys: &StateSpace) -> Option<Self> {
+/// `D⁻¹AD = VΛV⁻¹` for the diagonal balancing D of A (faer's eigendecomposition, V⁻¹ by LU).
+struct Eigen {
+    lam: Vec<C>,
+    v: faer::Mat<C>,
+    vinv: faer::Mat<C>,
+    dv: Vec<f64>,
+}
+
+impl Eigen {
+    /// `None` for an empty matrix or when the decomposition fails.
+    fn of(a: &DMatrix<f64>) -> Option<Self> {
         use faer::linalg::solvers::Solve;
-        let n = sys.n();
+        let n = a.nrows();
         if n == 0 {
             return None;
         }
-        let (ab, dv) = crate::linalg::expm::balance_diag(sys.a());
+        let (ab, dv) = crate::linalg::expm::balance_diag(a);
         let e = crate::linalg::convert::to_faer(&ab).eigen().ok()?;
         let v = e.U().to_owned();
         let lam: Vec<C> = (0..n).map(|i| e.S()[i]).collect();
         let vinv = v.partial_piv_lu().solve(faer::Mat::<C>::identity(n, n));
+        Some(Eigen { lam, v, vinv, dv })
+    }
+}
+
+impl Modal {
+    /// The basis of `e` (an eigendecomposition of `sys`'s A, or of a matrix with the same
+    /// eigenvectors) with `sys`'s eigenvalues `lam`; `None` when it fails its check.
+    fn new(sys: &StateSpace, e: &Eigen, lam: Vec<C>) -> Option<Self> {
+        let n = sys.n();
+        let (v, vinv, dv) = (&e.v, &e.vinv, &e.dv);
         let (ny, nu) = (sys.ny(), sys.nu());
         let cv = DMatrix::from_fn(ny, n, |r, k| {
             (0..n)
