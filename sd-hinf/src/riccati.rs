@@ -799,7 +799,9 @@ mod tests {
         let rot = m(2, 2, &[c, -s, s, c]);
         let mut seed = 7u64;
         let mut rnd = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
         };
         let r = DMatrix::from_fn(12, 12, |_, _| rnd());
@@ -815,8 +817,14 @@ mod tests {
             let kappa = p.norm() / q.norm();
             let diff = (&p - &reference).norm() / reference.norm();
             let steps = tol::MAX_DOUBLING as f64;
-            assert!(res <= 10.0 * n * f64::EPSILON * scale * steps, "{res} vs {scale}");
-            assert!(diff <= 10.0 * n * f64::EPSILON * kappa * steps, "{diff} κ {kappa}");
+            assert!(
+                res <= 10.0 * n * f64::EPSILON * scale * steps,
+                "{res} vs {scale}"
+            );
+            assert!(
+                diff <= 10.0 * n * f64::EPSILON * kappa * steps,
+                "{diff} κ {kappa}"
+            );
         }
     }
 

@@ -874,24 +874,38 @@ pub fn fit_with_progress(
     })
 }
 
-/// The cost V of a given model on an FRD (same weighting as [`fit`]), e.g. of the true model.
+/// The cost V of a given model on an FRD with the weighting of [`fit`]:
+/// `V = Σ_k Σ_{a,b} w_ab(k)² |G_ab(k) − Ĝ_ab(e^{jω_k T})|²`, summed over every entry of an
+/// ny×nu FRD (the cost [`crate::fit_common_poles`] minimises). With variance weights it is the
+/// whitened squared error, e.g. of the true model, or of a model fitted to another experiment
+/// (a held-out validation).
 ///
 /// # Errors
-/// Shapes or sample times that do not match.
+/// Shapes or sample times that do not match; variance weighting with a non-positive variance.
 pub fn model_cost(frd: &Frd, model: &StateSpace, weighting: Weighting) -> Result<f64> {
-    if !frd.time().compatible(&model.time()) || model.nu() != 1 || model.ny() != 1 {
-        return Err(IdentError::InvalidArgument(
-            "model and FRD must be SISO with the same sample time".into(),
-        ));
+    let (ny, nu) = frd.shape();
+    if !frd.time().compatible(&model.time()) || model.nu() != nu || model.ny() != ny {
+        return Err(IdentError::InvalidArgument(format!(
+            "the model ({}x{}) and the FRD ({ny}x{nu}) need the same shape and sample time",
+            model.ny(),
+            model.nu()
+        )));
     }
-    let w = weights(frd, weighting)?;
     let m = model.freqresp(frd.freq_hz())?;
-    Ok(m.response()
-        .iter()
-        .zip(frd.response())
-        .zip(&w)
-        .map(|((a, b), w)| (w * (a[(0, 0)] - b[(0, 0)]).norm()).powi(2))
-        .sum())
+    let mut v = 0.0;
+    for a in 0..ny {
+        for b in 0..nu {
+            let w = weights_entry(frd, weighting, (a, b))?;
+            v += m
+                .response()
+                .iter()
+                .zip(frd.response())
+                .zip(&w)
+                .map(|((x, y), w)| (w * (x[(a, b)] - y[(a, b)]).norm()).powi(2))
+                .sum::<f64>();
+        }
+    }
+    Ok(v)
 }
 
 fn to_state_space(pf: &Pf, ts: f64) -> Result<StateSpace> {
