@@ -1242,6 +1242,12 @@ mod tests {
             })
             .sum();
         assert!((v - r.cost).abs() <= 1e-6 * r.cost, "{v} vs {}", r.cost);
+        // model_cost is that sum (the held-out validation of a MIMO model); a shape that does
+        // not match is an error
+        let mc = crate::model_cost(&frd, &r.model, crate::Weighting::Variance).unwrap();
+        assert!((mc - v).abs() <= 1e-12 * v, "{mc} vs {v}");
+        let one = frd.entry(0, 1).unwrap();
+        assert!(crate::model_cost(&one, &r.model, crate::Weighting::Variance).is_err());
     }
 
     #[test]
