@@ -23,6 +23,7 @@ pub mod error;
 pub mod lmi;
 pub mod loopshape;
 pub mod riccati;
+mod sda;
 pub mod tol;
 pub mod weights;
 

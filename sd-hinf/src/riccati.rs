@@ -36,7 +36,6 @@
 use crate::error::{HinfError, Result};
 use crate::tol;
 use faer::linalg::matmul::matmul;
-use faer::linalg::solvers::Solve;
 use faer::{Accum, Mat, MatRef, Par};
 use nalgebra::DMatrix;
 use num_complex::Complex64 as C;
@@ -176,7 +175,7 @@ fn dare_residual(d: &Data, x: &DMatrix<f64>) -> Result<(DMatrix<f64>, f64, DMatr
     Ok((res, rel, k))
 }
 
-fn fsym(m: &mut Mat<f64>) {
+pub(crate) fn fsym(m: &mut Mat<f64>) {
     let n = m.nrows();
     for j in 0..n {
         for i in (j + 1)..n {
@@ -187,12 +186,12 @@ fn fsym(m: &mut Mat<f64>) {
     }
 }
 
-fn all_finite(m: &Mat<f64>) -> bool {
+pub(crate) fn all_finite(m: &Mat<f64>) -> bool {
     (0..m.ncols()).all(|j| (0..m.nrows()).all(|i| m[(i, j)].is_finite()))
 }
 
 /// `dst ← (accumulate ? dst : 0) + lhs·rhs` without allocating.
-fn mm(dst: &mut Mat<f64>, add: bool, lhs: MatRef<'_, f64>, rhs: MatRef<'_, f64>) {
+pub(crate) fn mm(dst: &mut Mat<f64>, add: bool, lhs: MatRef<'_, f64>, rhs: MatRef<'_, f64>) {
     matmul(
         dst.as_mut(),
         if add { Accum::Add } else { Accum::Replace },
@@ -201,71 +200,6 @@ fn mm(dst: &mut Mat<f64>, add: bool, lhs: MatRef<'_, f64>, rhs: MatRef<'_, f64>)
         1.0,
         Par::Seq,
     );
-}
-
-/// SDA on `(A, G, H)` (faer products and LU, work matrices allocated once); returns
-/// `(X, iterations)`.
-fn doubling(a: &DMatrix<f64>, g: &DMatrix<f64>, h: &DMatrix<f64>) -> Result<(DMatrix<f64>, usize)> {
-    let n = a.nrows();
-    let (mut ak, mut gk, mut hk) = (to_faer(a), to_faer(g), to_faer(h));
-    let z = || Mat::<f64>::zeros(n, n);
-    let (mut w, mut t1, mut hn, mut gn, mut an) = (z(), z(), z(), z(), z());
-    let mut rhs = Mat::<f64>::zeros(n, 2 * n);
-    let singular = || HinfError::Numerical("I + G_k H_k is singular in the doubling".into());
-    for it in 0..tol::MAX_DOUBLING {
-        mm(&mut w, false, gk.as_ref(), hk.as_ref());
-        for i in 0..n {
-            w[(i, i)] += 1.0;
-        }
-        let lu = w.partial_piv_lu();
-        // one solve for [W⁻¹A_k, W⁻¹G_k]
-        rhs.as_mut().submatrix_mut(0, 0, n, n).copy_from(&ak);
-        rhs.as_mut().submatrix_mut(0, n, n, n).copy_from(&gk);
-        lu.solve_in_place(rhs.as_mut());
-        if !all_finite(&rhs) {
-            return Err(singular());
-        }
-        let v1 = rhs.as_ref().submatrix(0, 0, n, n);
-        let v2 = rhs.as_ref().submatrix(0, n, n, n);
-        // H⁺ = H + Aᵀ(H V1)
-        mm(&mut t1, false, hk.as_ref(), v1);
-        hn.copy_from(&hk);
-        mm(&mut hn, true, ak.transpose(), t1.as_ref());
-        // G⁺ = G + A(V2 Aᵀ)
-        mm(&mut t1, false, v2, ak.transpose());
-        gn.copy_from(&gk);
-        mm(&mut gn, true, ak.as_ref(), t1.as_ref());
-        // A⁺ = A V1
-        mm(&mut an, false, ak.as_ref(), v1);
-        fsym(&mut hn);
-        fsym(&mut gn);
-        // ‖H⁺ − H‖ without a temporary
-        let mut dh2 = 0.0;
-        let mut h2 = 0.0;
-        for j in 0..n {
-            for i in 0..n {
-                let (x, y) = (hn[(i, j)], hk[(i, j)]);
-                dh2 += (x - y) * (x - y);
-                h2 += x * x;
-            }
-        }
-        let (dh, hnorm) = (dh2.sqrt(), h2.sqrt());
-        if !hnorm.is_finite() {
-            return Err(HinfError::Numerical(
-                "the doubling iteration diverged".into(),
-            ));
-        }
-        std::mem::swap(&mut hk, &mut hn);
-        std::mem::swap(&mut gk, &mut gn);
-        std::mem::swap(&mut ak, &mut an);
-        if dh <= tol::DOUBLING_STOP * hnorm.max(f64::MIN_POSITIVE) {
-            return Ok((from_faer(hk.as_ref()), it + 1));
-        }
-    }
-    Err(HinfError::Numerical(format!(
-        "the doubling iteration did not converge in {} steps",
-        tol::MAX_DOUBLING
-    )))
 }
 
 /// `Σ_k (Mᵀ)^k Q M^k` (the solution of `MᵀPM − P + Q = 0`; Q = I when `None`) by squaring
@@ -359,7 +293,7 @@ fn dare_initial(d: &Data) -> Result<(DMatrix<f64>, usize)> {
     let a_s = &d.a - &d.b * &rinv_st;
     let q_s = symmetrize(&(&q - &s * &rinv_st));
     let g = symmetrize(&(&d.b * &rinv_bt));
-    let (x, it) = doubling(&a_s, &g, &q_s)?;
+    let (x, it) = crate::sda::doubling(&a_s, &g, &q_s)?;
     let x = if rho != 0.0 {
         x + DMatrix::<f64>::identity(n, n) * rho
     } else {
