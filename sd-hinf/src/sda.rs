@@ -250,7 +250,9 @@ mod tests {
         let n = 40;
         let mut s = 1u64;
         let mut rnd = || {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5
         };
         let a = DMatrix::from_fn(n, n, |_, _| rnd() * 0.3);

@@ -11,11 +11,15 @@
 //! stage test (`tests/freqresp_stage.rs`). When the block form fails its accuracy check (a
 //! defective multiple pole formed by a series connection), the evaluator uses the Hessenberg
 //! form instead, O(n²) per point, and dense solves only when that fails the same check
-//! ([`EvalPath`]). Frequencies are evaluated in parallel (rayon).
+//! ([`EvalPath`]). Frequencies are evaluated in parallel (rayon), four at a time on the
+//! block-diagonal path: one SIMD lane per point (AVX2/FMA where the processor has them), the
+//! simple poles' conjugate pairs summed with one division per pair (`pole_sum.rs`: same
+//! rounding bound as the terms one by one), then the small clusters in the same lanes.
 
 use crate::error::{ModelError, Result};
 use crate::frd::Frd;
 use crate::linalg::schur::{block_diagonalize, to_complex, BlockDiagonal, SPLIT_BOUND};
+use crate::pole_sum::{PoleSum, LANES};
 use crate::ss::StateSpace;
 use crate::time::SampleTime;
 use nalgebra::DMatrix;
@@ -32,97 +36,32 @@ struct Cluster {
     c: DMatrix<C>,
 }
 
-/// The simple poles as arrays for the vectorised sum `Σ_k R_k/(s − t_k)`, `R_k = c_k b_kᵀ`
-/// (`r_*[e·np + k]` for entry `e` of the column-major ny×nu response).
-#[derive(Debug, Clone, Default)]
-struct SimplePoles {
-    t_re: Vec<f64>,
-    t_im: Vec<f64>,
-    r_re: Vec<f64>,
-    r_im: Vec<f64>,
-}
-
-/// Poles per pass of [`SimplePoles::accumulate`] (its reciprocals live on the stack).
-const POLE_CHUNK: usize = 64;
-
 /// Clusters up to this size are solved in a stack buffer.
 const SMALL_CLUSTER: usize = 8;
 
-impl SimplePoles {
-    /// The size-one blocks of `bd` (`R_k = C̃ column k · B̃ row k`).
-    fn new(bd: &BlockDiagonal) -> Self {
-        let (ny, nu) = (bd.ct.nrows(), bd.bt.ncols());
-        let simple: Vec<usize> = bd.blocks.iter().filter(|b| b.1 == 1).map(|b| b.0).collect();
-        let np = simple.len();
-        let mut sp = SimplePoles {
-            t_re: simple.iter().map(|&k| bd.t[(k, k)].re).collect(),
-            t_im: simple.iter().map(|&k| bd.t[(k, k)].im).collect(),
-            r_re: vec![0.0; np * ny * nu],
-            r_im: vec![0.0; np * ny * nu],
-        };
-        for (k, &st) in simple.iter().enumerate() {
-            for j in 0..nu {
-                for i in 0..ny {
-                    let r = bd.ct[(i, st)] * bd.bt[(st, j)];
-                    let e = j * ny + i;
-                    sp.r_re[e * np + k] = r.re;
-                    sp.r_im[e * np + k] = r.im;
-                }
+/// The simple poles of the block-diagonal form with their residues `R_k = c_k b_kᵀ`
+/// (`r[e·n + k]` for entry `e` of the column-major ny×nu response), summed by [`PoleSum`].
+fn pole_sum(bd: &BlockDiagonal) -> PoleSum {
+    let (ny, nu) = (bd.ct.nrows(), bd.bt.ncols());
+    let simple: Vec<usize> = bd.blocks.iter().filter(|b| b.1 == 1).map(|b| b.0).collect();
+    let n = simple.len();
+    let t: Vec<C> = simple.iter().map(|&k| bd.t[(k, k)]).collect();
+    let mut r = vec![C::new(0.0, 0.0); n * ny * nu];
+    for (k, &st) in simple.iter().enumerate() {
+        for j in 0..nu {
+            for i in 0..ny {
+                r[(j * ny + i) * n + k] = bd.ct[(i, st)] * bd.bt[(st, j)];
             }
         }
-        sp
     }
-
-    /// `g += Σ_k R_k/(s − t_k)`: per chunk of poles the reciprocals `1/(s − t_k)` (one real
-    /// division each), then per entry a complex dot product in four lanes (plain loops over
-    /// arrays, which the compiler vectorises).
-    fn accumulate(&self, s: C, g: &mut [C]) {
-        let np = self.t_re.len();
-        let (mut ire, mut iim) = ([0.0f64; POLE_CHUNK], [0.0f64; POLE_CHUNK]);
-        let mut start = 0;
-        while start < np {
-            let len = POLE_CHUNK.min(np - start);
-            let (tr, ti) = (
-                &self.t_re[start..start + len],
-                &self.t_im[start..start + len],
-            );
-            for k in 0..len {
-                let (dr, di) = (s.re - tr[k], s.im - ti[k]);
-                let inv = 1.0 / (dr * dr + di * di);
-                ire[k] = dr * inv;
-                iim[k] = -di * inv;
-            }
-            for (e, ge) in g.iter_mut().enumerate() {
-                let rr = &self.r_re[e * np + start..e * np + start + len];
-                let ri = &self.r_im[e * np + start..e * np + start + len];
-                let (mut ar, mut ai) = ([0.0f64; 4], [0.0f64; 4]);
-                let mut k = 0;
-                while k + 4 <= len {
-                    for l in 0..4 {
-                        ar[l] += rr[k + l] * ire[k + l] - ri[k + l] * iim[k + l];
-                        ai[l] += rr[k + l] * iim[k + l] + ri[k + l] * ire[k + l];
-                    }
-                    k += 4;
-                }
-                let (mut sr, mut si) =
-                    (ar[0] + ar[1] + ar[2] + ar[3], ai[0] + ai[1] + ai[2] + ai[3]);
-                while k < len {
-                    sr += rr[k] * ire[k] - ri[k] * iim[k];
-                    si += rr[k] * iim[k] + ri[k] * ire[k];
-                    k += 1;
-                }
-                *ge += C::new(sr, si);
-            }
-            start += len;
-        }
-    }
+    PoleSum::new(&t, &r, ny * nu)
 }
 
 /// A model prepared for fast evaluation at many points.
 #[derive(Debug, Clone)]
 pub struct FreqRespEvaluator {
-    /// The size-one blocks, as arrays (what the per-point sum runs on).
-    simple: SimplePoles,
+    /// The size-one blocks, conjugate pairs combined (what the per-point sum runs on).
+    poles: PoleSum,
     /// The larger blocks.
     clusters: Vec<Cluster>,
     d: DMatrix<C>,
@@ -288,7 +227,7 @@ impl FreqRespEvaluator {
             })
             .collect();
         let mut ev = FreqRespEvaluator {
-            simple: SimplePoles::new(&bd),
+            poles: pole_sum(&bd),
             clusters,
             d: to_complex(sys.d()),
             time: sys.time(),
@@ -307,7 +246,6 @@ impl FreqRespEvaluator {
         // response): every pole of a model up to that size, O(n³) in all above it (checking
         // every pole of a 240-state model took 3 s, O(n⁴)).
         let time = ev.time;
-        let hf = HessenbergForm::new(&ab, &bb, &cb);
         let margin = |lam: C| match time {
             SampleTime::Continuous => lam.re.abs(),
             SampleTime::Discrete { .. } => (1.0 - lam.norm()).abs(),
@@ -320,10 +258,14 @@ impl FreqRespEvaluator {
         }
         simple.sort_by(|a, b| margin(*a).total_cmp(&margin(*b)));
         simple.truncate(CHECKED_SIMPLE);
-        let refs: Vec<(C, DMatrix<C>, f64)> = clustered
+        // the dense solves (O(n³) each, most of the set-up's time) on every core
+        let points: Vec<C> = clustered
             .iter()
             .chain(&simple)
             .flat_map(|&lam| [1e-3, 1e-2].map(|delta| check_point(time, lam, delta)))
+            .collect();
+        let refs: Vec<(C, DMatrix<C>, f64)> = points
+            .into_par_iter()
             .filter_map(|sp| {
                 let r = sys.eval_direct(sp).ok()?;
                 let rn = r.norm();
@@ -343,7 +285,7 @@ impl FreqRespEvaluator {
         if fails(&ev, 1e-8) {
             // the fallback must be as good as the dense solves it replaces: a rigid body's
             // Jordan block at z = 1 costs an orthogonal reduction about √ε
-            ev.hess = Some(hf);
+            ev.hess = Some(HessenbergForm::new(&ab, &bb, &cb));
             if fails(&ev, 1e-11) {
                 // an orthogonal reduction moves a defective multiple eigenvalue by
                 // (ε‖A‖)^(1/k): dense solves of the structured matrix keep it
@@ -371,24 +313,40 @@ impl FreqRespEvaluator {
     /// arrays, each cluster by back substitution per input column (in a stack buffer up to
     /// [`SMALL_CLUSTER`], so the usual small clusters allocate nothing).
     fn accumulate(&self, s: C, g: &mut [C], ny: usize) {
-        self.simple.accumulate(s, g);
+        let m = g.len();
+        let (mut gr, mut gi) = (vec![[0.0; 1]; m], vec![[0.0; 1]; m]);
+        self.poles.accumulate(&[s.re], &[s.im], &mut gr, &mut gi);
+        for (e, ge) in g.iter_mut().enumerate() {
+            *ge += C::new(gr[e][0], gi[e][0]);
+        }
+        self.add_clusters(s, g, ny);
+    }
+
+    /// Adds the clusters' share `Σ_b C̃_b (sI − T_b)⁻¹ B̃_b` to `g` (column-major ny×nu).
+    fn add_clusters(&self, s: C, g: &mut [C], ny: usize) {
         for Cluster { t, b, c } in &self.clusters {
             let m = t.nrows();
-            let mut stack = [C::new(0.0, 0.0); SMALL_CLUSTER];
+            let mut stack = [C::new(0.0, 0.0); 2 * SMALL_CLUSTER];
             let mut heap = Vec::new();
-            let x: &mut [C] = if m <= SMALL_CLUSTER {
-                &mut stack[..m]
+            let buf: &mut [C] = if m <= SMALL_CLUSTER {
+                &mut stack[..2 * m]
             } else {
-                heap.resize(m, C::new(0.0, 0.0));
+                heap.resize(2 * m, C::new(0.0, 0.0));
                 &mut heap
             };
+            let (x, dinv) = buf.split_at_mut(m);
+            // the diagonal's reciprocals once per point (one real division each)
+            for (i, di) in dinv.iter_mut().enumerate() {
+                let d = s - t[(i, i)];
+                *di = d.conj() * (1.0 / d.norm_sqr());
+            }
             for j in 0..b.ncols() {
                 for i in (0..m).rev() {
                     let mut acc = b[(i, j)];
                     for l in (i + 1)..m {
                         acc += t[(i, l)] * x[l];
                     }
-                    x[i] = acc / (s - t[(i, i)]);
+                    x[i] = acc * dinv[i];
                 }
                 for (r, gr) in g[j * ny..(j + 1) * ny].iter_mut().enumerate() {
                     let mut v = C::new(0.0, 0.0);
@@ -462,11 +420,109 @@ impl FreqRespEvaluator {
 
     /// `G` at many frequencies (parallel).
     pub fn eval_many(&self, freq_hz: &[f64]) -> Vec<DMatrix<C>> {
-        freq_hz
-            .par_iter()
+        let (ny, nu) = self.d.shape();
+        let flat = self.eval_many_flat(freq_hz);
+        if ny * nu == 0 {
+            return vec![DMatrix::zeros(ny, nu); freq_hz.len()];
+        }
+        flat.par_chunks(ny * nu)
             .with_min_len(1024)
-            .map(|&f| self.eval_hz(f))
+            .map(|g| DMatrix::from_column_slice(ny, nu, g))
             .collect()
+    }
+
+    /// Up to [`LANES`] frequencies of the block-diagonal path into `out` (their ny·nu entries
+    /// each): the simple poles for all of them at once (one SIMD lane per point), then the
+    /// clusters point by point. `gr`, `gi`: work rows, one per entry.
+    fn eval_batch(
+        &self,
+        f: &[f64],
+        out: &mut [C],
+        gr: &mut [[f64; LANES]],
+        gi: &mut [[f64; LANES]],
+    ) {
+        let m = self.d.len();
+        let (mut sr, mut si) = ([0.0; LANES], [0.0; LANES]);
+        let mut pts = [C::new(0.0, 0.0); LANES];
+        for l in 0..LANES {
+            // a short last batch repeats its last point in the spare lanes
+            pts[l] = self.point(f[l.min(f.len() - 1)]);
+            (sr[l], si[l]) = (pts[l].re, pts[l].im);
+        }
+        for (e, d) in self.d.iter().enumerate() {
+            gr[e] = [d.re; LANES];
+            gi[e] = [d.im; LANES];
+        }
+        self.poles.accumulate(&sr, &si, gr, gi);
+        let ny = self.d.nrows();
+        let small = self.clusters.iter().all(|c| c.t.nrows() <= SMALL_CLUSTER);
+        if small {
+            self.add_small_clusters(&sr, &si, gr, gi, ny);
+        }
+        for (l, o) in out.chunks_mut(m).enumerate() {
+            for (e, oe) in o.iter_mut().enumerate() {
+                *oe = C::new(gr[e][l], gi[e][l]);
+            }
+            if !small {
+                self.add_clusters(pts[l], o, ny);
+            }
+        }
+    }
+
+    /// [`Self::add_clusters`] for [`LANES`] points at once (one lane per point), for clusters
+    /// of at most [`SMALL_CLUSTER`] poles: the diagonal's reciprocals, the back substitution
+    /// and the output product in plain loops over the lanes. Same operations per point as the
+    /// one-point version, so the same rounding bound.
+    fn add_small_clusters(
+        &self,
+        sr: &[f64; LANES],
+        si: &[f64; LANES],
+        gr: &mut [[f64; LANES]],
+        gi: &mut [[f64; LANES]],
+        ny: usize,
+    ) {
+        type Lanes = [f64; LANES];
+        for Cluster { t, b, c } in &self.clusters {
+            let m = t.nrows();
+            let (mut xr, mut xi) = ([[0.0; LANES]; SMALL_CLUSTER], [[0.0; LANES]; SMALL_CLUSTER]);
+            let (mut vr, mut vi) = ([[0.0; LANES]; SMALL_CLUSTER], [[0.0; LANES]; SMALL_CLUSTER]);
+            for i in 0..m {
+                let tii = t[(i, i)];
+                for l in 0..LANES {
+                    let (dr, di) = (sr[l] - tii.re, si[l] - tii.im);
+                    let inv = 1.0 / (dr * dr + di * di);
+                    vr[i][l] = dr * inv;
+                    vi[i][l] = -di * inv;
+                }
+            }
+            for j in 0..b.ncols() {
+                for i in (0..m).rev() {
+                    let bij = b[(i, j)];
+                    let (mut ar, mut ai): (Lanes, Lanes) = ([bij.re; LANES], [bij.im; LANES]);
+                    for k in (i + 1)..m {
+                        let tik = t[(i, k)];
+                        for l in 0..LANES {
+                            ar[l] += tik.re * xr[k][l] - tik.im * xi[k][l];
+                            ai[l] += tik.re * xi[k][l] + tik.im * xr[k][l];
+                        }
+                    }
+                    for l in 0..LANES {
+                        xr[i][l] = ar[l] * vr[i][l] - ai[l] * vi[i][l];
+                        xi[i][l] = ar[l] * vi[i][l] + ai[l] * vr[i][l];
+                    }
+                }
+                for r in 0..ny {
+                    let e = j * ny + r;
+                    for i in 0..m {
+                        let cri = c[(r, i)];
+                        for l in 0..LANES {
+                            gr[e][l] += cri.re * xr[i][l] - cri.im * xi[i][l];
+                            gi[e][l] += cri.re * xi[i][l] + cri.im * xr[i][l];
+                        }
+                    }
+                }
+            }
+        }
     }
 
     /// `G` at many frequencies into one flat buffer (parallel): point `k`'s ny·nu entries at
@@ -477,16 +533,32 @@ impl FreqRespEvaluator {
         if m == 0 {
             return out;
         }
-        out.par_chunks_mut(m)
-            .with_min_len(1024)
-            .zip(freq_hz.par_iter())
-            .for_each(|(o, &f)| self.eval_hz_into(f, o));
+        if self.hess.is_some() || self.dense.is_some() {
+            out.par_chunks_mut(m)
+                .with_min_len(1024)
+                .zip(freq_hz.par_iter())
+                .for_each(|(o, &f)| self.eval_hz_into(f, o));
+            return out;
+        }
+        out.par_chunks_mut(LANES * m)
+            .zip(freq_hz.par_chunks(LANES))
+            .with_min_len(256)
+            .for_each_init(
+                || (vec![[0.0; LANES]; m], vec![[0.0; LANES]; m]),
+                |(gr, gi), (o, f)| self.eval_batch(f, o, gr, gi),
+            );
         out
+    }
+
+    /// `(conjugate pairs, poles summed one by one)` among the simple poles (the pairs cost one
+    /// division per point for two poles).
+    pub fn pole_counts(&self) -> (usize, usize) {
+        self.poles.counts()
     }
 
     /// Block sizes of the reduced form: 1 for each simple pole, then each cluster's size.
     pub fn block_sizes(&self) -> Vec<usize> {
-        std::iter::repeat_n(1, self.simple.t_re.len())
+        std::iter::repeat_n(1, self.poles.count())
             .chain(self.clusters.iter().map(|c| c.t.nrows()))
             .collect()
     }

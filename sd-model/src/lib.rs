@@ -28,6 +28,7 @@ pub mod json;
 pub mod keys;
 pub mod linalg;
 pub mod norms;
+mod pole_sum;
 pub mod poles;
 pub mod quantile;
 pub mod reduce;

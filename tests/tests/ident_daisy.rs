@@ -442,9 +442,7 @@ fn lpm_null_quantile(n: usize, level: f64) -> f64 {
     println!(
         "LPM null ({n} samples, 400 records): mean whitened error per entry line median {:.3}, \
          1 % {:.3}, 99 % {:.3}",
-        stat[200],
-        stat[4],
-        stat[396]
+        stat[200], stat[4], stat[396]
     );
     stat[((level * stat.len() as f64) as usize).min(stat.len() - 1)]
 }

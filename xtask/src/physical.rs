@@ -54,13 +54,19 @@ pub(crate) fn peak() -> Value {
         "cores": cores, "one_core_gflops": one / 1e9, "all_cores_gflops": all / 1e9})
 }
 
-/// Flops of one evaluation of the block-diagonal form per point: per simple pole a
-/// reciprocal (2 subtractions, 2 multiplications, 1 addition, 1 division, 2 multiplications)
-/// and per entry a complex multiply-add (8); per cluster of size m and input the back
-/// substitution (8 flops per multiply-add, m(m−1)/2 of them, and m complex divisions of ~11)
-/// and the output product (8·m·ny); the point itself (a sin_cos, counted 20).
-pub(crate) fn freqresp_flops_per_point(block_sizes: &[usize], ny: usize, nu: usize) -> f64 {
-    let simple = block_sizes.iter().filter(|&&b| b == 1).count() as f64;
+/// Flops of one evaluation of the block-diagonal form per point (`sd_model`'s pole sum,
+/// `pole_sum.rs`): per conjugate pair of simple poles the shared denominator (the offsets, the
+/// product `d₁d₂`, its squared modulus and one division: 12) and per entry the numerator, the
+/// quotient and the sum (16); per simple pole summed alone the reciprocal (6) and per entry a
+/// complex multiply-add (10); per cluster of size m and input the back substitution (8 flops
+/// per multiply-add, m(m−1)/2 of them, and m reciprocals of ~11) and the output product
+/// (8·m·ny); the point itself (a sin_cos, counted 20).
+pub(crate) fn freqresp_flops_per_point(
+    block_sizes: &[usize],
+    (pairs, singles): (usize, usize),
+    ny: usize,
+    nu: usize,
+) -> f64 {
     let entries = (ny * nu) as f64;
     let clusters: f64 = block_sizes
         .iter()
@@ -70,7 +76,9 @@ pub(crate) fn freqresp_flops_per_point(block_sizes: &[usize], ny: usize, nu: usi
             nu as f64 * (8.0 * m * (m - 1.0) / 2.0 + 11.0 * m + 8.0 * m * ny as f64)
         })
         .sum();
-    20.0 + simple * (8.0 + 8.0 * entries) + clusters
+    20.0 + pairs as f64 * (12.0 + 16.0 * entries)
+        + singles as f64 * (6.0 + 10.0 * entries)
+        + clusters
 }
 
 /// Flops of one structured-doubling step on an n-state DARE (`sd_hinf::riccati`'s SDA):
