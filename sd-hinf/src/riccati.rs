@@ -9,7 +9,8 @@
 //! - DARE: the structure-preserving doubling algorithm (SDA; Chu, Fan, Lin & Wang, *Linear
 //!   Algebra Appl.* 396, 2005) on `(A_s, G, Q_s)` = `(A − BR⁻¹Sᵀ, BR⁻¹Bᵀ, Q − SR⁻¹Sᵀ)`:
 //!   `W = I + G_kH_k`, `A_{k+1} = A_kW⁻¹A_k`, `G_{k+1} = G_k + A_kW⁻¹G_kA_kᵀ`,
-//!   `H_{k+1} = H_k + A_kᵀH_kW⁻¹A_k`, `H_k → X` quadratically (error ~ ρ(A − BK)^{2^{k+1}}). It
+//!   `H_{k+1} = H_k + A_kᵀH_kW⁻¹A_k`, `H_k → X` quadratically (error ~ ρ(A − BK)^{2^{k+1}});
+//!   each step's two independent halves run on two cores (`sda.rs`, bit-identical to one). It
 //!   needs no inverse of A (a delay or a weight state makes A singular), no eigenvalue
 //!   reordering (faer's is not public), and it stays accurate when the closed loop has poles very
 //!   close to the unit circle, as the lightly damped stage with its rigid body at z = 1 has —
