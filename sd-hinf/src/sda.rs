@@ -39,46 +39,70 @@ const TWO_CORES_FROM: usize = 24;
 /// Spins between two yields of a waiting thread.
 const SPINS_PER_YIELD: usize = 256;
 
-/// The second half of a step, as posted: its inputs (shared) and its step number.
+/// The work matrices of one half of a step: `W⁻¹A` or `W⁻¹G`, a product's intermediate, and
+/// the next `H` or `G` (allocated once, handed back and forth with the job).
+struct Work {
+    v: Mat<f64>,
+    t: Mat<f64>,
+    next: Mat<f64>,
+}
+
+impl Work {
+    fn new(n: usize) -> Self {
+        let z = || Mat::<f64>::zeros(n, n);
+        Work {
+            v: z(),
+            t: z(),
+            next: z(),
+        }
+    }
+}
+
+/// The second half of a step, as posted: its inputs (shared) and its work matrices.
 struct GJob {
     lu: Arc<PartialPivLu<f64>>,
     a: Arc<Mat<f64>>,
     g: Arc<Mat<f64>>,
+    work: Work,
 }
 
-/// `V₂ = W⁻¹G`, `G⁺ = G + A(V₂ Aᵀ)`; whether V₂ is finite.
-fn g_half(job: GJob) -> (Mat<f64>, bool) {
-    let n = job.a.nrows();
-    let mut v = job.g.as_ref().to_owned();
-    job.lu.solve_in_place(v.as_mut());
-    let mut t = Mat::<f64>::zeros(n, n);
-    mm(&mut t, false, v.as_ref(), job.a.transpose());
-    let mut next = job.g.as_ref().to_owned();
-    mm(&mut next, true, job.a.as_ref().as_ref(), t.as_ref());
-    fsym(&mut next);
-    (next, all_finite(&v))
+/// `V₂ = W⁻¹G`, `G⁺ = G + A(V₂ Aᵀ)` (in `work.next`); whether V₂ is finite.
+fn g_half(job: GJob) -> (Work, bool) {
+    let GJob { lu, a, g, mut work } = job;
+    work.v.copy_from(g.as_ref());
+    lu.solve_in_place(work.v.as_mut());
+    mm(&mut work.t, false, work.v.as_ref(), a.transpose());
+    work.next.copy_from(g.as_ref());
+    mm(&mut work.next, true, a.as_ref().as_ref(), work.t.as_ref());
+    fsym(&mut work.next);
+    let ok = all_finite(&work.v);
+    (work, ok)
 }
 
-/// `V₁ = W⁻¹A`, `H⁺ = H + Aᵀ(H V₁)`, `A⁺ = A V₁`; whether V₁ is finite.
-fn h_half(lu: &PartialPivLu<f64>, a: &Mat<f64>, h: &Mat<f64>) -> (Mat<f64>, Mat<f64>, bool) {
-    let n = a.nrows();
-    let mut v = a.clone();
-    lu.solve_in_place(v.as_mut());
-    let mut t = Mat::<f64>::zeros(n, n);
-    mm(&mut t, false, h.as_ref(), v.as_ref());
-    let mut next = h.clone();
-    mm(&mut next, true, a.transpose(), t.as_ref());
-    fsym(&mut next);
-    let mut an = Mat::<f64>::zeros(n, n);
-    mm(&mut an, false, a.as_ref(), v.as_ref());
-    (next, an, all_finite(&v))
+/// `V₁ = W⁻¹A`, `H⁺ = H + Aᵀ(H V₁)` (in `work.next`), `A⁺ = A V₁` (in `an`); whether V₁ is
+/// finite.
+fn h_half(
+    lu: &PartialPivLu<f64>,
+    a: &Mat<f64>,
+    h: &Mat<f64>,
+    work: &mut Work,
+    an: &mut Mat<f64>,
+) -> bool {
+    work.v.copy_from(a);
+    lu.solve_in_place(work.v.as_mut());
+    mm(&mut work.t, false, h.as_ref(), work.v.as_ref());
+    work.next.copy_from(h);
+    mm(&mut work.next, true, a.transpose(), work.t.as_ref());
+    fsym(&mut work.next);
+    mm(an, false, a.as_ref(), work.v.as_ref());
+    all_finite(&work.v)
 }
 
 /// What the loop and the helper share: the posted half, its result, and counters.
 #[derive(Default)]
 struct Board {
     posted: Mutex<Option<GJob>>,
-    result: Mutex<Option<(Mat<f64>, bool)>>,
+    result: Mutex<Option<(Work, bool)>>,
     /// Steps posted so far.
     seq: AtomicUsize,
     /// Steps whose posted half the helper has finished.
@@ -118,7 +142,7 @@ impl Board {
 
     /// Step `k`'s second half: computed here when the helper has not claimed it, else the
     /// helper's result once it is there.
-    fn collect(&self, k: usize) -> Result<(Mat<f64>, bool)> {
+    fn collect(&self, k: usize) -> Result<(Work, bool)> {
         let unclaimed = self.posted.lock().map_err(|_| poisoned())?.take();
         if let Some(job) = unclaimed {
             return Ok(g_half(job));
@@ -173,7 +197,9 @@ pub(crate) fn doubling(
     r
 }
 
-/// The doubling loop; the second halves through `board` when there is one.
+/// The doubling loop; the second halves through `board` when there is one. The matrices are
+/// allocated once: each step's results are swapped into place (`A_k`, `G_k` are shared with
+/// the posted half through `Arc`s, which are the loop's alone again once the half is back).
 fn steps(
     a: &DMatrix<f64>,
     g: &DMatrix<f64>,
@@ -182,7 +208,8 @@ fn steps(
 ) -> Result<(DMatrix<f64>, usize)> {
     let n = a.nrows();
     let (mut ak, mut gk, mut hk) = (Arc::new(to_faer(a)), Arc::new(to_faer(g)), to_faer(h));
-    let mut w = Mat::<f64>::zeros(n, n);
+    let (mut w, mut an) = (Mat::<f64>::zeros(n, n), Mat::<f64>::zeros(n, n));
+    let (mut hw, mut gw) = (Work::new(n), Some(Work::new(n)));
     for it in 0..tol::MAX_DOUBLING {
         mm(&mut w, false, gk.as_ref().as_ref(), hk.as_ref());
         for i in 0..n {
@@ -193,29 +220,31 @@ fn steps(
             lu: lu.clone(),
             a: ak.clone(),
             g: gk.clone(),
+            work: gw.take().unwrap_or_else(|| Work::new(n)),
         };
-        let ((hn, an, ok_h), (gn, ok_g)) = match board {
+        let (ok_h, (mut gdone, ok_g)) = match board {
             Some(b) => {
                 b.post(job, it + 1)?;
-                let hr = h_half(&lu, &ak, &hk);
-                (hr, b.collect(it + 1)?)
+                let ok = h_half(&lu, &ak, &hk, &mut hw, &mut an);
+                (ok, b.collect(it + 1)?)
             }
-            None => (h_half(&lu, &ak, &hk), g_half(job)),
+            None => (h_half(&lu, &ak, &hk, &mut hw, &mut an), g_half(job)),
         };
         if !(ok_h && ok_g) {
             return Err(HinfError::Numerical(
                 "I + G_k H_k is singular in the doubling".into(),
             ));
         }
-        let (dh, hnorm) = change_and_norm(&hn, &hk);
+        let (dh, hnorm) = change_and_norm(&hw.next, &hk);
         if !hnorm.is_finite() {
             return Err(HinfError::Numerical(
                 "the doubling iteration diverged".into(),
             ));
         }
-        hk = hn;
-        gk = Arc::new(gn);
-        ak = Arc::new(an);
+        std::mem::swap(&mut hk, &mut hw.next);
+        swap_into(&mut gk, &mut gdone.next);
+        swap_into(&mut ak, &mut an);
+        gw = Some(gdone);
         if dh <= tol::DOUBLING_STOP * hnorm.max(f64::MIN_POSITIVE) {
             return Ok((from_faer(hk.as_ref()), it + 1));
         }
@@ -224,6 +253,18 @@ fn steps(
         "the doubling iteration did not converge in {} steps",
         tol::MAX_DOUBLING
     )))
+}
+
+/// Makes `m` the shared matrix and leaves the old one in `m` for reuse (a copy only if the
+/// `Arc` is still shared, which it is not once the step's half is back).
+fn swap_into(shared: &mut Arc<Mat<f64>>, m: &mut Mat<f64>) {
+    match Arc::get_mut(shared) {
+        Some(s) => std::mem::swap(s, m),
+        None => {
+            let (r, c) = (m.nrows(), m.ncols());
+            *shared = Arc::new(std::mem::replace(m, Mat::<f64>::zeros(r, c)));
+        }
+    }
 }
 
 /// `(‖new − old‖_F, ‖new‖_F)` without a temporary.
