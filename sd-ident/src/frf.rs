@@ -326,6 +326,12 @@ pub(crate) fn transform_real(x: &[f64]) -> Vec<C> {
     z
 }
 
+/// Records from this many samples have their transforms computed in parallel: below it the
+/// transforms take little more than waking a pool thread costs here (~50 µs; a 10⁴-sample
+/// estimate with period 1000: 0.14 ms with the records in parallel, 0.11 ms one after the
+/// other).
+const PARALLEL_FROM: usize = 50_000;
+
 /// The input SNR below which a line of a ratio estimate is not trusted (bias of `Ȳ/Ū` with
 /// noise on `Ū` relative to its standard deviation ≈ `1/√SNR`: 0.1 at 100).
 pub const MIN_INPUT_SNR: f64 = 100.0;
@@ -349,7 +355,11 @@ pub fn frf_periodic(
     // their roundoff, and y in metres beside u in newtons loses digits), the bins up to n/2
     // (every bin read below is under n/2), the records in parallel
     let long = |x: &[f64]| transform_real(&x[start..start + len]);
-    let ((ul, yl), rl) = rayon::join(|| rayon::join(|| long(u), || long(y)), || r.map(long));
+    let ((ul, yl), rl) = if len >= PARALLEL_FROM {
+        rayon::join(|| rayon::join(|| long(u), || long(y)), || r.map(long))
+    } else {
+        ((long(u), long(y)), r.map(long))
+    };
     let exc_src: &[C] = rl.as_deref().unwrap_or(&ul);
     let mf = m as f64;
     let mean_at = |x: &[C], k: usize| x[k * m] / mf;
