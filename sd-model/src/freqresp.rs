@@ -309,53 +309,15 @@ impl FreqRespEvaluator {
         }
     }
 
-    /// Adds `Σ_b C̃_b (sI − T_b)⁻¹ B̃_b` to `g` (column-major ny×nu): the simple poles as
-    /// arrays, each cluster by back substitution per input column (in a stack buffer up to
-    /// [`SMALL_CLUSTER`], so the usual small clusters allocate nothing).
+    /// Adds `Σ_b C̃_b (sI − T_b)⁻¹ B̃_b` to `g` (column-major ny×nu) at one point: the lane
+    /// routines ([`PoleSum::accumulate`], [`Self::add_clusters`]) with a single lane.
     fn accumulate(&self, s: C, g: &mut [C], ny: usize) {
-        let m = g.len();
-        let (mut gr, mut gi) = (vec![[0.0; 1]; m], vec![[0.0; 1]; m]);
+        let mut gr: Vec<[f64; 1]> = g.iter().map(|z| [z.re]).collect();
+        let mut gi: Vec<[f64; 1]> = g.iter().map(|z| [z.im]).collect();
         self.poles.accumulate(&[s.re], &[s.im], &mut gr, &mut gi);
+        self.add_clusters(&[s.re], &[s.im], &mut gr, &mut gi, ny);
         for (e, ge) in g.iter_mut().enumerate() {
-            *ge += C::new(gr[e][0], gi[e][0]);
-        }
-        self.add_clusters(s, g, ny);
-    }
-
-    /// Adds the clusters' share `Σ_b C̃_b (sI − T_b)⁻¹ B̃_b` to `g` (column-major ny×nu).
-    fn add_clusters(&self, s: C, g: &mut [C], ny: usize) {
-        for Cluster { t, b, c } in &self.clusters {
-            let m = t.nrows();
-            let mut stack = [C::new(0.0, 0.0); 2 * SMALL_CLUSTER];
-            let mut heap = Vec::new();
-            let buf: &mut [C] = if m <= SMALL_CLUSTER {
-                &mut stack[..2 * m]
-            } else {
-                heap.resize(2 * m, C::new(0.0, 0.0));
-                &mut heap
-            };
-            let (x, dinv) = buf.split_at_mut(m);
-            // the diagonal's reciprocals once per point (one real division each)
-            for (i, di) in dinv.iter_mut().enumerate() {
-                let d = s - t[(i, i)];
-                *di = d.conj() * (1.0 / d.norm_sqr());
-            }
-            for j in 0..b.ncols() {
-                for i in (0..m).rev() {
-                    let mut acc = b[(i, j)];
-                    for l in (i + 1)..m {
-                        acc += t[(i, l)] * x[l];
-                    }
-                    x[i] = acc * dinv[i];
-                }
-                for (r, gr) in g[j * ny..(j + 1) * ny].iter_mut().enumerate() {
-                    let mut v = C::new(0.0, 0.0);
-                    for (i, xi) in x.iter().enumerate() {
-                        v += c[(r, i)] * xi;
-                    }
-                    *gr += v;
-                }
-            }
+            *ge = C::new(gr[e][0], gi[e][0]);
         }
     }
 
@@ -432,8 +394,8 @@ impl FreqRespEvaluator {
     }
 
     /// Up to [`LANES`] frequencies of the block-diagonal path into `out` (their ny·nu entries
-    /// each): the simple poles for all of them at once (one SIMD lane per point), then the
-    /// clusters point by point. `gr`, `gi`: work rows, one per entry.
+    /// each), all of them at once (one SIMD lane per point). `gr`, `gi`: work rows, one per
+    /// entry.
     fn eval_batch(
         &self,
         f: &[f64],
@@ -443,52 +405,54 @@ impl FreqRespEvaluator {
     ) {
         let m = self.d.len();
         let (mut sr, mut si) = ([0.0; LANES], [0.0; LANES]);
-        let mut pts = [C::new(0.0, 0.0); LANES];
         for l in 0..LANES {
             // a short last batch repeats its last point in the spare lanes
-            pts[l] = self.point(f[l.min(f.len() - 1)]);
-            (sr[l], si[l]) = (pts[l].re, pts[l].im);
+            let p = self.point(f[l.min(f.len() - 1)]);
+            (sr[l], si[l]) = (p.re, p.im);
         }
         for (e, d) in self.d.iter().enumerate() {
             gr[e] = [d.re; LANES];
             gi[e] = [d.im; LANES];
         }
         self.poles.accumulate(&sr, &si, gr, gi);
-        let ny = self.d.nrows();
-        let small = self.clusters.iter().all(|c| c.t.nrows() <= SMALL_CLUSTER);
-        if small {
-            self.add_small_clusters(&sr, &si, gr, gi, ny);
-        }
+        self.add_clusters(&sr, &si, gr, gi, self.d.nrows());
         for (l, o) in out.chunks_mut(m).enumerate() {
             for (e, oe) in o.iter_mut().enumerate() {
                 *oe = C::new(gr[e][l], gi[e][l]);
             }
-            if !small {
-                self.add_clusters(pts[l], o, ny);
-            }
         }
     }
 
-    /// [`Self::add_clusters`] for [`LANES`] points at once (one lane per point), for clusters
-    /// of at most [`SMALL_CLUSTER`] poles: the diagonal's reciprocals, the back substitution
-    /// and the output product in plain loops over the lanes. Same operations per point as the
-    /// one-point version, so the same rounding bound.
-    fn add_small_clusters(
+    /// Adds the clusters' share `Σ_b C̃_b (sI − T_b)⁻¹ B̃_b` at `L` points at once (one lane per
+    /// point; rows `gr`/`gi` per entry, column-major ny×nu): per cluster the diagonal's
+    /// reciprocals (one real division each), the back substitution per input column and the
+    /// output product, in plain loops over the lanes. Work rows on the stack up to
+    /// [`SMALL_CLUSTER`] poles, so the usual small clusters allocate nothing.
+    fn add_clusters<const L: usize>(
         &self,
-        sr: &[f64; LANES],
-        si: &[f64; LANES],
-        gr: &mut [[f64; LANES]],
-        gi: &mut [[f64; LANES]],
+        sr: &[f64; L],
+        si: &[f64; L],
+        gr: &mut [[f64; L]],
+        gi: &mut [[f64; L]],
         ny: usize,
     ) {
-        type Lanes = [f64; LANES];
         for Cluster { t, b, c } in &self.clusters {
             let m = t.nrows();
-            let (mut xr, mut xi) = ([[0.0; LANES]; SMALL_CLUSTER], [[0.0; LANES]; SMALL_CLUSTER]);
-            let (mut vr, mut vi) = ([[0.0; LANES]; SMALL_CLUSTER], [[0.0; LANES]; SMALL_CLUSTER]);
+            // x (real, imaginary) and the reciprocals (real, imaginary), m rows each
+            let mut stack = [[0.0; L]; 4 * SMALL_CLUSTER];
+            let mut heap = Vec::new();
+            let buf: &mut [[f64; L]] = if m <= SMALL_CLUSTER {
+                &mut stack[..4 * m]
+            } else {
+                heap.resize(4 * m, [0.0; L]);
+                &mut heap
+            };
+            let (x, v) = buf.split_at_mut(2 * m);
+            let (xr, xi) = x.split_at_mut(m);
+            let (vr, vi) = v.split_at_mut(m);
             for i in 0..m {
                 let tii = t[(i, i)];
-                for l in 0..LANES {
+                for l in 0..L {
                     let (dr, di) = (sr[l] - tii.re, si[l] - tii.im);
                     let inv = 1.0 / (dr * dr + di * di);
                     vr[i][l] = dr * inv;
@@ -498,15 +462,15 @@ impl FreqRespEvaluator {
             for j in 0..b.ncols() {
                 for i in (0..m).rev() {
                     let bij = b[(i, j)];
-                    let (mut ar, mut ai): (Lanes, Lanes) = ([bij.re; LANES], [bij.im; LANES]);
+                    let (mut ar, mut ai) = ([bij.re; L], [bij.im; L]);
                     for k in (i + 1)..m {
                         let tik = t[(i, k)];
-                        for l in 0..LANES {
+                        for l in 0..L {
                             ar[l] += tik.re * xr[k][l] - tik.im * xi[k][l];
                             ai[l] += tik.re * xi[k][l] + tik.im * xr[k][l];
                         }
                     }
-                    for l in 0..LANES {
+                    for l in 0..L {
                         xr[i][l] = ar[l] * vr[i][l] - ai[l] * vi[i][l];
                         xi[i][l] = ar[l] * vi[i][l] + ai[l] * vr[i][l];
                     }
@@ -515,7 +479,7 @@ impl FreqRespEvaluator {
                     let e = j * ny + r;
                     for i in 0..m {
                         let cri = c[(r, i)];
-                        for l in 0..LANES {
+                        for l in 0..L {
                             gr[e][l] += cri.re * xr[i][l] - cri.im * xi[i][l];
                             gi[e][l] += cri.re * xi[i][l] + cri.im * xr[i][l];
                         }
