@@ -18,6 +18,7 @@ use crate::freqresp::{check_point, FreqRespEvaluator};
 use crate::linalg::convert::eigenvalues;
 use crate::linalg::expm::norm1;
 use crate::linalg::lyap::{lyap, LyapKind};
+use crate::pole_sum::PoleSum;
 use crate::ss::StateSpace;
 use crate::time::SampleTime;
 use nalgebra::DMatrix;
@@ -185,10 +186,10 @@ const MODAL_AGREE: f64 = 1e-9;
 /// the diagonally balanced A; O(n³) once, O(n·ny·nu) per point). Accurate when V is well
 /// conditioned; checked against dense solves next to the 8 poles with the largest eigenvalue
 /// condition `‖v_k‖‖w_k‖` and the 8 nearest the axis.
+/// The sum runs through [`PoleSum`], as the frequency-response evaluator's does.
 struct Modal {
     lam: Vec<C>,
-    cv: DMatrix<C>,
-    wb: DMatrix<C>,
+    poles: PoleSum,
     d: DMatrix<C>,
 }
 
@@ -241,10 +242,18 @@ impl Modal {
         {
             return None;
         }
+        // residues R_k = (C v_k)(w_kᵀ B), entry e = j·ny + i at [e·n + k]
+        let mut r = vec![C::new(0.0, 0.0); n * ny * nu];
+        for k in 0..n {
+            for j in 0..nu {
+                for i in 0..ny {
+                    r[(j * ny + i) * n + k] = cv[(i, k)] * wb[(k, j)];
+                }
+            }
+        }
         let m = Modal {
+            poles: PoleSum::new(&lam, &r, ny * nu),
             lam,
-            cv,
-            wb,
             d: crate::linalg::schur::to_complex(sys.d()),
         };
         let cond: Vec<f64> = (0..n)
@@ -279,17 +288,13 @@ impl Modal {
     }
 
     fn eval(&self, s: C) -> DMatrix<C> {
-        let mut g = self.d.clone();
-        for (k, &l) in self.lam.iter().enumerate() {
-            let inv = (s - l).inv();
-            for j in 0..g.ncols() {
-                let wj = self.wb[(k, j)] * inv;
-                for r in 0..g.nrows() {
-                    g[(r, j)] += self.cv[(r, k)] * wj;
-                }
-            }
-        }
-        g
+        let mut gr: Vec<[f64; 1]> = self.d.iter().map(|z| [z.re]).collect();
+        let mut gi: Vec<[f64; 1]> = self.d.iter().map(|z| [z.im]).collect();
+        self.poles.accumulate(&[s.re], &[s.im], &mut gr, &mut gi);
+        DMatrix::from_fn(self.d.nrows(), self.d.ncols(), |i, j| {
+            let e = j * self.d.nrows() + i;
+            C::new(gr[e][0], gi[e][0])
+        })
     }
 }
 
