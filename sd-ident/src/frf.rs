@@ -327,9 +327,8 @@ pub(crate) fn transform_real(x: &[f64]) -> Vec<C> {
 }
 
 /// Records from this many samples have their transforms computed in parallel: below it the
-/// transforms take little more than waking a pool thread costs here (~50 µs; a 10⁴-sample
-/// estimate with period 1000: 0.14 ms with the records in parallel, 0.11 ms one after the
-/// other).
+/// transforms take little more than waking a pool thread costs, and one after the other is
+/// faster (the 10⁴-sample row of `cargo xtask bench`'s scaling table, `frf_periodic`).
 const PARALLEL_FROM: usize = 50_000;
 
 /// The input SNR below which a line of a ratio estimate is not trusted (bias of `Ȳ/Ū` with
