@@ -6,8 +6,10 @@
 //!   Boyd & Balakrishnan (1990) / Bruinsma & Steinbuch (Syst. Control Lett. 14, 1990). For a level
 //!   γ (not a singular value of D), the frequencies where a singular value of G(jω) equals γ
 //!   are the imaginary eigenvalues of the Hamiltonian, with `R = DᵀD − γ²I`, `S = DDᵀ − γ²I`,
-//!   `F = A − BR⁻¹DᵀC`: `H(γ) = [[F, −γBR⁻¹Bᵀ], [γCᵀS⁻¹C, −Fᵀ]]`; the level rises to the largest
-//!   σ_max at the midpoints of those intervals until no crossing remains. The lower bound starts from the
+//!   `F = A − BR⁻¹DᵀC`: `H(γ) = [[F, −γBR⁻¹Bᵀ], [γCᵀS⁻¹C, −Fᵀ]]`, found as the negative real
+//!   eigenvalues `μ = −ω²` of `H²` at half the order ([`crate::linalg::hamiltonian`]: the QR
+//!   iteration runs on order n instead of 2n; H's own eigenvalues decide when some μ is too
+//!   close to zero for √μ to be resolved); the level rises to the largest σ_max at the midpoints of those intervals until no crossing remains. The lower bound starts from the
 //!   poles' frequencies and a grid; the final peak is polished by golden-section search, and the
 //!   result is always a value actually attained at the reported peak frequency (tests: 5e-15
 //!   relative to the closed form of a resonance; DT within 1e-8 of a dense local search). Discrete models are mapped exactly to continuous ones by the bilinear map
@@ -17,6 +19,7 @@ use crate::error::{ModelError, Result};
 use crate::freqresp::{check_point, FreqRespEvaluator};
 use crate::linalg::convert::eigenvalues;
 use crate::linalg::expm::norm1;
+use crate::linalg::hamiltonian::hamiltonian_squared_eigenvalues;
 use crate::linalg::lyap::{lyap, LyapKind};
 use crate::pole_sum::PoleSum;
 use crate::ss::StateSpace;
@@ -395,8 +398,37 @@ fn polish(sig: &impl Fn(f64) -> f64, best: &mut (f64, f64), lo: f64, hi: f64) {
 }
 
 /// Frequencies ω ≥ 0 where σ(G(jω)) = γ: imaginary eigenvalues of the Hamiltonian.
+///
+/// From the squares `μ = λ²` of its eigenvalues at half the order
+/// ([`hamiltonian_squared_eigenvalues`]): a crossing `λ = jω` is a negative real μ. A μ within
+/// its error of the negative real axis counts too (two crossings the rounding merged into a
+/// complex pair `μ, μ̄`: both ends `ω² = −Re μ ± |Im μ|` are returned, so the level-set step
+/// looks between them; a spurious crossing costs one σ evaluation, a missed one would cost
+/// accuracy). When some μ is within 1000 times its error of zero, λ = √μ is not resolved there
+/// and the eigenvalues of the 2n×2n Hamiltonian itself decide, as before.
 fn imaginary_crossings(sys: &StateSpace, gamma: f64) -> Result<Vec<f64>> {
-    let n = sys.n();
+    let (a11, a12, a21) = hamiltonian_blocks(sys, gamma)?;
+    let sq = hamiltonian_squared_eigenvalues(&a11, &a12, &a21)?;
+    let e = sq.mu_error();
+    if sq.mu.iter().any(|m| m.norm() <= 1e3 * e) {
+        return direct_crossings(&a11, &a12, &a21);
+    }
+    let mut ws = Vec::new();
+    for m in sq.mu.iter().filter(|m| m.re < 0.0) {
+        if m.im.abs() > (2e-8 * m.norm()).max(e) {
+            continue;
+        }
+        ws.push((-m.re - m.im.abs()).max(0.0).sqrt());
+        ws.push((-m.re + m.im.abs()).sqrt());
+    }
+    Ok(sorted_unique(ws))
+}
+
+/// `(F, G, Q)` of the Hamiltonian `[[F, G], [Q, −Fᵀ]]` at level γ (module documentation).
+fn hamiltonian_blocks(
+    sys: &StateSpace,
+    gamma: f64,
+) -> Result<(DMatrix<f64>, DMatrix<f64>, DMatrix<f64>)> {
     let (a, b, c, d) = (sys.a(), sys.b(), sys.c(), sys.d());
     let (ny, nu) = (sys.ny(), sys.nu());
     let r = d.transpose() * d - DMatrix::<f64>::identity(nu, nu) * gamma * gamma;
@@ -410,19 +442,98 @@ fn imaginary_crossings(sys: &StateSpace, gamma: f64) -> Result<Vec<f64>> {
     let a11 = a - b * &ri * d.transpose() * c;
     let a12 = -(b * &ri * b.transpose()) * gamma;
     let a21 = c.transpose() * &si * c * gamma;
+    Ok((a11, a12, a21))
+}
+
+/// The crossings from the eigenvalues of the 2n×2n Hamiltonian: those within `10⁻⁸|λ|` of
+/// the imaginary axis (an absolute floor of `10⁻¹⁴‖H‖₁` near zero).
+fn direct_crossings(
+    a11: &DMatrix<f64>,
+    a12: &DMatrix<f64>,
+    a21: &DMatrix<f64>,
+) -> Result<Vec<f64>> {
+    let n = a11.nrows();
     let mut h = DMatrix::zeros(2 * n, 2 * n);
-    h.view_mut((0, 0), (n, n)).copy_from(&a11);
-    h.view_mut((0, n), (n, n)).copy_from(&a12);
-    h.view_mut((n, 0), (n, n)).copy_from(&a21);
+    h.view_mut((0, 0), (n, n)).copy_from(a11);
+    h.view_mut((0, n), (n, n)).copy_from(a12);
+    h.view_mut((n, 0), (n, n)).copy_from(a21);
     h.view_mut((n, n), (n, n)).copy_from(&(-a11.transpose()));
     let ev = eigenvalues(&h)?;
     let scale = norm1(&h).max(1.0);
-    let mut ws: Vec<f64> = ev
+    let ws: Vec<f64> = ev
         .iter()
         .filter(|z| z.im >= 0.0 && z.re.abs() <= 1e-8 * z.norm().max(1e-6 * scale))
         .map(|z| z.im)
         .collect();
+    Ok(sorted_unique(ws))
+}
+
+/// Sorted, with values within `10⁻¹²` (relative) merged.
+fn sorted_unique(mut ws: Vec<f64>) -> Vec<f64> {
     ws.sort_by(f64::total_cmp);
     ws.dedup_by(|x, y| (*x - *y).abs() <= 1e-12 * y.abs().max(1.0));
-    Ok(ws)
+    ws
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn resonance(zeta: f64, w: f64) -> StateSpace {
+        let a = DMatrix::from_row_slice(2, 2, &[0.0, 1.0, -w * w, -2.0 * zeta * w]);
+        let b = DMatrix::from_row_slice(2, 1, &[0.0, w * w]);
+        let c = DMatrix::from_row_slice(1, 2, &[1.0, 0.0]);
+        StateSpace::new(a, b, c, DMatrix::zeros(1, 1), SampleTime::Continuous)
+            .unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// Below the peak of a resonance (ζ = 0.05, ω = 3 rad/s; peak 1/(2ζ√(1−ζ²))), the crossings
+    /// from the squared eigenvalues are the two frequencies where |G(jω)| = γ in closed form,
+    /// and agree with those from H's own eigenvalues.
+    #[test]
+    fn crossings_from_the_square_match_the_closed_form() {
+        let (zeta, w) = (0.05, 3.0);
+        let sys = resonance(zeta, w);
+        let peak = 1.0 / (2.0 * zeta * (1.0 - zeta * zeta).sqrt());
+        let gamma = 0.8 * peak;
+        // |G|² = w⁴ / ((w² − ω²)² + 4ζ²w²ω²) = γ²: a quadratic in x = ω²
+        let (a2, a1, a0) = (
+            1.0,
+            -2.0 * w * w + 4.0 * zeta * zeta * w * w,
+            w.powi(4) - w.powi(4) / (gamma * gamma),
+        );
+        let disc = (a1 * a1 - 4.0 * a2 * a0).sqrt();
+        let exact = [((-a1 - disc) / 2.0).sqrt(), ((-a1 + disc) / 2.0).sqrt()];
+        let ws = imaginary_crossings(&sys, gamma).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(ws.len(), 2, "{ws:?}");
+        for (x, y) in ws.iter().zip(exact) {
+            assert!((x - y).abs() <= 1e-12 * y, "{x} vs {y}");
+        }
+        let (f, g, q) = hamiltonian_blocks(&sys, gamma).unwrap_or_else(|e| panic!("{e}"));
+        let direct = direct_crossings(&f, &g, &q).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(direct.len(), 2);
+        for (x, y) in ws.iter().zip(&direct) {
+            assert!((x - y).abs() <= 1e-12 * y, "{x} vs {y}");
+        }
+    }
+
+    /// A low-pass peaks at ω = 0: at a level just above it μ is near zero, H's own eigenvalues
+    /// decide, and the norm is the DC gain.
+    #[test]
+    fn a_peak_at_zero_frequency_falls_back_to_h() {
+        let sys = StateSpace::new(
+            DMatrix::from_element(1, 1, -2.0),
+            DMatrix::from_element(1, 1, 3.0),
+            DMatrix::from_element(1, 1, 1.0),
+            DMatrix::zeros(1, 1),
+            SampleTime::Continuous,
+        )
+        .unwrap_or_else(|e| panic!("{e}"));
+        let (f, g, q) =
+            hamiltonian_blocks(&sys, 1.5 * (1.0 + 1e-12)).unwrap_or_else(|e| panic!("{e}"));
+        let sq = hamiltonian_squared_eigenvalues(&f, &g, &q).unwrap_or_else(|e| panic!("{e}"));
+        assert!(sq.mu.iter().any(|m| m.norm() <= 1e3 * sq.mu_error()));
+        let n = sys.hinf_norm().unwrap_or_else(|e| panic!("{e}"));
+        assert!((n.value - 1.5).abs() <= 1e-14 * 1.5, "{}", n.value);
+    }
 }

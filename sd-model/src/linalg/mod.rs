@@ -8,6 +8,7 @@ pub mod blocks;
 pub mod convert;
 pub mod expm;
 pub mod golden;
+pub mod hamiltonian;
 pub mod lstsq;
 pub mod lyap;
 pub mod schur;

@@ -265,7 +265,7 @@ pub fn shifted_triangular_solve(t: &DMatrix<C>, s: C, r: &DMatrix<C>) -> DMatrix
 
 #[cfg(test)]
 #[allow(clippy::unwrap_used, clippy::expect_used)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// A matrix on which the QR iteration with deflation tolerance ε stalls (test_data/README.md)
@@ -291,7 +291,9 @@ mod tests {
         assert!(qq.iter().map(|v| v.norm()).fold(0.0, f64::max) < 1e-13);
     }
 
-    fn rand_mat(n: usize, seed: u64) -> DMatrix<f64> {
+    /// A seeded n×n matrix with entries uniform in [−½, ½) (also used by the other linalg
+    /// modules' tests).
+    pub(crate) fn rand_mat(n: usize, seed: u64) -> DMatrix<f64> {
         let mut s = seed;
         DMatrix::from_fn(n, n, |_, _| {
             s = s
