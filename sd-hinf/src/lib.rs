@@ -18,6 +18,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+mod board;
 pub mod error;
 #[cfg(feature = "lmi")]
 pub mod lmi;

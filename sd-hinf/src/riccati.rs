@@ -31,12 +31,14 @@
 //! (CARE); and a relative condition estimate `κ = ‖Ω⁻¹‖(‖Q‖ + 2‖A‖‖X‖ + ‖A‖²‖G‖‖X‖²)/‖X‖`
 //! (CT: `‖Q‖ + 2‖A‖‖X‖ + ‖G‖‖X‖²`; Byers 1985, Sun 1998) with `Ω` the closed-loop Lyapunov
 //! (Stein) operator, `‖Ω⁻¹‖ = ‖Ω⁻¹(I)‖₂` exactly for these operators, all evaluated in the
-//! coordinates that balance `A − BK` (so physical-coordinate scaling does not inflate it).
+//! coordinates that balance `A − BK` (so physical-coordinate scaling does not inflate it; the
+//! DARE's `Ω⁻¹(I)` by a Smith sum run to 10⁻⁶ relative, [`tol::CONDITION_SUM`]).
 //! Expect a relative error of about `κ·ε` in X (in those coordinates).
 
 use crate::error::{HinfError, Result};
 use crate::tol;
-use faer::linalg::matmul::matmul;
+use faer::linalg::matmul::triangular::BlockStructure;
+use faer::linalg::matmul::{matmul, triangular};
 use faer::{Accum, Mat, MatRef, Par};
 use nalgebra::DMatrix;
 use num_complex::Complex64 as C;
@@ -176,19 +178,33 @@ fn dare_residual(d: &Data, x: &DMatrix<f64>) -> Result<(DMatrix<f64>, f64, DMatr
     Ok((res, rel, k))
 }
 
-pub(crate) fn fsym(m: &mut Mat<f64>) {
-    let n = m.nrows();
-    for j in 0..n {
-        for i in (j + 1)..n {
-            let v = 0.5 * (m[(i, j)] + m[(j, i)]);
-            m[(i, j)] = v;
-            m[(j, i)] = v;
-        }
-    }
+pub(crate) fn all_finite(m: &Mat<f64>) -> bool {
+    (0..m.ncols()).all(|j| m.col_as_slice(j).iter().all(|v| v.is_finite()))
 }
 
-pub(crate) fn all_finite(m: &Mat<f64>) -> bool {
-    (0..m.ncols()).all(|j| (0..m.nrows()).all(|i| m[(i, j)].is_finite()))
+/// `‖m‖_F` by a plain sum of squares over the columns (faer's overflow-safe `norm_l2` was most
+/// of the Smith sum's time, more than its products), the safe one only when the plain sum
+/// over- or underflows.
+pub(crate) fn frobenius(m: &Mat<f64>) -> f64 {
+    let mut acc = [0.0f64; 4];
+    for j in 0..m.ncols() {
+        let col = m.col_as_slice(j);
+        let mut chunks = col.chunks_exact(4);
+        for c in &mut chunks {
+            for k in 0..4 {
+                acc[k] += c[k] * c[k];
+            }
+        }
+        for (k, v) in chunks.remainder().iter().enumerate() {
+            acc[k] += v * v;
+        }
+    }
+    let s = (acc[0] + acc[1]) + (acc[2] + acc[3]);
+    if s.is_finite() && s > 1e-280 {
+        s.sqrt()
+    } else {
+        m.norm_l2()
+    }
 }
 
 /// `dst ← (accumulate ? dst : 0) + lhs·rhs` without allocating.
@@ -203,11 +219,31 @@ pub(crate) fn mm(dst: &mut Mat<f64>, add: bool, lhs: MatRef<'_, f64>, rhs: MatRe
     );
 }
 
+/// `dst ← dst + lhs·rhs` in the lower triangle only, then mirrored onto the upper one: for a
+/// product known to be symmetric (half the flops of [`mm`]; the result exactly symmetric).
+pub(crate) fn mm_sym(dst: &mut Mat<f64>, add: bool, lhs: MatRef<'_, f64>, rhs: MatRef<'_, f64>) {
+    triangular::matmul(
+        dst.as_mut(),
+        BlockStructure::TriangularLower,
+        if add { Accum::Add } else { Accum::Replace },
+        lhs,
+        BlockStructure::Rectangular,
+        rhs,
+        BlockStructure::Rectangular,
+        1.0,
+        Par::Seq,
+    );
+    mirror_lower(dst);
+}
+
 /// `Σ_k (Mᵀ)^k Q M^k` (the solution of `MᵀPM − P + Q = 0`; Q = I when `None`) by squaring
-/// (Smith's iteration: after step j the sum holds the first 2^j terms), for ρ(M) < 1; `None`
-/// when it does not settle within [`tol::MAX_DOUBLING`] squarings. Matrix products only (faer),
-/// no Schur form: log₂(log ε / log ρ) steps of three n³ products.
-fn stein_sum(m: &DMatrix<f64>, q: Option<&DMatrix<f64>>) -> Option<DMatrix<f64>> {
+/// (Smith's iteration: after step j the sum holds the first 2^j terms), for ρ(M) < 1, until a
+/// step adds less than `tol` relative (ε for a solution, looser for an estimate: the terms left
+/// out then weigh about `tol` too, as they fall off doubly exponentially); `None` when it does
+/// not settle within [`tol::MAX_DOUBLING`] squarings. Matrix products only (faer), no Schur
+/// form: log₂(log tol / log ρ) steps of `P·M`, the lower triangle of the symmetric `Mᵀ(PM)`
+/// and `M²`.
+fn stein_sum(m: &DMatrix<f64>, q: Option<&DMatrix<f64>>, tol: f64) -> Option<DMatrix<f64>> {
     let n = m.nrows();
     let mut p = match q {
         Some(q) => to_faer(q),
@@ -221,19 +257,28 @@ fn stein_sum(m: &DMatrix<f64>, q: Option<&DMatrix<f64>>) -> Option<DMatrix<f64>>
     );
     for _ in 0..tol::MAX_DOUBLING {
         mm(&mut t, false, p.as_ref(), mk.as_ref());
-        mm(&mut inc, false, mk.transpose(), t.as_ref());
-        let (ni, np) = (inc.norm_l2(), p.norm_l2());
+        mm_sym(&mut inc, false, mk.transpose(), t.as_ref());
+        let (ni, np) = (frobenius(&inc), frobenius(&p));
         p += &inc;
         if !np.is_finite() {
             return None;
         }
-        if ni <= f64::EPSILON * np {
+        if ni <= tol * np {
             return Some(from_faer(p.as_ref()));
         }
         mm(&mut sq, false, mk.as_ref(), mk.as_ref());
         std::mem::swap(&mut mk, &mut sq);
     }
     None
+}
+
+/// Copies the lower triangle of the square `m` onto its upper one.
+fn mirror_lower(m: &mut Mat<f64>) {
+    for j in 0..m.ncols() {
+        for i in (j + 1)..m.nrows() {
+            m[(j, i)] = m[(i, j)];
+        }
+    }
 }
 
 /// Stabilizing solution of the DARE (module documentation).
@@ -477,7 +522,7 @@ fn finish(
         // the correction solves the (closed-loop) Stein or Lyapunov equation; a step is kept
         // only when it lowers the residual
         let delta = match kind {
-            Kind::Discrete => stein_sum(&ac, Some(&res))
+            Kind::Discrete => stein_sum(&ac, Some(&res), f64::EPSILON)
                 .map_or_else(|| lyap(&ac.transpose(), &res, LyapKind::Discrete), Ok),
             Kind::Continuous => lyap(&ac.transpose(), &res, LyapKind::Continuous),
         };
@@ -561,7 +606,7 @@ fn condition(d: &Data, x: &DMatrix<f64>, ac: &DMatrix<f64>, kind: Kind) -> Resul
     let bb = DMatrix::from_fn(n, d.b.ncols(), |i, j| d.b[(i, j)] / dv[i]);
     let ident = DMatrix::<f64>::identity(n, n);
     let p = match kind {
-        Kind::Discrete => match stein_sum(&acb, None) {
+        Kind::Discrete => match stein_sum(&acb, None, tol::CONDITION_SUM) {
             Some(p) => p,
             None => lyap(&acb.transpose(), &ident, LyapKind::Discrete)?,
         },
@@ -745,7 +790,7 @@ mod tests {
         let q12 = &q12 + q12.transpose();
         for (mm_, q) in [(rot, m(2, 2, &[1.0, 0.3, 0.3, -2.0])), (r, q12)] {
             let n = mm_.nrows() as f64;
-            let p = stein_sum(&mm_, Some(&q)).unwrap();
+            let p = stein_sum(&mm_, Some(&q), f64::EPSILON).unwrap();
             let res = (mm_.transpose() * &p * &mm_ - &p + &q).norm();
             let scale = mm_.norm().powi(2) * p.norm() + q.norm();
             let reference = lyap(&mm_.transpose(), &q, LyapKind::Discrete).unwrap();

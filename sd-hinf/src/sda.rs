@@ -9,37 +9,36 @@
 //! ```
 //!
 //! and `H_k → X` quadratically: the error after k steps is of order `ρ(A_cl)^{2^{k+1}}`
-//! (ρ(A_cl) the closed loop's spectral radius), so a stage with ρ = 1 − 3·10⁻⁵ needs about 21
-//! steps. A step costs 16⅔ n³ flops: `G_k H_k` (2n³), the LU of W (⅔n³), the solves for
-//! `V₁ = W⁻¹A_k` and `V₂ = W⁻¹G_k` (2n³ each) and five products (2n³ each).
+//! (ρ(A_cl) the closed loop's spectral radius), so a stage with ρ = 1 − 3·10⁻⁵ needs about 20
+//! steps. The loop stops when a step changes H by less than 10⁻¹⁵ relative, or, once the
+//! convergence is visibly quadratic (the change at most the 1.5th power of the previous one),
+//! by less than 10⁻¹⁰: the next step's change would be of the order of its square, below ε
+//! (on the 60-state stage the 20th step changes H by 2·10⁻¹⁴ and a 21st would change
+//! nothing). A step costs 14⅔ n³ flops: `G_k H_k` (2n³), the LU of W (⅔n³), the solves for
+//! `V₁ = W⁻¹A_k` and `V₂ = W⁻¹G_k` (2n³ each), three general products (2n³ each) and the
+//! two symmetric ones of `H_{k+1}`, `G_{k+1}` as lower triangles (n³ each, mirrored).
 //!
 //! **Two cores.** After the LU the step splits into `V₁, H_{k+1} = H + Aᵀ(H V₁), A_{k+1} = A V₁`
-//! (8n³) and `V₂, G_{k+1} = G + A(V₂ Aᵀ)` (6n³). The second half is *posted* to a helper
-//! running beside the loop on the rayon pool; whichever thread claims it first computes it
-//! (the loop itself when the helper has not started: inside a busy pool, e.g. the two Riccati
-//! equations of loopshaping solved in parallel, the steps simply run on one thread). The
-//! helper spins between steps, yielding its core every few hundred spins: a step of a 60-state
-//! problem is a few tens of microseconds, the order of what waking a sleeping pool thread
-//! costs, so a `rayon::join` per step (which lets the other thread sleep between steps) lost
-//! more than it gained. The arithmetic does not depend on which thread computes a half: the
-//! result is bit-identical either way (test). `cargo xtask bench` reports the 60-state DARE's
+//! (7n³) and `V₂, G_{k+1} = G + A(V₂ Aᵀ)` (5n³). (Moving half of `A V₁` into the second half
+//! to balance them was tried and measured no faster.) The second half is *posted* to a helper
+//! running beside the loop on the rayon pool (`board.rs`: whichever thread claims it first
+//! computes it; inside a busy pool, e.g. the two Riccati equations of loopshaping solved in
+//! parallel, the steps simply run on one thread). The result is bit-identical either way
+//! (test). `cargo xtask bench` reports the 60-state DARE's
 //! time, steps and share of one core's peak (`dare`).
 
+use crate::board::Board;
 use crate::error::{HinfError, Result};
-use crate::riccati::{all_finite, fsym, mm};
+use crate::riccati::{all_finite, mm, mm_sym};
 use crate::tol;
 use faer::linalg::solvers::{PartialPivLu, Solve};
 use faer::Mat;
 use nalgebra::DMatrix;
 use sd_model::linalg::convert::{from_faer, to_faer};
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 /// Below this order one thread does every step (the halves are too small to share).
 const TWO_CORES_FROM: usize = 24;
-
-/// Spins between two yields of a waiting thread.
-const SPINS_PER_YIELD: usize = 256;
 
 /// The work matrices of one half of a step: `W⁻¹A` or `W⁻¹G`, a product's intermediate, and
 /// the next `H` or `G` (allocated once, handed back and forth with the job).
@@ -75,8 +74,7 @@ fn g_half(job: GJob) -> (Work, bool) {
     lu.solve_in_place(work.v.as_mut());
     mm(&mut work.t, false, work.v.as_ref(), a.transpose());
     work.next.copy_from(g.as_ref());
-    mm(&mut work.next, true, a.as_ref().as_ref(), work.t.as_ref());
-    fsym(&mut work.next);
+    mm_sym(&mut work.next, true, a.as_ref().as_ref(), work.t.as_ref());
     let ok = all_finite(&work.v);
     (work, ok)
 }
@@ -94,85 +92,9 @@ fn h_half(
     lu.solve_in_place(work.v.as_mut());
     mm(&mut work.t, false, h.as_ref(), work.v.as_ref());
     work.next.copy_from(h);
-    mm(&mut work.next, true, a.transpose(), work.t.as_ref());
-    fsym(&mut work.next);
+    mm_sym(&mut work.next, true, a.transpose(), work.t.as_ref());
     mm(an, false, a.as_ref(), work.v.as_ref());
     all_finite(&work.v)
-}
-
-/// What the loop and the helper share: the posted half, its result, and counters.
-#[derive(Default)]
-struct Board {
-    posted: Mutex<Option<GJob>>,
-    result: Mutex<Option<(Work, bool)>>,
-    /// Steps posted so far.
-    seq: AtomicUsize,
-    /// Steps whose posted half the helper has finished.
-    done: AtomicUsize,
-    finished: AtomicBool,
-}
-
-impl Board {
-    /// The helper: claims every posted half until the loop has finished.
-    fn help(&self) {
-        let mut seen = 0;
-        let mut spins = 0;
-        while !self.finished.load(Ordering::Acquire) {
-            let p = self.seq.load(Ordering::Acquire);
-            if p > seen {
-                seen = p;
-                let job = self.posted.lock().ok().and_then(|mut j| j.take());
-                if let Some(job) = job {
-                    let r = g_half(job);
-                    if let Ok(mut slot) = self.result.lock() {
-                        *slot = Some(r);
-                    }
-                    self.done.store(p, Ordering::Release);
-                }
-                continue;
-            }
-            pause(&mut spins);
-        }
-    }
-
-    /// Posts step `k`'s second half (numbered from 1).
-    fn post(&self, job: GJob, k: usize) -> Result<()> {
-        *self.posted.lock().map_err(|_| poisoned())? = Some(job);
-        self.seq.store(k, Ordering::Release);
-        Ok(())
-    }
-
-    /// Step `k`'s second half: computed here when the helper has not claimed it, else the
-    /// helper's result once it is there.
-    fn collect(&self, k: usize) -> Result<(Work, bool)> {
-        let unclaimed = self.posted.lock().map_err(|_| poisoned())?.take();
-        if let Some(job) = unclaimed {
-            return Ok(g_half(job));
-        }
-        let mut spins = 0;
-        while self.done.load(Ordering::Acquire) < k {
-            pause(&mut spins);
-        }
-        self.result
-            .lock()
-            .map_err(|_| poisoned())?
-            .take()
-            .ok_or_else(|| HinfError::Numerical("a doubling step's half went missing".into()))
-    }
-}
-
-fn poisoned() -> HinfError {
-    HinfError::Numerical("the doubling's helper thread failed".into())
-}
-
-/// One spin, and a yield of the core every [`SPINS_PER_YIELD`].
-fn pause(spins: &mut usize) {
-    *spins += 1;
-    if *spins % SPINS_PER_YIELD == 0 {
-        std::thread::yield_now();
-    } else {
-        std::hint::spin_loop();
-    }
 }
 
 /// SDA on `(A, G, H)`; returns `(X, iterations)` (module documentation).
@@ -191,10 +113,10 @@ pub(crate) fn doubling(
     let (r, ()) = rayon::join(
         || {
             let r = steps(a, g, h, Some(&board));
-            board.finished.store(true, Ordering::Release);
+            board.close();
             r
         },
-        || board.help(),
+        || board.help(g_half),
     );
     r
 }
@@ -206,11 +128,12 @@ fn steps(
     a: &DMatrix<f64>,
     g: &DMatrix<f64>,
     h: &DMatrix<f64>,
-    board: Option<&Board>,
+    board: Option<&Board<GJob, (Work, bool)>>,
 ) -> Result<(DMatrix<f64>, usize)> {
     let n = a.nrows();
     let (mut ak, mut gk, mut hk) = (Arc::new(to_faer(a)), Arc::new(to_faer(g)), to_faer(h));
     let (mut w, mut an) = (Mat::<f64>::zeros(n, n), Mat::<f64>::zeros(n, n));
+    let mut last_change = f64::INFINITY;
     let (mut hw, mut gw) = (Work::new(n), Some(Work::new(n)));
     for it in 0..tol::MAX_DOUBLING {
         mm(&mut w, false, gk.as_ref().as_ref(), hk.as_ref());
@@ -228,7 +151,7 @@ fn steps(
             Some(b) => {
                 b.post(job, it + 1)?;
                 let ok = h_half(&lu, &ak, &hk, &mut hw, &mut an);
-                (ok, b.collect(it + 1)?)
+                (ok, b.collect(it + 1, g_half)?)
             }
             None => (h_half(&lu, &ak, &hk, &mut hw, &mut an), g_half(job)),
         };
@@ -247,9 +170,12 @@ fn steps(
         swap_into(&mut gk, &mut gdone.next);
         swap_into(&mut ak, &mut an);
         gw = Some(gdone);
-        if dh <= tol::DOUBLING_STOP * hnorm.max(f64::MIN_POSITIVE) {
+        let change = dh / hnorm.max(f64::MIN_POSITIVE);
+        let quadratic = change <= tol::DOUBLING_QUADRATIC && change <= last_change.powf(1.5);
+        if change <= tol::DOUBLING_STOP || quadratic {
             return Ok((from_faer(hk.as_ref()), it + 1));
         }
+        last_change = change;
     }
     Err(HinfError::Numerical(format!(
         "the doubling iteration did not converge in {} steps",
@@ -269,17 +195,18 @@ fn swap_into(shared: &mut Arc<Mat<f64>>, m: &mut Mat<f64>) {
     }
 }
 
-/// `(‖new − old‖_F, ‖new‖_F)` without a temporary.
+/// `(‖new − old‖_F, ‖new‖_F)` without a temporary (column slices, vectorised).
 fn change_and_norm(new: &Mat<f64>, old: &Mat<f64>) -> (f64, f64) {
-    let (mut d2, mut n2) = (0.0, 0.0);
+    let (mut d2, mut n2) = ([0.0f64; 4], [0.0f64; 4]);
     for j in 0..new.ncols() {
-        for i in 0..new.nrows() {
-            let (x, y) = (new[(i, j)], old[(i, j)]);
-            d2 += (x - y) * (x - y);
-            n2 += x * x;
+        let (x, y) = (new.col_as_slice(j), old.col_as_slice(j));
+        for (k, (a, b)) in x.iter().zip(y).enumerate() {
+            d2[k % 4] += (a - b) * (a - b);
+            n2[k % 4] += a * a;
         }
     }
-    (d2.sqrt(), n2.sqrt())
+    let sum = |v: [f64; 4]| ((v[0] + v[1]) + (v[2] + v[3])).sqrt();
+    (sum(d2), sum(n2))
 }
 
 #[cfg(test)]

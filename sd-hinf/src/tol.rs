@@ -6,8 +6,14 @@ pub const SYMMETRY: f64 = 1e-10;
 pub const SPD_PIVOT: f64 = 1e-7;
 /// Doubling stops when `‖H_{k+1} − H_k‖ ≤ DOUBLING_STOP·‖H_{k+1}‖`.
 pub const DOUBLING_STOP: f64 = 1e-15;
+/// Doubling also stops when the relative change is below this and at most the 1.5th power
+/// of the previous one (quadratic convergence: the next change would be about its square).
+pub const DOUBLING_QUADRATIC: f64 = 1e-10;
 /// Most doubling steps (convergence is quadratic: 64 covers ρ(A − BK) up to 1 − 1e-17).
 pub const MAX_DOUBLING: usize = 64;
+/// The condition estimate's Smith sum stops when a step adds less than this relative (the
+/// estimate is then good to about this; a solution's sum runs to ε).
+pub const CONDITION_SUM: f64 = 1e-6;
 /// Newton refinement stops below this relative residual.
 pub const NEWTON_STOP: f64 = 1e-16;
 /// Most Newton refinement steps.

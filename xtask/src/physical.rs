@@ -83,9 +83,10 @@ pub(crate) fn freqresp_flops_per_point(
 
 /// Flops of one structured-doubling step on an n-state DARE (`sd_hinf::riccati`'s SDA):
 /// `G_k H_k` (2n³), the LU of `I + G_k H_k` (⅔n³), its solve for 2n right-hand sides (4n³),
-/// and five products for `H⁺`, `G⁺` and `A⁺` (10n³): 50/3·n³.
+/// three general products (6n³) and the lower triangles of the symmetric `H⁺`, `G⁺` (2n³):
+/// 44/3·n³.
 pub(crate) fn dare_flops_per_step(n: usize) -> f64 {
-    50.0 / 3.0 * (n as f64).powi(3)
+    44.0 / 3.0 * (n as f64).powi(3)
 }
 
 /// GNU time, which reports a child's max RSS (`ru_maxrss`) without unsafe code here.
