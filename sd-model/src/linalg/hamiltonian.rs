@@ -17,7 +17,8 @@
 //! order `n·ε·‖H‖²` (the blocks of W are formed from products of H's), and `λ = √μ` one of order `n·ε·‖H‖²/|λ|`: worse than a direct
 //! eigenvalue computation of H by `‖H‖/|λ|` (Van Loan's "square-root" loss for eigenvalues
 //! small against ‖H‖). [`SquaredEigenvalues::mu_error`] states the scale so that a caller can
-//! tell when a decision taken on λ could flip within it, and fall back to H itself.
+//! tell when a decision taken on λ could flip within it (the H∞ norm then brackets the
+//! frequencies such a λ could cross at).
 //!
 //! **What the square keeps exactly.** An eigenvalue on the imaginary axis, `λ = jω`, is a real
 //! `μ = −ω²` of the real matrix `Ã`; a real perturbation keeps a simple real eigenvalue real,
