@@ -14,7 +14,9 @@
 //! convergence is visibly quadratic (the change at most the 1.5th power of the previous one),
 //! by less than 10⁻¹⁰: the next step's change would be of the order of its square, below ε
 //! (on the 60-state stage this saves the 21st step, which changed nothing: `cargo xtask
-//! bench`'s `dare` entry reports the steps and the residual). A step costs 14⅔ n³ flops: `G_k H_k` (2n³), the LU of W (⅔n³), the solves for
+//! bench`'s `dare` entry reports the steps and the residual).
+//!
+//! A step costs 14⅔ n³ flops: `G_k H_k` (2n³), the LU of W (⅔n³), the solves for
 //! `V₁ = W⁻¹A_k` and `V₂ = W⁻¹G_k` (2n³ each), three general products (2n³ each) and the
 //! two symmetric ones of `H_{k+1}`, `G_{k+1}` as lower triangles (n³ each, mirrored).
 //!
@@ -24,8 +26,8 @@
 //! running beside the loop on the rayon pool (`board.rs`: whichever thread claims it first
 //! computes it; inside a busy pool, e.g. the two Riccati equations of loopshaping solved in
 //! parallel, the steps simply run on one thread). The result is bit-identical either way
-//! (test). `cargo xtask bench` reports the 60-state DARE's
-//! time, steps and share of one core's peak (`dare`).
+//! (test). `cargo xtask bench` reports the 60-state DARE's time, steps and share of one
+//! core's peak (`dare`).
 
 use crate::board::Board;
 use crate::error::{HinfError, Result};

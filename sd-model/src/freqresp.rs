@@ -19,7 +19,7 @@
 use crate::error::{ModelError, Result};
 use crate::frd::Frd;
 use crate::linalg::schur::{block_diagonalize, to_complex, BlockDiagonal, SPLIT_BOUND};
-use crate::pole_sum::{PoleSum, LANES};
+use crate::pole_sum::{reciprocals, PoleSum, LANES};
 use crate::ss::StateSpace;
 use crate::time::SampleTime;
 use nalgebra::DMatrix;
@@ -451,13 +451,7 @@ impl FreqRespEvaluator {
             let (xr, xi) = x.split_at_mut(m);
             let (vr, vi) = v.split_at_mut(m);
             for i in 0..m {
-                let tii = t[(i, i)];
-                for l in 0..L {
-                    let (dr, di) = (sr[l] - tii.re, si[l] - tii.im);
-                    let inv = 1.0 / (dr * dr + di * di);
-                    vr[i][l] = dr * inv;
-                    vi[i][l] = -di * inv;
-                }
+                (vr[i], vi[i]) = reciprocals(sr, si, t[(i, i)]);
             }
             for j in 0..b.ncols() {
                 for i in (0..m).rev() {

@@ -410,11 +410,12 @@ fn imaginary_crossings(sys: &StateSpace, gamma: f64) -> Result<Vec<f64>> {
     let (a11, a12, a21) = hamiltonian_blocks(sys, gamma)?;
     let sq = hamiltonian_squared_eigenvalues(&a11, &a12, &a21)?;
     let e = sq.mu_error();
+    let unresolved = 1e3 * e;
     let mut ws = Vec::new();
     for m in &sq.mu {
-        if m.norm() <= 1e3 * e {
+        if m.norm() <= unresolved {
             ws.push(0.0);
-            ws.push((m.norm() + 1e3 * e).sqrt());
+            ws.push((m.norm() + unresolved).sqrt());
             continue;
         }
         if m.re >= 0.0 || m.im.abs() > (2e-8 * m.norm()).max(e) {

@@ -187,24 +187,36 @@ impl PoleSum {
         }
         let no = self.one_re.len();
         for k in 0..no {
-            let (tr, ti) = (self.one_re[k], self.one_im[k]);
-            let (mut dr, mut di, mut inv) = ([0.0; L], [0.0; L], [0.0; L]);
-            for l in 0..L {
-                dr[l] = sr[l] - tr;
-                di[l] = si[l] - ti;
-                inv[l] = 1.0 / (dr[l] * dr[l] + di[l] * di[l]);
-            }
+            let (vr, vi) = reciprocals(sr, si, C::new(self.one_re[k], self.one_im[k]));
             for e in 0..self.entries {
                 let (x, y) = (self.one_x[e * no + k], self.one_y[e * no + k]);
                 let (ge_r, ge_i) = (&mut gr[e], &mut gi[e]);
                 for l in 0..L {
-                    // R·conj(d)/|d|²
-                    ge_r[l] += (x * dr[l] + y * di[l]) * inv[l];
-                    ge_i[l] += (y * dr[l] - x * di[l]) * inv[l];
+                    // R·(1/d)
+                    ge_r[l] += x * vr[l] - y * vi[l];
+                    ge_i[l] += x * vi[l] + y * vr[l];
                 }
             }
         }
     }
+}
+
+/// `1/(s_l − t)` in each of the `L` lanes (real and imaginary parts; one real division each):
+/// the term-by-term poles here and the clusters' diagonals in `freqresp.rs`.
+#[inline(always)]
+pub(crate) fn reciprocals<const L: usize>(
+    sr: &[f64; L],
+    si: &[f64; L],
+    t: C,
+) -> ([f64; L], [f64; L]) {
+    let (mut vr, mut vi) = ([0.0; L], [0.0; L]);
+    for l in 0..L {
+        let (dr, di) = (sr[l] - t.re, si[l] - t.im);
+        let inv = 1.0 / (dr * dr + di * di);
+        vr[l] = dr * inv;
+        vi[l] = -di * inv;
+    }
+    (vr, vi)
 }
 
 /// [`PoleSum::accumulate`]'s arguments, for pulp's dispatch (its `with_simd` is inlined into

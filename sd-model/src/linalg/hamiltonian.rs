@@ -97,7 +97,6 @@ fn hamiltonian_norm1(f: &DMatrix<f64>, g: &DMatrix<f64>, q: &DMatrix<f64>) -> f6
 /// The skew-Hamiltonian `[[A, G], [Q, Aᵀ]]` by its three n×n blocks (G and Q
 /// skew-symmetric, stored whole).
 struct Square {
-    n: usize,
     a: Mat<f64>,
     g: Mat<f64>,
     q: Mat<f64>,
@@ -185,13 +184,11 @@ impl Square {
     /// `H²` by blocks: `F² + GQ`, `X − Xᵀ` with `X = FG`, `Y − Yᵀ` with `Y = QF` (skew by
     /// construction).
     fn of(f: &DMatrix<f64>, g: &DMatrix<f64>, q: &DMatrix<f64>) -> Self {
-        let n = f.nrows();
         let (f, g, q) = (to_faer(f), to_faer(g), to_faer(q));
         let a = &f * &f + &g * &q;
         let x = &f * &g;
         let y = &q * &f;
         Square {
-            n,
             a,
             g: &x - x.transpose(),
             q: &y - y.transpose(),
@@ -201,7 +198,7 @@ impl Square {
     /// Applies `diag(P, P)` as a similarity (A's columns before j and Q's rows and columns
     /// before j are already zero where P acts).
     fn reflect(&mut self, p: &Reflector, j: usize) {
-        let n = self.n;
+        let n = self.a.nrows();
         p.left(&mut self.a, j..n);
         p.right(&mut self.a, 0..n);
         p.left(&mut self.g, 0..n);
@@ -214,7 +211,7 @@ impl Square {
     /// row and column k of the three blocks (derived from `UᵀWU` blockwise; the diagonal
     /// entries of G and Q stay zero and A(k, k) is unchanged).
     fn rotate(&mut self, k: usize, c: f64, s: f64) {
-        let n = self.n;
+        let n = self.a.nrows();
         let a_row: Vec<f64> = (0..n).map(|l| self.a[(k, l)]).collect();
         let a_col: Vec<f64> = (0..n).map(|i| self.a[(i, k)]).collect();
         let g_col: Vec<f64> = (0..n).map(|i| self.g[(i, k)]).collect();
@@ -233,7 +230,7 @@ impl Square {
 
     /// Step j of the PVL reduction: afterwards Q's column j is zero and A's is Hessenberg.
     fn reduce_column(&mut self, j: usize) {
-        let n = self.n;
+        let n = self.a.nrows();
         let k = j + 1;
         if let Some(p) = Reflector::annihilating(&self.q.col_as_slice(j)[k..], k) {
             self.reflect(&p, j);
@@ -279,29 +276,23 @@ mod tests {
             let direct = eigenvalues(&h).unwrap_or_else(|e| panic!("{e}"));
             let sq = hamiltonian_squared_eigenvalues(&f, &g, &q).unwrap_or_else(|e| panic!("{e}"));
             assert_eq!(sq.mu.len(), n);
-            // each μ is the square of a direct eigenvalue within n·ε·‖H‖² (scaled)
+            // each μ is the square of a direct eigenvalue within n·ε·‖H‖² (scaled), and every
+            // direct λ² is matched by some μ
             let hn = crate::linalg::expm::norm1(&h);
+            let tol = 1e3 * (2 * n) as f64 * f64::EPSILON * hn * hn;
+            let squares: Vec<C> = direct.iter().map(|l| l * l).collect();
+            let nearest = |z: &C, set: &[C]| {
+                set.iter()
+                    .map(|w| (w - z).norm())
+                    .fold(f64::INFINITY, f64::min)
+            };
             for mu in &sq.mu {
-                let d = direct
-                    .iter()
-                    .map(|l| (l * l - mu).norm())
-                    .fold(f64::INFINITY, f64::min);
-                assert!(
-                    d <= 1e3 * (2 * n) as f64 * f64::EPSILON * hn * hn,
-                    "n {n}: μ {mu} is {d:e} from every λ²"
-                );
+                let d = nearest(mu, &squares);
+                assert!(d <= tol, "n {n}: μ {mu} is {d:e} from every λ²");
             }
-            // and every direct λ² is matched by some μ
-            for l in &direct {
-                let d = sq
-                    .mu
-                    .iter()
-                    .map(|mu| (l * l - mu).norm())
-                    .fold(f64::INFINITY, f64::min);
-                assert!(
-                    d <= 1e3 * (2 * n) as f64 * f64::EPSILON * hn * hn,
-                    "n {n}: λ {l}"
-                );
+            for l2 in &squares {
+                let d = nearest(l2, &sq.mu);
+                assert!(d <= tol, "n {n}: λ² {l2} is {d:e} from every μ");
             }
         }
     }
