@@ -19,7 +19,7 @@
 use crate::error::{ModelError, Result};
 use crate::frd::Frd;
 use crate::linalg::schur::{block_diagonalize, to_complex, BlockDiagonal, SPLIT_BOUND};
-use crate::pole_sum::{reciprocals, PoleSum, LANES};
+use crate::pole_sum::{offsets, PoleSum, LANES};
 use crate::ss::StateSpace;
 use crate::time::SampleTime;
 use nalgebra::DMatrix;
@@ -451,7 +451,11 @@ impl FreqRespEvaluator {
             let (xr, xi) = x.split_at_mut(m);
             let (vr, vi) = v.split_at_mut(m);
             for i in 0..m {
-                (vr[i], vi[i]) = reciprocals(sr, si, t[(i, i)]);
+                let (dr, di, inv) = offsets(sr, si, t[(i, i)]);
+                for l in 0..L {
+                    vr[i][l] = dr[l] * inv[l];
+                    vi[i][l] = -di[l] * inv[l];
+                }
             }
             for j in 0..b.ncols() {
                 for i in (0..m).rev() {

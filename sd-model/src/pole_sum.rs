@@ -187,36 +187,35 @@ impl PoleSum {
         }
         let no = self.one_re.len();
         for k in 0..no {
-            let (vr, vi) = reciprocals(sr, si, C::new(self.one_re[k], self.one_im[k]));
+            let (dr, di, inv) = offsets(sr, si, C::new(self.one_re[k], self.one_im[k]));
             for e in 0..self.entries {
                 let (x, y) = (self.one_x[e * no + k], self.one_y[e * no + k]);
                 let (ge_r, ge_i) = (&mut gr[e], &mut gi[e]);
                 for l in 0..L {
-                    // R·(1/d)
-                    ge_r[l] += x * vr[l] - y * vi[l];
-                    ge_i[l] += x * vi[l] + y * vr[l];
+                    // R·conj(d)/|d|²
+                    ge_r[l] += (x * dr[l] + y * di[l]) * inv[l];
+                    ge_i[l] += (y * dr[l] - x * di[l]) * inv[l];
                 }
             }
         }
     }
 }
 
-/// `1/(s_l − t)` in each of the `L` lanes (real and imaginary parts; one real division each):
-/// the term-by-term poles here and the clusters' diagonals in `freqresp.rs`.
+/// `d = s_l − t` and `1/|d|²` in each of the `L` lanes (one real division each): what the
+/// term-by-term poles here and the clusters' diagonals in `freqresp.rs` divide by.
 #[inline(always)]
-pub(crate) fn reciprocals<const L: usize>(
+pub(crate) fn offsets<const L: usize>(
     sr: &[f64; L],
     si: &[f64; L],
     t: C,
-) -> ([f64; L], [f64; L]) {
-    let (mut vr, mut vi) = ([0.0; L], [0.0; L]);
+) -> ([f64; L], [f64; L], [f64; L]) {
+    let (mut dr, mut di, mut inv) = ([0.0; L], [0.0; L], [0.0; L]);
     for l in 0..L {
-        let (dr, di) = (sr[l] - t.re, si[l] - t.im);
-        let inv = 1.0 / (dr * dr + di * di);
-        vr[l] = dr * inv;
-        vi[l] = -di * inv;
+        dr[l] = sr[l] - t.re;
+        di[l] = si[l] - t.im;
+        inv[l] = 1.0 / (dr[l] * dr[l] + di[l] * di[l]);
     }
-    (vr, vi)
+    (dr, di, inv)
 }
 
 /// [`PoleSum::accumulate`]'s arguments, for pulp's dispatch (its `with_simd` is inlined into
