@@ -2,10 +2,7 @@
 //! held-out (later) parts, with the degrees of freedom of their variances and the correlation
 //! of neighbouring lines ([`crate::stats`]).
 
-use crate::stats::{lpm_inflation, satterthwaite, threshold};
-
-/// False-alarm probability of the per-line distortion gate.
-const NL_ALPHA: f64 = 0.01;
+use crate::stats::{lpm_inflation, satterthwaite};
 use crate::{DiagnoseError, Result};
 use sd_ident::{frf_periodic, DistortionReport, Experiment, LpmOptions, PeriodicOptions};
 use sd_model::Frd;
@@ -112,8 +109,7 @@ pub(crate) fn estimate(e: &Experiment, part: Part) -> Result<Estimate> {
     } else {
         f64::INFINITY
     };
-    let (frd, dof) = with_distortion(est.frd.clone(), est.nl_variance.as_deref(), noise_dof)?;
-    let local_distortion = local_distortion(&est.frd, est.nl_variance.as_deref());
+    let (frd, dof, local_distortion) = with_distortion(&est, noise_dof)?;
     // lines whose input is hardly measured (in closed loop: where the loop cancels the
     // excitation) have a biased ratio and no valid variance: left out
     let frd = sd_ident::trusted(&frd, &est.input_snr)?;
@@ -126,57 +122,43 @@ pub(crate) fn estimate(e: &Experiment, part: Part) -> Result<Estimate> {
     })
 }
 
-/// The FRF with the stochastic nonlinear distortion's variance (odd multisines' detection
-/// lines, [`sd_ident::FrfEstimate::nl_variance`]) added to the noise variance: a model, or
-/// another experiment with its own phase realisation, can only be expected to agree within
-/// both. Only where the detection lines' level is significant (their ratio to the noise above
-/// the `1 − NL_ALPHA` quantile of `Gamma(K, 1)/K`, K = `NL_NEIGHBOURS`): the clamped level
-/// of a linear system would otherwise add about a third of the noise variance everywhere.
-/// Degrees of freedom: the noise's `noise_dof` (2(M − 1) complex noise bins between two
-/// harmonics; infinite with one period, whose white-noise level comes from the many
-/// non-excited bins) and the distortion level's `2·NL_NEIGHBOURS`, combined per line by
-/// Satterthwaite and averaged over the lines.
-fn with_distortion(frd: Frd, nl: Option<&[(f64, f64)]>, noise_dof: f64) -> Result<(Frd, f64)> {
-    let (Some(nl), Some(var)) = (nl, frd.variance()) else {
-        return Ok((frd, noise_dof));
+/// The FRF with its total variance ([`sd_ident::Bla`]: the stochastic nonlinear distortion
+/// of odd multisines' detection lines added to the noise where their level is significant): a
+/// model, or another experiment with its own phase realisation, can only be expected to agree
+/// within both. Degrees of freedom: the noise's `noise_dof` (2(M − 1) complex noise bins
+/// between two harmonics; infinite with one period, whose white-noise level comes from the
+/// many non-excited bins) and the distortion level's `2·NL_NEIGHBOURS`, combined per line by
+/// Satterthwaite and averaged over the lines. Also the local distortion per excited line
+/// `(f, level, the part of it the total leaves out)`: the part left out (its level at or below
+/// the gate) is what a comparison adds when distortion is known to be present (the
+/// experiment's detection lines together show it) but weak at the line. An estimate without
+/// variance is returned as it is.
+fn with_distortion(
+    est: &sd_ident::FrfEstimate,
+    noise_dof: f64,
+) -> Result<(Frd, f64, Vec<(f64, f64, f64)>)> {
+    let Ok(bla) = sd_ident::Bla::from_periodic(est) else {
+        return Ok((est.frd.clone(), noise_dof, Vec::new()));
     };
-    let k = sd_ident::NL_NEIGHBOURS as f64;
-    let nl_dof = 2.0 * k;
-    let gate = threshold(k, NL_ALPHA);
-    let mut dof_sum = 0.0;
-    let total: Vec<nalgebra::DMatrix<f64>> = var
+    if !matches!(bla.distortion, sd_ident::Distortion::DetectionLines { .. }) {
+        return Ok((bla.frd, noise_dof, Vec::new()));
+    }
+    let nl_dof = 2.0 * sd_ident::NL_NEIGHBOURS as f64;
+    let dof_sum: f64 = bla
+        .noise_var
         .iter()
-        .zip(nl)
-        .map(|(v, &(d, ratio))| {
-            let d = if ratio > gate { d } else { 0.0 };
-            let vn = v[(0, 0)];
-            dof_sum += satterthwaite(&[(vn, noise_dof), (d, nl_dof)]);
-            nalgebra::DMatrix::from_element(1, 1, vn + d)
-        })
+        .zip(&bla.distortion_var)
+        .map(|(&vn, &d)| satterthwaite(&[(vn, noise_dof), (d, nl_dof)]))
+        .sum();
+    let dof = dof_sum / bla.noise_var.len().max(1) as f64;
+    let local = bla
+        .frd
+        .freq_hz()
+        .iter()
+        .zip(bla.distortion_level.iter().zip(&bla.distortion_var))
+        .map(|(&f, (&level, &counted))| (f, level, if counted > 0.0 { 0.0 } else { level }))
         .collect();
-    let dof = dof_sum / total.len().max(1) as f64;
-    let out = Frd::new(
-        frd.freq_hz().to_vec(),
-        frd.response().to_vec(),
-        Some(total),
-        frd.time(),
-    )?;
-    Ok((out, dof))
-}
-
-/// The local distortion variance per excited line `(f, variance, the part of it
-/// [`with_distortion`] leaves out)`: the part left out (its level at or below the gate) is
-/// what a comparison adds when distortion is known to be present (the experiment's detection
-/// lines together show it) but weak at the line.
-fn local_distortion(frd: &Frd, nl: Option<&[(f64, f64)]>) -> Vec<(f64, f64, f64)> {
-    let gate = threshold(sd_ident::NL_NEIGHBOURS as f64, NL_ALPHA);
-    nl.map_or_else(Vec::new, |nl| {
-        frd.freq_hz()
-            .iter()
-            .zip(nl)
-            .map(|(&f, &(d, ratio))| (f, d, if ratio > gate { 0.0 } else { d }))
-            .collect()
-    })
+    Ok((bla.frd, dof, local))
 }
 
 impl Estimate {
@@ -247,9 +229,7 @@ fn estimate_lpm(e: &Experiment, part: Part) -> Result<Estimate> {
 
 /// Rms of the excitation (reference, or input without one) over the steady periods.
 pub(crate) fn level(e: &Experiment) -> f64 {
-    let x = e.r.as_ref().unwrap_or(&e.u);
-    let start = e.spec.skip_periods * e.spec.period_samples.unwrap_or(0);
-    sd_model::rms(&x[start.min(x.len())..])
+    sd_ident::excitation_rms(e)
 }
 
 /// The integer factor model rate / experiment rate, or an error that says what is wrong.

@@ -7,9 +7,9 @@
 //! feedback, no excitation) is refused unless `keep_low_snr`.
 
 use crate::{
-    feedback_only, frf_periodic, frf_periodic_mimo, lpm, lpm_closed_loop_snr, snr_warnings,
-    trusted, Channels, DataWarning, Experiment, IdentError, LpmOptions, MimoFrfEstimate,
-    PeriodicOptions, Result,
+    feedback_only, frf_periodic, frf_periodic_mimo, lpm, lpm_closed_loop_snr, same_level,
+    snr_warnings, trusted, Bla, Channels, DataWarning, Experiment, IdentError, LpmOptions,
+    MimoFrfEstimate, PeriodicOptions, Result,
 };
 use sd_model::Frd;
 
@@ -23,12 +23,36 @@ pub struct FrfRequest {
     pub keep_low_snr: bool,
 }
 
-/// The FRF of `exp` with its data-quality warnings (module documentation).
+/// The FRF of one SISO experiment: the estimate (its variance the BLA's total where the
+/// [`Bla`] could be formed), the data-quality warnings, and the BLA.
+#[derive(Debug, Clone)]
+pub struct ExperimentFrf {
+    /// The estimate at the kept lines, with the total variance.
+    pub frd: Frd,
+    /// What was found in the data.
+    pub warnings: Vec<DataWarning>,
+    /// The best linear approximation with noise and distortion apart (`None` for an estimate
+    /// without variance: one period without non-excited bins).
+    pub bla: Option<Bla>,
+}
+
+/// The FRF of `exp` with its data-quality warnings (module documentation); its variance is
+/// the BLA's total (noise + the distortion the data measure, [`crate::bla`]).
 ///
 /// # Errors
-/// [`IdentError::InvalidArgument`] for an `excited_fraction` outside (0, 1), the estimators'
-/// errors, [`IdentError::Data`] for a record without excitation (unless `keep_low_snr`).
+/// As [`estimate_experiment`].
 pub fn frf_of_experiment(exp: &Experiment, req: &FrfRequest) -> Result<(Frd, Vec<DataWarning>)> {
+    let e = estimate_experiment(exp, req)?;
+    Ok((e.frd, e.warnings))
+}
+
+/// The FRF, warnings and BLA of a SISO experiment (module documentation).
+///
+/// # Errors
+/// [`IdentError::InvalidArgument`] for an `excited_fraction` outside (0, 1) or a MIMO
+/// experiment, the estimators' errors, [`IdentError::Data`] for a record without excitation
+/// (unless `keep_low_snr`).
+pub fn estimate_experiment(exp: &Experiment, req: &FrfRequest) -> Result<ExperimentFrf> {
     if exp.spec.is_mimo() {
         return Err(IdentError::InvalidArgument(format!(
             "experiment `{}` has {} inputs and {} outputs: its FRF is a matrix \
@@ -41,25 +65,33 @@ pub fn frf_of_experiment(exp: &Experiment, req: &FrfRequest) -> Result<(Frd, Vec
     }
     let fs = exp.spec.sample_rate_hz;
     let keep = req.keep_low_snr;
-    let (frd, mut warnings) = match exp.spec.period_samples {
+    let (frd, mut warnings, bla) = match exp.spec.period_samples {
         Some(p) => {
             let mut opt = PeriodicOptions::new(p, exp.spec.skip_periods);
             if let Some(f) = req.excited_fraction {
-                if !(f.is_finite() && f > 0.0 && f < 1.0) {
-                    return Err(IdentError::InvalidArgument(format!(
-                        "excited fraction {f} must be in (0, 1)"
-                    )));
-                }
+                check_fraction(f)?;
                 opt.excited_fraction = f;
             }
             let est = frf_periodic(fs, exp.r.as_deref(), &exp.u, &exp.y, &opt)?;
             let warnings = est.warnings(!keep);
-            let frd = if keep { est.frd } else { est.trusted_frd()? };
-            (frd, warnings)
+            let bla = Bla::from_periodic(&est).ok();
+            let ok = est.trusted_lines();
+            let frd = bla
+                .as_ref()
+                .map_or_else(|| est.frd.clone(), |b| b.frd.clone());
+            if keep {
+                (frd, warnings, bla)
+            } else {
+                let bla = match bla {
+                    Some(b) => Some(b.select(|i| ok[i])?),
+                    None => None,
+                };
+                (trusted(&frd, &est.input_snr)?, warnings, bla)
+            }
         }
         None => {
             let lo = LpmOptions::default();
-            match &exp.r {
+            let (frd, warnings) = match &exp.r {
                 Some(r) => {
                     let (frd, snr) = lpm_closed_loop_snr(fs, r, &exp.u, &exp.y, &lo)?;
                     let warnings = snr_warnings(&frd, &snr, true, !keep);
@@ -72,7 +104,9 @@ pub fn frf_of_experiment(exp: &Experiment, req: &FrfRequest) -> Result<(Frd, Vec
                     let z = nalgebra::DMatrix::from_column_slice(n, 1, &exp.y);
                     (lpm(fs, &x, &z, &lo)?.frd, Vec::new())
                 }
-            }
+            };
+            let bla = Bla::from_lpm(&frd).ok();
+            (frd, warnings, bla)
         }
     };
     if let Some(w) = feedback_only(&exp.u, &exp.y)? {
@@ -84,7 +118,84 @@ pub fn frf_of_experiment(exp: &Experiment, req: &FrfRequest) -> Result<(Frd, Vec
         }
         warnings.insert(0, w);
     }
-    Ok((frd, warnings))
+    Ok(ExperimentFrf { frd, warnings, bla })
+}
+
+/// [`estimate_experiment`] of `exps[target]`, its distortion carried from a sibling where its
+/// own excitation cannot measure it ([`Bla::carried_from`]): a periodic experiment of the set
+/// with the same input, output and reference columns, sample rate and period, an excitation
+/// rms within [`crate::bla::CARRY_RMS_TOLERANCE`] ([`same_level`]) and a band covering at
+/// least 80 % of the target's lines, whose detection lines measured it. Of several, the one
+/// nearest in rms.
+///
+/// # Errors
+/// As [`estimate_experiment`]; a `target` out of range.
+pub fn estimate_in_set(
+    exps: &[Experiment],
+    target: usize,
+    req: &FrfRequest,
+) -> Result<ExperimentFrf> {
+    let exp = exps.get(target).ok_or_else(|| {
+        IdentError::InvalidArgument(format!("experiment index {target} out of range"))
+    })?;
+    let mut own = estimate_experiment(exp, req)?;
+    let Some(bla) = own.bla.as_ref().filter(|b| !b.distortion.measured()) else {
+        return Ok(own);
+    };
+    let level = excitation_rms(exp);
+    let f = bla.frd.freq_hz();
+    let mut best: Option<(f64, Bla, &str)> = None;
+    for (i, other) in exps.iter().enumerate() {
+        let s = &other.spec;
+        let alike = i != target
+            && s.period_samples.is_some()
+            && s.sample_rate_hz == exp.spec.sample_rate_hz
+            && s.inputs() == exp.spec.inputs()
+            && s.outputs() == exp.spec.outputs()
+            && s.references() == exp.spec.references()
+            && same_level(level, excitation_rms(other));
+        if !alike {
+            continue;
+        }
+        let Ok(Some(src)) = estimate_experiment(other, req).map(|e| e.bla) else {
+            continue;
+        };
+        let (lo, hi) = match (src.frd.freq_hz().first(), src.frd.freq_hz().last()) {
+            (Some(&lo), Some(&hi)) => (lo, hi),
+            _ => continue,
+        };
+        let covered = f.iter().filter(|x| (lo..=hi).contains(*x)).count();
+        let gap = (excitation_rms(other) - level).abs();
+        if 5 * covered >= 4 * f.len() && best.as_ref().is_none_or(|b| gap < b.0) {
+            best = Some((gap, src, &s.name));
+        }
+    }
+    if let Some((_, src, name)) = best {
+        let carried = bla.carried_from(&src, name)?;
+        if carried.distortion.measured() {
+            own.frd = carried.frd.clone();
+            own.bla = Some(carried);
+        }
+    }
+    Ok(own)
+}
+
+/// Rms of the excitation (the reference, or the input without one) over the steady part.
+pub fn excitation_rms(e: &Experiment) -> f64 {
+    let x = e.r.as_ref().unwrap_or(&e.u);
+    let start = e.spec.skip_periods * e.spec.period_samples.unwrap_or(0);
+    sd_model::rms(&x[start.min(x.len())..])
+}
+
+/// An excited fraction must lie in (0, 1).
+fn check_fraction(f: f64) -> Result<()> {
+    if f.is_finite() && f > 0.0 && f < 1.0 {
+        Ok(())
+    } else {
+        Err(IdentError::InvalidArgument(format!(
+            "excited fraction {f} must be in (0, 1)"
+        )))
+    }
 }
 
 /// The ny×nu FRF of a set of experiments with the same columns' counts: periodic ones (same
@@ -126,11 +237,7 @@ pub fn frf_of_experiments(exps: &[&Experiment], req: &FrfRequest) -> Result<Mimo
         Some(p) => {
             let mut opt = PeriodicOptions::new(p, spec.skip_periods);
             if let Some(f) = req.excited_fraction {
-                if !(f.is_finite() && f > 0.0 && f < 1.0) {
-                    return Err(IdentError::InvalidArgument(format!(
-                        "excited fraction {f} must be in (0, 1)"
-                    )));
-                }
+                check_fraction(f)?;
                 opt.excited_fraction = f;
             }
             let sig: Vec<[Vec<&[f64]>; 3]> = exps

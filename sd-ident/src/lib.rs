@@ -8,6 +8,8 @@
 //! - [`frf_mimo`]: the ny×nu FRF of periodic experiments (one input per experiment, or
 //!   orthogonal multisines from [`orthogonal`]), open or closed loop, with the covariance of the
 //!   vectorised estimate.
+//! - [`bla`]: the best linear approximation with its total variance (noise + stochastic
+//!   nonlinear distortion from detection lines, realisations, or carried from a sibling).
 //! - [`lpm()`]: the local polynomial method for transients and non-periodic (MIMO) data.
 //! - [`fit()`]: discrete-time rational fitting up to order ~60 (SK iterations in a partial-fraction
 //!   basis, then Levenberg–Marquardt on the variance-weighted cost; stability by reflection;
@@ -15,6 +17,7 @@
 //! - [`fit_common_poles`]: one set of poles for every entry of a MIMO FRD, residue matrices of
 //!   the rank the data support, a minimal modal realisation.
 
+pub mod bla;
 pub mod error;
 pub mod estimate;
 pub mod experiment;
@@ -29,8 +32,12 @@ pub mod quality;
 pub mod rng;
 pub mod tol;
 
+pub use bla::{detection_gate, same_level, BandLevel, Bla, Distortion, Unmeasurable};
 pub use error::{IdentError, Result};
-pub use estimate::{frf_of_experiment, frf_of_experiments, FrfRequest};
+pub use estimate::{
+    estimate_experiment, estimate_in_set, excitation_rms, frf_of_experiment, frf_of_experiments,
+    ExperimentFrf, FrfRequest,
+};
 pub use experiment::{
     load_experiment, load_experiments, parse_manifest, read_columns, Experiment, ExperimentSpec,
     ExtraColumns, ExtraSignals, Role,

@@ -111,7 +111,8 @@ const SS_KEYS: &[&str] = &[
 const TF_KEYS: &[&str] = &["type", "ts", "num", "den", "name", "uncertainty"];
 /// `warnings` is what `sdctl frf` found in the data, `eval_path` how `sdctl freqresp`
 /// evaluated a model, `covariance` the full covariance of a MIMO estimate (`sdctl frf
-/// --covariance`; all informational, ignored on reading).
+/// --covariance`), `var_noise`, `var_distortion` and `distortion` the parts of `var` and how
+/// the distortion was measured (`sdctl frf`; all informational, ignored on reading).
 const FRD_KEYS: &[&str] = &[
     "type",
     "ts",
@@ -121,6 +122,9 @@ const FRD_KEYS: &[&str] = &[
     "var",
     "warnings",
     "covariance",
+    "var_noise",
+    "var_distortion",
+    "distortion",
     "eval_path",
     "uncertainty",
 ];

@@ -45,8 +45,12 @@ impl Args {
             keep_low_snr,
         };
         let path = std::path::Path::new(&manifest);
-        let exps = sd_ident::load_experiments(path, |n| experiment.iter().any(|e| e == n))
-            .map_err(|e| from_ident(&manifest, e))?;
+        // every experiment of the manifest: a SISO estimate may borrow its distortion level
+        // from a sibling ([`sd_ident::estimate_in_set`])
+        let single = experiment.len() == 1;
+        let exps =
+            sd_ident::load_experiments(path, |n| single || experiment.iter().any(|e| e == n))
+                .map_err(|e| from_ident(&manifest, e))?;
         if let Some(missing) = experiment
             .iter()
             .find(|n| !exps.iter().any(|e| &e.spec.name == *n))
@@ -56,24 +60,61 @@ impl Args {
                 sd_ident::IdentError::InvalidArgument(format!("no experiment named `{missing}`")),
             ));
         }
-        if exps.len() > 1 || exps.iter().any(|e| e.spec.is_mimo()) {
-            return mimo(&exps, &req, covariance, output.as_deref());
+        let chosen: Vec<sd_ident::Experiment> = exps
+            .iter()
+            .filter(|e| experiment.contains(&e.spec.name))
+            .cloned()
+            .collect();
+        if chosen.len() > 1 || chosen.iter().any(|e| e.spec.is_mimo()) {
+            return mimo(&chosen, &req, covariance, output.as_deref());
         }
-        let Some(exp) = exps.into_iter().next() else {
+        let Some(target) = exps.iter().position(|e| e.spec.name == experiment[0]) else {
             return Err(CliError::input("no experiment given"));
         };
-        let experiment = exp.spec.name.clone();
-        let (frd, warnings) =
-            sd_ident::frf_of_experiment(&exp, &req).map_err(|e| from_ident(&experiment, e))?;
-        for w in &warnings {
-            eprintln!("sdctl: warning: {experiment}: {w}");
+        let name = experiment[0].clone();
+        let est =
+            sd_ident::estimate_in_set(&exps, target, &req).map_err(|e| from_ident(&name, e))?;
+        for w in &est.warnings {
+            eprintln!("sdctl: warning: {name}: {w}");
         }
-        let mut json = sd_model::frd_to_json_string(&frd).map_err(|e| from_model("output", e))?;
-        if !warnings.is_empty() {
-            json = with_warnings(&json, &warnings)?;
+        let mut json =
+            sd_model::frd_to_json_string(&est.frd).map_err(|e| from_model("output", e))?;
+        if !est.warnings.is_empty() {
+            json = with_warnings(&json, &est.warnings)?;
+        }
+        if let Some(bla) = &est.bla {
+            eprintln!("[frf] {name}: {}", bla.distortion);
+            json = with_bla(&json, bla)?;
         }
         emit(&json, output.as_deref())
     }
+}
+
+/// The FRD JSON text with the BLA's parts: `var_noise` and `var_distortion` (the shape of
+/// `var`, which is their sum) and `distortion` (how it was measured, `bands` with the noise and
+/// distortion relative to |G|); readers accept and ignore them.
+fn with_bla(json: &str, bla: &sd_ident::Bla) -> Result<String, CliError> {
+    let bad = |e: serde_json::Error| CliError::numerical(format!("FRD JSON: {e}"));
+    let mut v: serde_json::Value = serde_json::from_str(json).map_err(bad)?;
+    let cube = |x: &[f64]| -> Vec<[[f64; 1]; 1]> { x.iter().map(|v| [[*v]]).collect() };
+    let mut d = serde_json::to_value(&bla.distortion).map_err(bad)?;
+    if let Some(m) = d.as_object_mut() {
+        m.insert("measured".into(), bla.distortion.measured().into());
+        m.insert("summary".into(), bla.distortion.to_string().into());
+        m.insert(
+            "bands".into(),
+            serde_json::to_value(bla.bands()).map_err(bad)?,
+        );
+    }
+    if let Some(m) = v.as_object_mut() {
+        m.insert("var_noise".into(), serde_json::json!(cube(&bla.noise_var)));
+        m.insert(
+            "var_distortion".into(),
+            serde_json::json!(cube(&bla.distortion_var)),
+        );
+        m.insert("distortion".into(), d);
+    }
+    serde_json::to_string(&v).map_err(bad)
 }
 
 /// The ny × nu FRF of several experiments, or of one with several channels
