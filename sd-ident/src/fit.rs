@@ -61,6 +61,12 @@ pub struct FitOptions {
     /// continuous equivalent `s = ln(p)/T` has `−Re s/|s|` below it is moved, at the same
     /// natural frequency `|s|`, onto the floor, in every SK and LM step.
     pub min_damping: f64,
+    /// Narrowest half-power bandwidth `2ζf_n` (Hz) a free complex pole pair may take (0: no
+    /// floor): a pair below it is moved, at the same natural frequency, onto
+    /// `ζ = B/(2f_n)` (capped at 0.99), in every SK and LM step, like [`FitOptions::min_damping`].
+    /// The line spacing is the resolution of the data: a pair narrower than it is not measured
+    /// ([`FitWarning::UnresolvedMode`]; [`crate::stabilization`] sets it).
+    pub min_bandwidth_hz: f64,
 }
 
 impl Default for FitOptions {
@@ -73,6 +79,7 @@ impl Default for FitOptions {
             sk_iterations: tol::SK_ITERATIONS,
             lm_iterations: tol::LM_ITERATIONS,
             min_damping: 0.0,
+            min_bandwidth_hz: 0.0,
         }
     }
 }
@@ -105,6 +112,50 @@ pub struct FitResult {
     pub line_cost: Vec<f64>,
     /// What the data do not support in this fit ([`FitWarning`]).
     pub warnings: Vec<FitWarning>,
+    /// The partial-fraction terms of the model, one per real pole, pole pair and rigid body.
+    pub terms: Vec<ModalTerm>,
+}
+
+/// One term of a fitted model's partial fractions `Ĝ(z) = Σ terms + d`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ModalTerm {
+    /// `r/(z − p)`, p real.
+    Real {
+        /// Pole.
+        pole: f64,
+        /// Residue.
+        residue: f64,
+    },
+    /// `r/(z − p) + r̄/(z − p̄)`, `p` in the upper half plane.
+    Pair {
+        /// Pole (upper half plane).
+        pole: C,
+        /// Its residue.
+        residue: C,
+    },
+    /// The rigid body `Σ_l c_l/(z − 1)^l`.
+    Rigid {
+        /// `c_1, c_2` (as many as rigid-body poles).
+        residues: [f64; 2],
+        /// Rigid-body poles (1 or 2).
+        count: usize,
+    },
+}
+
+impl ModalTerm {
+    /// The term's response at `z`.
+    pub fn eval(&self, z: C) -> C {
+        match *self {
+            ModalTerm::Real { pole, residue } => residue / (z - pole),
+            ModalTerm::Pair { pole, residue } => {
+                residue / (z - pole) + residue.conj() / (z - pole.conj())
+            }
+            ModalTerm::Rigid { residues, count } => {
+                let q = 1.0 / (z - 1.0);
+                (0..count).map(|l| residues[l] * q.powi(l as i32 + 1)).sum()
+            }
+        }
+    }
 }
 
 /// Something a fit's data do not support.
@@ -253,6 +304,30 @@ impl Pf {
         }
         g
     }
+    fn terms(&self) -> Vec<ModalTerm> {
+        let mut t: Vec<ModalTerm> = Vec::new();
+        if !self.rigid.is_empty() {
+            let mut residues = [0.0; 2];
+            for (slot, c) in residues.iter_mut().zip(&self.rigid) {
+                *slot = *c;
+            }
+            t.push(ModalTerm::Rigid {
+                residues,
+                count: self.rigid.len().min(2),
+            });
+        }
+        t.extend(
+            self.real
+                .iter()
+                .map(|&(pole, residue)| ModalTerm::Real { pole, residue }),
+        );
+        t.extend(
+            self.pairs
+                .iter()
+                .map(|&(pole, residue)| ModalTerm::Pair { pole, residue }),
+        );
+        t
+    }
     fn poles(&self) -> Vec<C> {
         let mut p: Vec<C> = self.real.iter().map(|&(p, _)| C::new(p, 0.0)).collect();
         for &(a, _) in &self.pairs {
@@ -271,6 +346,8 @@ pub(crate) struct Data {
     pub(crate) w: Vec<f64>,
     pub(crate) ts: f64,
     pub(crate) min_damping: f64,
+    /// Narrowest half-power bandwidth of a pair (Hz; 0: none).
+    pub(crate) min_bandwidth_hz: f64,
 }
 
 impl Data {
@@ -278,15 +355,19 @@ impl Data {
     /// complex pole below the damping floor, moved onto it at the same natural frequency.
     pub(crate) fn constrain(&self, p: C) -> C {
         let p = reflect(p);
-        if self.min_damping <= 0.0 || p.im.abs() <= 1e-12 * p.norm() || p.norm() == 0.0 {
+        let floored = self.min_damping > 0.0 || self.min_bandwidth_hz > 0.0;
+        if !floored || p.im.abs() <= 1e-12 * p.norm() || p.norm() == 0.0 {
             return p;
         }
         let s = p.ln() / self.ts;
         let wn = s.norm();
-        if -s.re >= self.min_damping * wn {
+        // 2ζf_n ≥ B  ⇔  ζ ≥ B/(2f_n) = πB/ω_n
+        let z = self
+            .min_damping
+            .max((PI * self.min_bandwidth_hz / wn.max(f64::MIN_POSITIVE)).min(0.99));
+        if -s.re >= z * wn {
             return p;
         }
-        let z = self.min_damping;
         let s2 = C::new(-z * wn, s.im.signum() * wn * (1.0 - z * z).sqrt());
         (s2 * self.ts).exp()
     }
@@ -753,6 +834,12 @@ pub(crate) fn discrete_ts(frd: &Frd) -> Result<f64> {
 /// The settings' own checks: the damping floor in `[0, 1)`, `1 ≤ order`, `rigid_body ≤ 2`
 /// and `rigid_body ≤ order`.
 pub(crate) fn check_options(opt: &FitOptions) -> Result<()> {
+    if !(opt.min_bandwidth_hz.is_finite() && opt.min_bandwidth_hz >= 0.0) {
+        return Err(IdentError::InvalidArgument(format!(
+            "min_bandwidth_hz {} must be finite and ≥ 0",
+            opt.min_bandwidth_hz
+        )));
+    }
     if !(opt.min_damping.is_finite() && (0.0..1.0).contains(&opt.min_damping)) {
         return Err(IdentError::InvalidArgument(format!(
             "min_damping {} must be in [0, 1)",
@@ -811,6 +898,7 @@ pub fn fit_with_progress(
         w: weights(frd, opt.weighting)?,
         ts,
         min_damping: opt.min_damping,
+        min_bandwidth_hz: opt.min_bandwidth_hz,
     };
     if data.g.iter().any(|v| !v.is_finite()) {
         return Err(IdentError::Data(
@@ -871,6 +959,7 @@ pub fn fit_with_progress(
         median_rel_error: median,
         warnings: fit_warnings(frd.freq_hz(), &pf, ts, &line_cost, significant),
         line_cost,
+        terms: pf.terms(),
     })
 }
 
@@ -1152,6 +1241,7 @@ mod tests {
             w: vec![],
             ts,
             min_damping,
+            min_bandwidth_hz: 0.0,
         };
         // a pair at 500 Hz with ζ = 1e-6: 1 mHz wide on 8 Hz lines
         let at = |zeta: f64| {

@@ -1120,6 +1120,7 @@ fn entries(frd: &Frd, fo: &FitOptions) -> Result<(f64, Entries)> {
                 g,
                 ts,
                 min_damping: fo.min_damping,
+                min_bandwidth_hz: fo.min_bandwidth_hz,
             });
         }
     }

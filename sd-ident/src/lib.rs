@@ -14,6 +14,8 @@
 //! - [`fit()`]: discrete-time rational fitting up to order ~60 (SK iterations in a partial-fraction
 //!   basis, then Levenberg–Marquardt on the variance-weighted cost; stability by reflection;
 //!   rigid-body poles at z = 1 optionally fixed; order selection).
+//! - [`physical_fit`]: the stabilisation diagram, poles no narrower than the lines resolve,
+//!   order and rigid body by held-out lines, an input delay; the mode table.
 //! - [`fit_common_poles`]: one set of poles for every entry of a MIMO FRD, residue matrices of
 //!   the rank the data support, a minimal modal realisation.
 
@@ -30,6 +32,7 @@ pub mod lpm;
 pub mod multisine;
 pub mod quality;
 pub mod rng;
+pub mod stabilization;
 pub mod tol;
 
 pub use bla::{detection_gate, same_level, BandLevel, Bla, Distortion, Unmeasurable};
@@ -44,7 +47,7 @@ pub use experiment::{
 };
 pub use fit::{
     final_prediction_error, fit, fit_with_progress, model_cost, select_order, FitOptions,
-    FitProgress, FitResult, FitWarning, Weighting,
+    FitProgress, FitResult, FitWarning, ModalTerm, Weighting,
 };
 pub use fit_mimo::{
     fit_common_poles, fit_common_poles_with_progress, MimoFitOptions, MimoFitResult, MimoMode,
@@ -64,6 +67,10 @@ pub use multisine::{
 pub use quality::{
     feedback_only, input_unexplained_by_output, snr_warnings, trusted, DataWarning,
     FEEDBACK_ONLY_RESIDUAL, NO_EXCITATION_SNR,
+};
+pub use stabilization::{
+    physical_fit, DiagramPole, ModeKind, OrderRow, PhysicalFit, PhysicalMode, PoleClass,
+    StabilizationOptions,
 };
 
 /// The crate README's example, compiled and run as a doctest.

@@ -7,6 +7,7 @@
 pub mod diagnosis;
 pub mod mimo;
 pub mod plot;
+pub mod stabilization;
 
 /// Errors of the report.
 #[derive(Debug, thiserror::Error)]

@@ -15,12 +15,35 @@ pub(crate) enum WeightingArg {
 pub(crate) struct Args {
     /// FRD JSON (discrete).
     pub(crate) frd: String,
-    /// Model order: the number of poles, rigid-body poles included.
+    /// Model order: the number of poles, rigid-body poles included (not with
+    /// --stabilization, which chooses it).
+    #[arg(
+        long,
+        required_unless_present = "stabilization",
+        conflicts_with = "stabilization"
+    )]
+    pub(crate) order: Option<usize>,
+    /// Poles fixed at z = 1 (0, 1 or 2; default 0, and with --stabilization chosen from the
+    /// data unless given).
     #[arg(long)]
-    pub(crate) order: usize,
-    /// Poles fixed at z = 1 (0, 1 or 2).
+    pub(crate) rigid_body: Option<usize>,
+    /// The physical modal model of a SISO FRD: a stabilisation diagram over the orders up to
+    /// --max-order, no pole pair narrower than the line spacing unless the data demand it,
+    /// order and rigid body chosen by the held-out (odd-indexed) lines, an input delay up to
+    /// --max-delay samples. Writes DIR/model.json, DIR/modes.json (modes with frequency,
+    /// damping, residue, share of the response and the orders they are stable over; every
+    /// order's costs; the diagram) and DIR/stabilization.svg; the mode table on stderr.
+    #[arg(long, requires = "out")]
+    pub(crate) stabilization: bool,
+    /// Highest order of the stabilisation diagram.
+    #[arg(long, default_value_t = 24)]
+    pub(crate) max_order: usize,
+    /// Largest whole-sample input delay the stabilisation fit tries (0: none).
     #[arg(long, default_value_t = 0)]
-    pub(crate) rigid_body: usize,
+    pub(crate) max_delay: usize,
+    /// Output folder of --stabilization.
+    #[arg(long)]
+    pub(crate) out: Option<String>,
     /// No feedthrough term.
     #[arg(long)]
     pub(crate) strictly_proper: bool,
@@ -69,12 +92,26 @@ impl Args {
             input_delay,
             json,
             output,
+            stabilization,
+            max_order,
+            max_delay,
+            out,
         } = self;
         let text = crate::io::read_text(&frd)?;
         let data = sd_model::frd_from_json_str(&text).map_err(|e| from_model(&frd, e))?;
+        if stabilization {
+            let opt = sd_ident::StabilizationOptions {
+                max_order,
+                rigid_body,
+                feedthrough: !strictly_proper,
+                max_delay,
+            };
+            let out = out.unwrap_or_default();
+            return crate::cmd::fit_stabilization::run(&frd, &data, &opt, &out);
+        }
         let opt = sd_ident::FitOptions {
-            order,
-            rigid_body,
+            order: order.unwrap_or_default(),
+            rigid_body: rigid_body.unwrap_or(0),
             feedthrough: !strictly_proper,
             weighting: match weighting {
                 WeightingArg::Variance => sd_ident::Weighting::Variance,

@@ -8,6 +8,7 @@ pub(crate) mod d2c;
 pub(crate) mod diagnose;
 pub(crate) mod downsample;
 pub(crate) mod fit;
+pub(crate) mod fit_stabilization;
 pub(crate) mod freqresp;
 pub(crate) mod frf;
 pub(crate) mod intersample;
