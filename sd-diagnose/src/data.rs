@@ -122,6 +122,9 @@ pub(crate) fn estimate(e: &Experiment, part: Part) -> Result<Estimate> {
     })
 }
 
+/// The FRF with its total variance, its degrees of freedom and the local distortion per line.
+type WithDistortion = (Frd, f64, Vec<(f64, f64, f64)>);
+
 /// The FRF with its total variance ([`sd_ident::Bla`]: the stochastic nonlinear distortion
 /// of odd multisines' detection lines added to the noise where their level is significant): a
 /// model, or another experiment with its own phase realisation, can only be expected to agree
@@ -133,10 +136,7 @@ pub(crate) fn estimate(e: &Experiment, part: Part) -> Result<Estimate> {
 /// the gate) is what a comparison adds when distortion is known to be present (the
 /// experiment's detection lines together show it) but weak at the line. An estimate without
 /// variance is returned as it is.
-fn with_distortion(
-    est: &sd_ident::FrfEstimate,
-    noise_dof: f64,
-) -> Result<(Frd, f64, Vec<(f64, f64, f64)>)> {
+fn with_distortion(est: &sd_ident::FrfEstimate, noise_dof: f64) -> Result<WithDistortion> {
     let Ok(bla) = sd_ident::Bla::from_periodic(est) else {
         return Ok((est.frd.clone(), noise_dof, Vec::new()));
     };

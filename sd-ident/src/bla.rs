@@ -493,6 +493,7 @@ pub fn same_level(a: f64, b: f64) -> bool {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 mod tests {
     use super::*;
     use crate::{frf_periodic, PeriodicOptions};

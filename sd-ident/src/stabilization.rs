@@ -536,6 +536,7 @@ fn modes_of(
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 mod tests {
     use super::*;
     use nalgebra::DMatrix;
@@ -551,9 +552,13 @@ mod tests {
         let ts = 1e-4;
         let mut s = seed;
         let mut gauss = || {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             let a = ((s >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             let b = ((s >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
             (-2.0 * a.ln()).sqrt() * (2.0 * PI * b).cos()
         };
@@ -577,7 +582,13 @@ mod tests {
             resp.push(DMatrix::from_element(1, 1, g + n));
             var.push(DMatrix::from_element(1, 1, sd * sd));
         }
-        Frd::new(freq, resp, Some(var), sd_model::SampleTime::discrete(ts).unwrap()).unwrap()
+        Frd::new(
+            freq,
+            resp,
+            Some(var),
+            sd_model::SampleTime::discrete(ts).unwrap(),
+        )
+        .unwrap()
     }
 
     #[test]
@@ -599,7 +610,11 @@ mod tests {
             let (m1, m2) = (find(120.0), find(310.0));
             assert!((m1.damping - 0.02).abs() < 0.004, "{m1:?}");
             assert!((m2.damping - 0.01).abs() < 0.003, "{m2:?}");
-            assert!(m1.frequency_orders >= 3 && m2.frequency_orders >= 3, "{:?}", r.modes);
+            assert!(
+                m1.frequency_orders >= 3 && m2.frequency_orders >= 3,
+                "{:?}",
+                r.modes
+            );
             assert!(r.order <= 8, "seed {seed}: order {}", r.order);
             assert!(r.cost_per_line < 2.0, "seed {seed}: {}", r.cost_per_line);
         }

@@ -6,6 +6,7 @@
 //!
 //! Run with `cargo test --release -p sd-tests --test ident_motor_bench -- --nocapture` to see
 //! the figures.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use sd_ident::{Distortion, ExperimentFrf, FrfRequest, ModeKind, StabilizationOptions};
 use sd_model::Frd;
