@@ -324,20 +324,18 @@ impl Bla {
         let fs = source.frd.freq_hz();
         let ps = source.distortion_output_power();
         let sig = source.significant_output_power();
-        let level: Vec<f64> = self
-            .frd
-            .freq_hz()
-            .iter()
-            .zip(&self.input_power)
-            .map(|(&f, &p)| interpolate(fs, &ps, f).map_or(0.0, |v| v / p.max(f64::MIN_POSITIVE)))
-            .collect();
-        let var: Vec<f64> = self
-            .frd
-            .freq_hz()
-            .iter()
-            .zip(&self.input_power)
-            .map(|(&f, &p)| interpolate(fs, &sig, f).map_or(0.0, |v| v / p.max(f64::MIN_POSITIVE)))
-            .collect();
+        // an output power per source line, interpolated here and over this |Ū|²
+        let carry = |power: &[f64]| -> Vec<f64> {
+            self.frd
+                .freq_hz()
+                .iter()
+                .zip(&self.input_power)
+                .map(|(&f, &p)| {
+                    interpolate(fs, power, f).map_or(0.0, |v| v / p.max(f64::MIN_POSITIVE))
+                })
+                .collect()
+        };
+        let (level, var) = (carry(&ps), carry(&sig));
         Ok(Bla {
             frd: with_total(&self.frd, &self.noise_var, &var)?,
             noise_var: self.noise_var.clone(),

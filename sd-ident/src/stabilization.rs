@@ -383,24 +383,12 @@ fn natural(p: C, ts: f64) -> (f64, f64) {
     (w / (2.0 * PI), if w > 0.0 { -s.re / w } else { 0.0 })
 }
 
-/// The FRD times `z^δ` (the input advanced by δ samples: what remains after a delay).
+/// The FRD times `z^δ` (the input advanced by δ samples: what remains after a delay), by
+/// [`crate::shift_inputs`].
 fn shift(frd: &Frd, delta: usize) -> Result<Frd> {
-    if delta == 0 {
-        return Ok(frd.clone());
-    }
-    let ts = frd.time().ts().unwrap_or(1.0);
-    let resp = frd
-        .freq_hz()
-        .iter()
-        .zip(frd.response())
-        .map(|(&f, m)| m * C::from_polar(1.0, 2.0 * PI * f * ts * delta as f64))
-        .collect();
-    Ok(Frd::new(
-        frd.freq_hz().to_vec(),
-        resp,
-        frd.variance().map(|v| v.to_vec()),
-        frd.time(),
-    )?)
+    let d = i32::try_from(delta)
+        .map_err(|_| IdentError::InvalidArgument(format!("delay {delta} samples is too large")))?;
+    crate::shift_inputs(frd, &[d])
 }
 
 /// The whole-sample delay (module documentation) and its scan.
