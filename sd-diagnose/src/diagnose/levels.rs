@@ -1,0 +1,613 @@
+//! Stage 5a: nonlinearity as a model — the amplitude-dependent modal model over the levels
+//! and its gain on levels left out.
+
+use super::checks::*;
+use super::decide::*;
+use super::judged::*;
+use super::read::*;
+use crate::amplitude::{
+    candidates, describes, fit_level, kinds, level_floor, AmplitudeModel, Level, LevelFit,
+};
+use crate::data::held_out_label;
+use crate::lemma6::Pair;
+use crate::modal::ModalBasis;
+use crate::stats::{statistic, Line, Statistic};
+use crate::{
+    Cause, CornerTrend, DampingTrend, DriftCheck, DriftSign, Evidence, EvidenceKind, Extension,
+    FreqTrend, Gain, HeldOut, Result, Verdict,
+};
+use sd_model::normal_quantile;
+use std::collections::BTreeMap;
+
+/// Every level's modal fit on `basis`: the candidates, less those the model experiment
+/// itself does not determine or finds elsewhere than the linear model
+/// ([`LevelFit::agrees_with_linear`]), fitted again without them; `None` when a fit fails or
+/// no candidate is left.
+pub(super) fn level_fits(
+    basis: &ModalBasis,
+    data: &Data<'_>,
+    levels: &[Level<'_>],
+) -> Option<(Vec<usize>, Vec<LevelFit>)> {
+    let fit = |cand: &[usize]| -> Option<Vec<LevelFit>> {
+        levels
+            .iter()
+            .map(|lv| fit_level(basis, cand, data.h, lv))
+            .collect::<Result<Vec<_>>>()
+            .ok()
+    };
+    let cand = candidates(basis, &data.fast);
+    let first = fit(&cand)?;
+    let cand: Vec<usize> = cand
+        .iter()
+        .enumerate()
+        .filter(|(m, _)| {
+            first
+                .first()
+                .is_some_and(|f| f.determines(*m) && f.agrees_with_linear(*m))
+        })
+        .map(|(_, c)| *c)
+        .collect();
+    if cand.is_empty() {
+        return None;
+    }
+    let fits = fit(&cand)?;
+    Some((cand, fits))
+}
+
+/// Slack on the model experiment's statistic within which a slow pole counts as unneeded.
+pub(super) const SLOW_POLE_SLACK: f64 = 1.1;
+
+/// The statistic a changed basis may reach on the model experiment `reference` and still
+/// describe it: [`SLOW_POLE_SLACK`] times the larger of the verdict's threshold and `basis`'s
+/// own statistic.
+pub(super) fn slack_bound(
+    basis: &ModalBasis,
+    h: f64,
+    reference: &Level<'_>,
+    alpha: f64,
+) -> Result<f64> {
+    let full = describes(basis, h, reference, alpha)?;
+    Ok(SLOW_POLE_SLACK * full.threshold.max(full.value))
+}
+
+/// A friction-damped rigid body's basis without the slow real poles and overdamped pairs
+/// ([`ModalBasis::slow_extras`]) the model experiment does not need: each, slowest first, is
+/// dropped when the basis without it still describes the model experiment `reference`
+/// within [`SLOW_POLE_SLACK`] times the larger of the verdict's threshold and the full
+/// basis's statistic (a sensor filter's pole raises it several-fold and stays; a pole the
+/// fit spent on the friction's distortion does not).
+pub(super) fn without_unneeded_slow_poles(
+    damped: &ModalBasis,
+    h: f64,
+    reference: &Level<'_>,
+    alpha: f64,
+) -> Result<ModalBasis> {
+    let extras = damped.slow_extras();
+    if extras.is_empty() {
+        return Ok(damped.clone());
+    }
+    let bound = slack_bound(damped, h, reference, alpha)?;
+    let mut dropped: Vec<num_complex::Complex64> = Vec::new();
+    let mut basis = damped.clone();
+    for p in extras {
+        dropped.push(p);
+        let trial = damped.without_poles(&dropped)?;
+        if describes(&trial, h, reference, alpha).is_ok_and(|s| s.value <= bound) {
+            basis = trial;
+        } else {
+            dropped.pop();
+        }
+    }
+    Ok(basis)
+}
+
+/// One basis the levels may be modelled on, with its candidates and every level's fit.
+pub(super) struct Variant {
+    pub(super) basis: ModalBasis,
+    pub(super) cand: Vec<usize>,
+    pub(super) fits: Vec<LevelFit>,
+}
+
+/// The other corners a friction-damped rigid body may have: where several real poles below
+/// the modes could be the corner (a fit at the friction's strongest level may spend one on
+/// the friction's distortion, slower or faster than the corner), the bases with the second,
+/// third… as the corner ([`ModalBasis::with_damped_rigid_body_at`]), each without the slow
+/// poles the model experiment does not need, with their level fits. Which one models the
+/// levels is decided on the levels a model is fitted on ([`choose`]).
+pub(super) fn other_corners(
+    j: &Judged<'_>,
+    data: &Data<'_>,
+    levels: &[Level<'_>],
+    alpha: f64,
+) -> Result<Vec<Variant>> {
+    let near_zero = std::f64::consts::TAU * data.fast.frd.freq_hz().first().copied().unwrap_or(0.0);
+    let basis = &j.modal.basis;
+    let mut out = Vec::new();
+    for nth in 1..basis.corner_choices(near_zero) {
+        let Some(b) = basis.with_damped_rigid_body_at(near_zero, nth)? else {
+            continue;
+        };
+        let trial = without_unneeded_slow_poles(&b, data.h, &levels[0], alpha)?;
+        if let Some((cand, fits)) = level_fits(&trial, data, levels) {
+            out.push(Variant {
+                basis: trial,
+                cand,
+                fits,
+            });
+        }
+    }
+    Ok(out)
+}
+
+/// The friction-damped rigid body without every slow extra ([`ModalBasis::slow_extras`])
+/// as a variant with its level fits, when it has extras: a fit of the model experiment may
+/// spend real poles on lines the friction distorts most at its level (the lowest lines,
+/// where the record's drift leaks in, or the stochastic distortion near the corner), which
+/// the other levels do not share; whether the bare corner models the levels better is
+/// decided on the training levels ([`choose`]).
+pub(super) fn without_slow_extras(
+    damped: &ModalBasis,
+    data: &Data<'_>,
+    levels: &[Level<'_>],
+) -> Option<Variant> {
+    let extras = damped.slow_extras();
+    if extras.is_empty() {
+        return None;
+    }
+    let basis = damped.without_poles(&extras).ok()?;
+    let (cand, fits) = level_fits(&basis, data, levels)?;
+    Some(Variant { basis, cand, fits })
+}
+
+/// Of `variants`, the one whose amplitude model, fitted on the levels `on` (indices into
+/// `levels`), describes those same levels best (the pooled statistic of its predictions
+/// over all their lines): a structural choice made on the training levels only. Every
+/// variant fits each level about as well with free residues; the amplitude model shares the
+/// model experiment's residues across levels, so only the basis whose moving pole carries
+/// the amplitude dependence describes them all. The first variant where none can be fitted.
+pub(super) fn choose(
+    variants: &[Variant],
+    levels: &[Level<'_>],
+    on: &[usize],
+    h: f64,
+    alpha: f64,
+) -> usize {
+    if variants.len() < 2 {
+        return 0;
+    }
+    let score = |v: &Variant| -> Option<f64> {
+        let lv: Vec<&Level<'_>> = on.iter().map(|&q| &levels[q]).collect();
+        let fits: Vec<&LevelFit> = on.iter().map(|&q| &v.fits[q]).collect();
+        let m = AmplitudeModel::fit(&v.basis, h, &v.cand, &lv, &fits, alpha).ok()?;
+        let lines: Vec<(Vec<Line>, f64)> = lv
+            .iter()
+            .map(|l| m.lines(l).map(|x| (x, l.est.inflation)))
+            .collect::<Result<_>>()
+            .ok()?;
+        let s = statistic(lines.iter().map(|(l, c)| (l.as_slice(), *c)), alpha).value;
+        s.is_finite().then_some(s)
+    };
+    // a variant that cannot be fitted scores +∞; ties (and all unfitted) keep the first
+    let scores: Vec<f64> = variants
+        .iter()
+        .map(|v| score(v).unwrap_or(f64::INFINITY))
+        .collect();
+    (1..variants.len()).fold(0, |best, i| if scores[i] < scores[best] { i } else { best })
+}
+
+/// A friction-damped reading of a basis that shows no damped rigid body, when it still
+/// describes the model experiment `reference` within [`SLOW_POLE_SLACK`] times the larger of
+/// the verdict's threshold and the plain basis's statistic; `None` otherwise. Tried in turn:
+/// its two slowest real poles as the integrator and the corner
+/// ([`ModalBasis::with_slow_poles_as_damped_rigid_body`]); its double integrator as one
+/// integrator and its first real pole below the modes as the corner
+/// ([`ModalBasis::with_one_integrator`], then [`ModalBasis::with_damped_rigid_body`]; an
+/// undamped rigid body with a sensor's real pole is not described: its low-frequency
+/// response `1/s²` becomes `1/(a s)`).
+pub(super) fn damped_reading(
+    plain: &ModalBasis,
+    near_zero: f64,
+    h: f64,
+    reference: &Level<'_>,
+    alpha: f64,
+) -> Result<Option<ModalBasis>> {
+    let mut readings = Vec::new();
+    if let Some(b) = plain.with_slow_poles_as_damped_rigid_body()? {
+        readings.push(b);
+    }
+    if let Some(one) = plain.with_one_integrator()? {
+        let b = one.with_damped_rigid_body(near_zero)?;
+        if b.is_damped() {
+            readings.push(b);
+        }
+    }
+    if readings.is_empty() {
+        return Ok(None);
+    }
+    let bound = slack_bound(plain, h, reference, alpha)?;
+    Ok(readings
+        .into_iter()
+        .find(|b| describes(b, h, reference, alpha).is_ok_and(|s| s.value <= bound)))
+}
+
+/// A same-level repeat at the model experiment's rate that disagrees while neither of the
+/// pair shows distortion: drift (a pair that shows distortion differs by the nonlinearity's
+/// stochastic contributions, another phase realisation, and is no evidence of drift).
+pub(super) fn repeat_drifts(data: &Data<'_>, ch: &mut Checks) -> Option<Outcome> {
+    let alpha = ch.alpha_test;
+    let (v, s) = data
+        .vals
+        .iter()
+        .enumerate()
+        .filter(|(_, v)| v.factor == 1 && v.same_level())
+        .map(|(i, v)| {
+            let s = statistic([(ch.free[i].as_slice(), v.whole.inflation)], alpha);
+            (v, s)
+        })
+        .find(|(v, s)| {
+            let pair = [&data.fast, &v.whole];
+            !s.passes() && !pair.iter().any(|e| distorted(e, alpha) == Some(true))
+        })?;
+    ch.evidence.push(Evidence::of(
+        EvidenceKind::Drift,
+        format!(
+            "`{}` repeats the model experiment's level and rate yet disagrees: the plant \
+             changed with time, not with amplitude",
+            v.exp.spec.name
+        ),
+        &s,
+    ));
+    Some(drift_outcome(
+        vec![v.exp.spec.name.clone()],
+        DriftSign::RepeatWithoutDistortion,
+    ))
+}
+
+/// What rules drift out for a nonlinearity: distortion seen at any experiment at the model
+/// experiment's rate, else a same-level repeat that agrees, else nothing.
+pub(super) fn drift_check(data: &Data<'_>, alpha: f64) -> DriftCheck {
+    let seen = std::iter::once(&data.fast)
+        .chain(data.vals.iter().filter(|v| v.factor == 1).map(|v| &v.whole))
+        .any(|e| distorted(e, alpha) == Some(true));
+    if seen {
+        DriftCheck::DistortionSeen
+    } else if data.vals.iter().any(|v| v.factor == 1 && v.same_level()) {
+        DriftCheck::RepeatAgrees
+    } else {
+        DriftCheck::Unchecked
+    }
+}
+
+/// Experiments at other levels disagree: the amplitude-dependent modal model
+/// ([`crate::amplitude`]) over every experiment at the model experiment's rate, its gain on
+/// whole levels left out in turn (three or more levels) or on the later periods of the other
+/// level (two). A same-level repeat that disagrees as well is drift, not nonlinearity.
+pub(super) fn nonlinearity(
+    data: &Data<'_>,
+    j: &Judged<'_>,
+    ch: &mut Checks,
+    found: &[(usize, Statistic)],
+    progress: &mut dyn FnMut(&str),
+) -> Result<Outcome> {
+    let alpha = ch.alpha_test;
+    let relative_levels: BTreeMap<String, f64> = found
+        .iter()
+        .map(|(i, _)| (data.vals[*i].exp.spec.name.clone(), data.vals[*i].level))
+        .collect();
+    if let Some(o) = repeat_drifts(data, ch) {
+        return Ok(o);
+    }
+    let check = drift_check(data, alpha);
+    let mut levels = vec![Level {
+        name: data.model_exp.spec.name.clone(),
+        exp: data.model_exp,
+        est: &data.fast,
+    }];
+    let mut at: Vec<Option<usize>> = vec![None];
+    for (i, v) in data.vals.iter().enumerate().filter(|(_, v)| v.factor == 1) {
+        levels.push(Level {
+            name: v.exp.spec.name.clone(),
+            exp: v.exp,
+            est: &v.whole,
+        });
+        at.push(Some(i));
+    }
+    // a rigid body damped at the model experiment's level (friction) becomes one block whose
+    // damping moves (a pole below the first line is an integrator for the data)
+    let f0 = data.fast.frd.freq_hz().first().copied().unwrap_or(0.0);
+    let mut damped = j
+        .modal
+        .basis
+        .with_damped_rigid_body(std::f64::consts::TAU * f0)?;
+    if !damped.is_damped() {
+        let near_zero = std::f64::consts::TAU * f0;
+        if let Some(b) = damped_reading(&damped, near_zero, data.h, &levels[0], alpha)? {
+            damped = b;
+        }
+    }
+    progress("modal fit of every level");
+    // the damped rigid body without the slow poles the model experiment does not need, then
+    // with them; if its fits fail, the model's own basis; a mode the model split into two
+    // close pairs as one pair
+    let mut bases = vec![without_unneeded_slow_poles(
+        &damped, data.h, &levels[0], alpha,
+    )?];
+    if damped.is_damped() {
+        bases.push(damped.clone());
+        bases.push(j.modal.basis.clone());
+    }
+    bases.extend(damped.without_close_pairs()?);
+    bases.dedup_by(|a, b| a.poles() == b.poles() && a.is_damped() == b.is_damped());
+    let tried = bases
+        .iter()
+        .find_map(|b| level_fits(b, data, &levels).map(|x| (b, x)));
+    let Some((basis, (cand, fits))) = tried else {
+        return Ok(per_level(data, found, (relative_levels, check), alpha));
+    };
+    let mut variants = vec![Variant {
+        basis: basis.clone(),
+        cand,
+        fits,
+    }];
+    if damped.is_damped() && levels.len() >= 3 {
+        variants.extend(other_corners(j, data, &levels, alpha)?);
+        variants.extend(without_slow_extras(&damped, data, &levels));
+    }
+    let every: Vec<usize> = (0..levels.len()).collect();
+    let chosen = choose(&variants, &levels, &every, data.h, alpha);
+    let Variant { basis, cand, fits } = &variants[chosen];
+    let all: Vec<&Level<'_>> = levels.iter().collect();
+    let fit_refs: Vec<&LevelFit> = fits.iter().collect();
+    let model = AmplitudeModel::fit(basis, data.h, cand, &all, &fit_refs, alpha)?;
+    progress("amplitude model: levels left out in turn");
+    let (gain, loo, held) = if levels.len() >= 3 {
+        levels_left_out(data, ch, &levels, &at, (&variants, chosen, alpha))?
+    } else {
+        (
+            later_periods(data, j, &levels, fits, (basis, cand), alpha)?,
+            Vec::new(),
+            BTreeMap::new(),
+        )
+    };
+    let modes = model.report(&all, &fit_refs, &loo);
+    let (kind, damping_trend, corner_trend) = kinds(&modes, normal_quantile(1.0 - alpha / 2.0));
+    let mut models = BTreeMap::new();
+    for lv in &levels {
+        models.insert(lv.name.clone(), model.model_at(lv)?);
+    }
+    Ok(Outcome {
+        verdict: Verdict::Discrepancy,
+        causes: vec![Cause::Nonlinearity {
+            relative_levels,
+            kind,
+            damping_trend,
+            corner_trend,
+            modes: modes.clone(),
+            drift_check: check,
+        }],
+        extension: Extension::Amplitude(modes),
+        ranking: Vec::new(),
+        partial: None,
+        gain,
+        models,
+        held,
+    })
+}
+
+/// Per level, the frequencies and dampings the model fitted without it predicted.
+pub(super) type LeftOut = Vec<Option<Vec<(f64, f64)>>>;
+
+/// Three or more levels: each validation level left out in turn, the amplitude model fitted
+/// on the others (the model experiment always among them) and judged on it; before: the
+/// linear model's simulation of it.
+pub(super) fn levels_left_out(
+    data: &Data<'_>,
+    ch: &Checks,
+    levels: &[Level<'_>],
+    at: &[Option<usize>],
+    (variants, chosen, alpha): (&[Variant], usize, f64),
+) -> Result<(Gain, LeftOut, BTreeMap<String, HeldOut>)> {
+    let (mut before, mut after, mut held) = (Vec::new(), Vec::new(), Vec::new());
+    let mut per = BTreeMap::new();
+    let mut loo: LeftOut = vec![None; levels.len()];
+    // each level's excitation relative to the model experiment's
+    let level_of = |q: usize| at[q].map_or(1.0, |i| data.vals[i].level);
+    for (k, lv) in levels.iter().enumerate().skip(1) {
+        let Some(i) = at[k] else { continue };
+        let train: Vec<&Level<'_>> = levels
+            .iter()
+            .enumerate()
+            .filter(|(m, _)| *m != k)
+            .map(|(_, l)| l)
+            .collect();
+        // the basis chosen on the training levels alone ([`choose`])
+        let on: Vec<usize> = (0..levels.len()).filter(|m| *m != k).collect();
+        let fold = choose(variants, levels, &on, data.h, alpha);
+        let Variant { basis, cand, fits } = &variants[fold];
+        let tf: Vec<&LevelFit> = on.iter().map(|&q| &fits[q]).collect();
+        let m = AmplitudeModel::fit(basis, data.h, cand, &train, &tf, alpha)?;
+        // per-candidate predictions only where the fold's basis is the final one's
+        loo[k] = (fold == chosen).then(|| m.predicted(lv));
+        let c = lv.est.inflation;
+        let bands = m.moving_bands(lv);
+        let (a, b) = (
+            in_bands(m.lines(lv)?, &bands),
+            in_bands(ch.model[i].clone(), &bands),
+        );
+        let (sa, sb) = (
+            statistic([(a.as_slice(), c)], alpha).value,
+            statistic([(b.as_slice(), c)], alpha).value,
+        );
+        let own = level_floor((basis, cand), &fits[k], data.h, lv, &bands, alpha)?;
+        // beyond the fitted amplitudes of a moving mode; or, where nothing moves on the
+        // training levels, beyond their excitation levels
+        let (lo, hi) = (0..levels.len())
+            .filter(|q| *q != k)
+            .map(level_of)
+            .fold((f64::INFINITY, 0.0f64), |(lo, hi), x| {
+                (lo.min(x), hi.max(x))
+            });
+        let beyond = level_of(k) < lo * 0.999 || level_of(k) > hi * 1.001;
+        let extrapolated = m.extrapolates(lv, &tf) || (!m.moves_any() && beyond);
+        per.insert(
+            lv.name.clone(),
+            HeldOut {
+                before: sb,
+                after: sa,
+                ratio: sb / sa,
+                floor: own,
+                lines: a.len(),
+                extrapolated,
+            },
+        );
+        after.push((a, c));
+        before.push((b, c));
+        held.push(format!(
+            "{} (whole experiment, left out{})",
+            lv.name,
+            if extrapolated {
+                "; beyond the fitted amplitudes: extrapolated"
+            } else {
+                ""
+            }
+        ));
+    }
+    let pooled =
+        |sets: &[(Vec<Line>, f64)]| statistic(sets.iter().map(|(l, c)| (l.as_slice(), *c)), alpha);
+    Ok((
+        Gain::measured(pooled(&before).value, pooled(&after).value, held)
+            .with_metric(Gain::METRIC_BANDS),
+        loo,
+        per,
+    ))
+}
+
+/// The lines inside any of `bands` (all of them when there are no bands).
+pub(super) fn in_bands(lines: Vec<Line>, bands: &[(f64, f64)]) -> Vec<Line> {
+    if bands.is_empty() {
+        return lines;
+    }
+    lines
+        .into_iter()
+        .filter(|l| bands.iter().any(|(lo, hi)| l.f >= *lo && l.f <= *hi))
+        .collect()
+}
+
+/// Two levels: the amplitude model fitted on the model experiment and the other level's
+/// earlier periods, judged on its later ones (labelled so).
+pub(super) fn later_periods(
+    data: &Data<'_>,
+    j: &Judged<'_>,
+    levels: &[Level<'_>],
+    fits: &[LevelFit],
+    (basis, cand): (&ModalBasis, &[usize]),
+    alpha: f64,
+) -> Result<Gain> {
+    let Some(other) = levels.get(1) else {
+        return Ok(Gain::none("one level only"));
+    };
+    let Some(v) = data.vals.iter().find(|v| std::ptr::eq(v.exp, other.exp)) else {
+        return Ok(Gain::none("one level only"));
+    };
+    let Some((early, late)) = &v.parts else {
+        return Ok(Gain::none(
+            "two levels only, and the other level has fewer than four steady periods (or too \
+             short a record) to hold part of it out",
+        ));
+    };
+    let train_lv = Level {
+        name: other.name.clone(),
+        exp: other.exp,
+        est: early,
+    };
+    let held_lv = Level {
+        name: other.name.clone(),
+        exp: other.exp,
+        est: late,
+    };
+    let tf = fit_level(basis, cand, data.h, &train_lv)?;
+    let m = AmplitudeModel::fit(
+        basis,
+        data.h,
+        cand,
+        &[&levels[0], &train_lv],
+        &[&fits[0], &tf],
+        alpha,
+    )?;
+    let bands = m.moving_bands(&held_lv);
+    let after = statistic(
+        [(
+            in_bands(m.lines(&held_lv)?, &bands).as_slice(),
+            late.inflation,
+        )],
+        alpha,
+    );
+    let before = statistic(
+        [(
+            in_bands(j.lines(&v.model, 1, late)?, &bands).as_slice(),
+            late.inflation,
+        )],
+        alpha,
+    );
+    Ok(Gain::measured(
+        before.value,
+        after.value,
+        vec![format!(
+            "{} (two levels only: fitted on its earlier periods)",
+            held_out_label(v.exp)
+        )],
+    )
+    .with_metric(Gain::METRIC_BANDS))
+}
+
+/// Without in-band modes to move: one FRF per level (the level's own earlier periods predict
+/// its later ones).
+pub(super) fn per_level(
+    data: &Data<'_>,
+    found: &[(usize, Statistic)],
+    (relative_levels, check): (BTreeMap<String, f64>, DriftCheck),
+    alpha: f64,
+) -> Outcome {
+    let (mut b, mut af, mut held) = (0.0, 0.0, Vec::new());
+    for (i, _) in found {
+        let v = &data.vals[*i];
+        if let Some((v1, v2)) = &v.parts {
+            b += statistic(
+                [(free_lines(&data.pair(1), v2).as_slice(), v2.inflation)],
+                alpha,
+            )
+            .value;
+            let own = Pair {
+                fast: &v1.frd,
+                factor: 1,
+                h: data.h,
+                dof: v1.dof,
+            };
+            af += statistic([(free_lines(&own, v2).as_slice(), v2.inflation)], alpha).value;
+            held.push(held_out_label(v.exp));
+        }
+    }
+    let n = held.len() as f64;
+    let gain = if held.is_empty() {
+        Gain::none("no experiment at another level has enough periods to hold some out")
+    } else {
+        Gain::measured(b / n, af / n, held)
+    };
+    Outcome {
+        verdict: Verdict::Discrepancy,
+        causes: vec![Cause::Nonlinearity {
+            relative_levels,
+            kind: FreqTrend::None,
+            damping_trend: DampingTrend::None,
+            corner_trend: CornerTrend::None,
+            modes: Vec::new(),
+            drift_check: check,
+        }],
+        extension: Extension::PerLevel,
+        ranking: Vec::new(),
+        partial: None,
+        gain,
+        models: BTreeMap::new(),
+        held: BTreeMap::new(),
+    }
+}
