@@ -31,6 +31,9 @@ pub(crate) struct Estimate {
     /// significance gate of [`with_distortion`]); ascending in frequency, empty without
     /// detection lines.
     pub(crate) local_distortion: Vec<(f64, f64, f64)>,
+    /// The best linear approximation at the estimate's lines: how its distortion was measured
+    /// and its noise and distortion per band (`None` for a part of an experiment).
+    pub(crate) bla: Option<sd_ident::Bla>,
 }
 
 /// Most lines a fit sees ([`Estimate::thinned`]).
@@ -113,12 +116,20 @@ pub(crate) fn estimate(e: &Experiment, part: Part) -> Result<Estimate> {
     // lines whose input is hardly measured (in closed loop: where the loop cancels the
     // excitation) have a biased ratio and no valid variance: left out
     let frd = sd_ident::trusted(&frd, &est.input_snr)?;
+    let keep = est.trusted_lines();
+    let bla = match part {
+        Part::Whole => sd_ident::Bla::from_periodic(&est)
+            .and_then(|b| b.select(|i| keep[i]))
+            .ok(),
+        _ => None,
+    };
     Ok(Estimate {
         frd,
         dof,
         inflation: 1.0,
         distortion: est.distortion,
         local_distortion,
+        bla,
     })
 }
 
@@ -173,6 +184,79 @@ impl Estimate {
     }
 }
 
+/// A full multisine's distortion carried from `source` (named `name`), an experiment of the
+/// same rate, period, columns and excitation rms ([`sd_ident::same_level`]) whose detection
+/// lines measured it ([`sd_ident::Bla::carried_from`]): the FRF's variance becomes noise +
+/// the carried distortion, its degrees of freedom combined per line by Satterthwaite as in
+/// [`with_distortion`]. Unchanged when `est`'s own distortion is measured, the source's is
+/// not, or they differ in rate, period, columns or level.
+pub(crate) fn carry_distortion(
+    (est, exp): (&mut Estimate, &Experiment),
+    (source, src_exp): (&Estimate, &Experiment),
+) -> Result<()> {
+    let (a, b) = (&exp.spec, &src_exp.spec);
+    let alike = a.period_samples.is_some()
+        && a.period_samples == b.period_samples
+        && a.sample_rate_hz == b.sample_rate_hz
+        && a.inputs() == b.inputs()
+        && a.outputs() == b.outputs()
+        && a.references() == b.references()
+        && sd_ident::same_level(level(exp), level(src_exp));
+    let (Some(own), Some(src)) = (&est.bla, &source.bla) else {
+        return Ok(());
+    };
+    if !alike || own.distortion.measured() {
+        return Ok(());
+    }
+    let carried = own.carried_from(src, &b.name)?;
+    if !carried.distortion.measured() {
+        return Ok(());
+    }
+    let nl_dof = 2.0 * sd_ident::NL_NEIGHBOURS as f64;
+    let dof_sum: f64 = carried
+        .noise_var
+        .iter()
+        .zip(&carried.distortion_var)
+        .map(|(&vn, &d)| satterthwaite(&[(vn, est.dof), (d, nl_dof)]))
+        .sum();
+    est.dof = dof_sum / carried.noise_var.len().max(1) as f64;
+    est.frd = carried.frd.clone();
+    est.bla = Some(carried);
+    Ok(())
+}
+
+/// Every full multisine of `set` with the distortion of its nearest-level sibling carried
+/// ([`carry_distortion`]; the sources are taken before any is carried).
+pub(crate) fn carry_within(set: &mut [(&Experiment, Estimate)]) -> Result<()> {
+    let sources: Vec<(usize, Estimate)> = set
+        .iter()
+        .enumerate()
+        .filter(|(_, (_, e))| {
+            e.bla.as_ref().is_some_and(|b| {
+                matches!(
+                    b.distortion,
+                    sd_ident::Distortion::DetectionLines { .. }
+                        | sd_ident::Distortion::Realizations { .. }
+                )
+            })
+        })
+        .map(|(i, (_, e))| (i, e.clone()))
+        .collect();
+    for t in 0..set.len() {
+        let lt = level(set[t].0);
+        let best = sources.iter().filter(|(i, _)| *i != t).min_by(|a, b| {
+            let gap = |i: usize| (level(set[i].0) - lt).abs();
+            gap(a.0).total_cmp(&gap(b.0))
+        });
+        if let Some((i, src)) = best {
+            let src_exp = set[*i].0;
+            let (exp, est) = &mut set[t];
+            carry_distortion((est, exp), (src, src_exp))?;
+        }
+    }
+    Ok(())
+}
+
 /// The training and held-out parts of an experiment (`None` when a part has no lines or no
 /// variance). A periodic experiment is split only from four steady periods on: a single
 /// period has no spread of its own, and a drifting sensor's leakage, which telescopes in the
@@ -219,11 +303,15 @@ fn estimate_lpm(e: &Experiment, part: Part) -> Result<Estimate> {
     let half = opt.half_width.unwrap_or((q + 2).div_ceil(2));
     let resid = (2 * half + 1).saturating_sub(q).max(1);
     Ok(Estimate {
-        frd,
         dof: 2.0 * resid as f64,
         inflation: lpm_inflation(half, opt.degree),
         distortion: None,
         local_distortion: Vec::new(),
+        bla: match part {
+            Part::Whole => sd_ident::Bla::from_lpm(&frd).ok(),
+            _ => None,
+        },
+        frd,
     })
 }
 

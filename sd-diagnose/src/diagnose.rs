@@ -61,20 +61,21 @@ pub fn diagnose_with_progress(
         }
     }
     let cut = crate::pieces::cut_records(experiments);
-    let (experiments, pieces) = match &cut {
-        Some((exps, pieces)) => {
-            progress(&format!(
-                "{} record(s) of changing amplitude cut into {} pieces",
-                pieces
-                    .iter()
-                    .map(|p| &p.record)
-                    .collect::<std::collections::BTreeSet<_>>()
-                    .len(),
-                pieces.len()
-            ));
-            (exps.as_slice(), pieces.clone())
+    let (experiments, pieces, records) = match &cut {
+        Some(c) => {
+            for r in &c.records {
+                progress(&format!(
+                    "`{}`: {:.1} of {:.1} s excited in {} burst(s), used as {} piece(s)",
+                    r.record, r.excited_s, r.length_s, r.bursts, r.pieces
+                ));
+            }
+            (
+                c.experiments.as_slice(),
+                c.pieces.clone(),
+                c.records.clone(),
+            )
         }
-        None => (experiments, Vec::new()),
+        None => (experiments, Vec::new(), Vec::new()),
     };
     let mut data = Data::read(experiments, progress)?;
     let (model, source, basis) = judged_model(&data, opt, progress)?;
@@ -121,6 +122,7 @@ pub fn diagnose_with_progress(
         model_info: judged.info,
         experiments,
         pieces,
+        records,
         extended_model,
     })
 }

@@ -72,6 +72,7 @@ mod model;
 pub mod pieces;
 pub mod stats;
 pub mod timedomain;
+pub mod tracks;
 
 mod diagnose;
 
@@ -82,10 +83,11 @@ pub use mimo::{
     diagnose_mimo, ChannelFinding, ChannelKind, EntryCheck, EntryCurves, MimoDiagnoseOptions,
     MimoDiagnosis, MimoGain,
 };
-pub use pieces::Piece;
-pub use sd_ident::Role;
+pub use pieces::{Piece, RecordUse};
+pub use sd_ident::{BandLevel, Distortion, Role, Unmeasurable};
 pub use stats::Statistic;
 pub use timedomain::AveragedPeriod;
+pub use tracks::{ModeTrack, TrackPoint};
 
 use num_complex::Complex64 as C;
 use sd_model::StateSpace;
@@ -221,6 +223,9 @@ pub enum Cause {
         corner_trend: CornerTrend,
         /// The modes that move with amplitude, with every level's points and the trends.
         modes: Vec<MovingMode>,
+        /// Every physical mode followed over the levels by local fits ([`tracks`]); `kind`
+        /// and `damping_trend` come from the dominant one when one moves.
+        tracks: Vec<tracks::ModeTrack>,
         /// What rules out drift over time as the reason the levels differ.
         drift_check: DriftCheck,
     },
@@ -666,6 +671,9 @@ pub struct ExperimentReport {
     /// Noise and distortion levels at the non-excited lines of a periodic experiment.
     #[serde(serialize_with = "distortion_json")]
     pub distortion: Option<sd_ident::DistortionReport>,
+    /// Its best linear approximation: noise and distortion per band, and how the distortion
+    /// was measured or why it was not (`None` for MIMO entries).
+    pub bla: Option<BlaReport>,
     /// When this whole experiment was held out of the extension's fit: the statistics
     /// before and after on it (in the metric of `gain`).
     pub held_out: Option<HeldOut>,
@@ -717,8 +725,23 @@ pub enum OwnFit {
     Noise,
     /// Above it, and the non-excited lines show nonlinear distortion.
     Distortion,
-    /// Above it without distortion: the model does not fit (order, structure).
+    /// Above the total variance (noise + the distortion the data measured, or the LPM
+    /// residual that holds both): the model does not fit (order, structure).
     FitError,
+    /// Above the noise, and the excitation leaves the distortion unmeasurable (e.g. every line
+    /// excited with one realisation; the reason is the model experiment's
+    /// [`ExperimentReport::bla`]): distortion cannot be told from a fit error.
+    NotSeparable,
+}
+
+/// The best linear approximation of an experiment: how its stochastic nonlinear distortion
+/// was measured (or why not) and its noise and distortion per band.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct BlaReport {
+    /// How the distortion was measured.
+    pub distortion: sd_ident::Distortion,
+    /// Noise and distortion per band, relative to `|Ĝ|`.
+    pub bands: Vec<sd_ident::BandLevel>,
 }
 
 /// The model that was judged.
@@ -771,6 +794,9 @@ pub struct Diagnosis {
     /// Non-periodic records of changing amplitude cut into pieces, each diagnosed as an
     /// experiment of its own level ([`pieces`]); empty when none was cut.
     pub pieces: Vec<Piece>,
+    /// How each non-periodic record with windows without excitation (burst random, pauses)
+    /// or cut into pieces was used ([`pieces`]); empty when there is none.
+    pub records: Vec<RecordUse>,
     /// The rate-tied extension as a continuous model with its non-idealities (written by the
     /// report as `extended_model.json`; `sdctl c2d` with `--hold-delay` and `--averaging`
     /// discretises it at any rate).

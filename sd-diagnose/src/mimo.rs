@@ -207,6 +207,7 @@ fn entry(frd: &Frd, i: usize, j: usize, dof: f64) -> Result<Estimate> {
         inflation: 1.0,
         distortion: None,
         local_distortion: Vec::new(),
+        bla: None,
     })
 }
 

@@ -17,6 +17,11 @@ use sd_diagnose::{
 use std::fmt::Write as _;
 use std::path::Path;
 
+mod data;
+mod tracks;
+use data::{bla_section, own_excess, own_fit_sentence, pieces_section};
+use tracks::tracks_section;
+
 const MEASURED: RGBColor = RGBColor(0, 0, 0);
 const MODEL: RGBColor = RGBColor(200, 30, 30);
 const EXTENDED: RGBColor = RGBColor(20, 110, 200);
@@ -823,6 +828,7 @@ fn nonlinearity_text(c: &Cause) -> Option<String> {
         damping_trend,
         corner_trend,
         modes,
+        tracks,
         drift_check,
     } = c
     else {
@@ -870,10 +876,27 @@ fn nonlinearity_text(c: &Cause) -> Option<String> {
             CornerTrend::Rising => "; a real pole's corner rises with amplitude",
             CornerTrend::None => "",
         };
+        let dominant = tracks
+            .iter()
+            .find(|t| t.dominant)
+            .map(|t| {
+                format!(
+                    " (the mode at {:.3} Hz, shifted {:+.2} half-power bandwidths over the \
+                     levels)",
+                    t.freq_hz, t.shift_bandwidths
+                )
+            })
+            .unwrap_or_default();
+        let moving = tracks
+            .iter()
+            .filter(|t| t.frequency_moves || t.damping_moves)
+            .count();
         format!(
             "Experiments at other excitation levels disagree with the model \
-                 experiment's ({}); {kind}, {damp}{corner}; {} moving pole(s); {drift}",
+                 experiment's ({}); {kind}{dominant}, {damp}{corner}; {moving} of {} tracked \
+                 physical mode(s) move; {} moving pole(s) in the amplitude model; {drift}",
             per.join(", "),
+            tracks.len(),
             modes.len()
         )
     })
@@ -1003,81 +1026,6 @@ fn points_table(md: &mut String, m: &sd_diagnose::MovingMode) {
     let _ = writeln!(md);
 }
 
-/// The records that were cut into pieces of constant amplitude, and how.
-fn pieces_section(md: &mut String, d: &Diagnosis) {
-    if d.pieces.is_empty() {
-        return;
-    }
-    let _ = writeln!(
-        md,
-        "## Records cut into pieces of constant amplitude
-
-A non-periodic record whose \
-         excitation rms changes within it is cut where the rms changes by more than a factor \
-         {} (binary segmentation of its log-rms in windows of {} samples, cuts moved to whole \
-         seconds, pieces of at least {} samples or an eighth of the record); each piece is an \
-         experiment of its own level, estimated by the LPM. The lowest piece of the model \
-         record is the model experiment.\n\n| piece | from [s] | to [s] | excitation rms |\n|---|---|---|---|",
-        sd_diagnose::pieces::STEP,
-        sd_diagnose::pieces::WINDOW,
-        sd_diagnose::pieces::MIN_PIECE
-    );
-    for p in &d.pieces {
-        let _ = writeln!(
-            md,
-            "| {} | {:.2} | {:.2} | {:.4} |",
-            p.name, p.start_s, p.end_s, p.rms
-        );
-    }
-    let _ = writeln!(md);
-}
-
-/// How far the model is from its own experiment, and what the excess is.
-fn own_fit_sentence(md: &mut String, d: &Diagnosis) {
-    if let (Some(s), Some(_)) = (&d.model_info.own_data, d.model_info.own_fit) {
-        let _ = writeln!(
-            md,
-            "On its own experiment the model's statistic is {:.3} (threshold {:.3}): {}.\n",
-            s.value,
-            s.threshold,
-            own_excess(d)
-        );
-    }
-}
-
-/// What the model's excess on its own experiment is: noise, distortion, the named cause acting
-/// at that rate too, a given model that does not describe its data, or a fit too coarse.
-fn own_excess(d: &Diagnosis) -> String {
-    let extended_own = d
-        .experiments
-        .iter()
-        .find(|x| x.role == sd_diagnose::Role::Model)
-        .and_then(|x| x.extended_stat);
-    match d.model_info.own_fit {
-        None | Some(sd_diagnose::OwnFit::Noise) => "at the noise level".into(),
-        Some(sd_diagnose::OwnFit::Distortion) => "above the noise, and the non-excited lines \
-             show nonlinear distortion: the excess is the system's, not the fit's"
-            .into(),
-        Some(sd_diagnose::OwnFit::FitError) => match extended_own {
-            Some(x) if x.passes() && d.verdict == sd_diagnose::Verdict::Discrepancy => format!(
-                "above the noise, but the named cause ({}) acts at this rate too: with it the \
-                 statistic is {:.3}, within its threshold {:.3}; the model is right apart from \
-                 that effect",
-                d.cause, x.value, x.threshold
-            ),
-            _ if d.model_info.source == "given" => "above the noise without distortion: the \
-                 given model does not describe the data it is judged at (leave out `--model` \
-                 to fit one, or correct the model)"
-                .into(),
-            _ => format!(
-                "above the noise without distortion: a fit error (raise `--max-order`, now \
-                 order {}, or give a model)",
-                d.model.n()
-            ),
-        },
-    }
-}
-
 /// Why an evidence row failed, and what the failure means beside the verdict.
 fn explain_failed(d: &Diagnosis, e: &sd_diagnose::Evidence) -> String {
     use sd_diagnose::EvidenceKind as K;
@@ -1163,7 +1111,9 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> String {
         d.model.ts().unwrap_or(0.0)
     );
     own_fit_sentence(&mut md, d);
+    bla_section(&mut md, d);
     pieces_section(&mut md, d);
+    tracks_section(&mut md, d);
     moving_modes_section(&mut md, d);
     let _ = writeln!(md, "## What the model's simulation gets wrong\n");
     let _ = writeln!(

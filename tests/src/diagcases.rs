@@ -681,15 +681,45 @@ pub fn rising_case(
     levels: &[f64],
     rec: Recording,
 ) -> Option<LevelCase> {
+    stepped_case(seed, effect, levels, rec, 1.0)
+}
+
+/// [`rising_case`] as burst random: in each level's `1 + rec.steady` seconds the force is on
+/// for the first 60 % and exactly zero for the rest (the free decay), as modal tests record.
+/// The diagnosis must cut at the level changes only and keep every decay with its burst.
+pub fn burst_case(
+    seed: u64,
+    effect: LevelEffect,
+    levels: &[f64],
+    rec: Recording,
+) -> Option<LevelCase> {
+    stepped_case(seed, effect, levels, rec, 0.6)
+}
+
+/// One record stepping through `levels`, excited for the fraction `duty` of each level.
+fn stepped_case(
+    seed: u64,
+    effect: LevelEffect,
+    levels: &[f64],
+    rec: Recording,
+    duty: f64,
+) -> Option<LevelCase> {
     let (mut st, m0) = level_stage(seed);
     let piece = st.fast_rate as usize * (1 + rec.steady);
+    let on = (duty * piece as f64).round() as usize;
     let noise = filtered_noise(seed * 13 + 1, piece * levels.len());
     let signal = |ls: &[f64]| -> Vec<f64> {
         noise
             .iter()
             .enumerate()
             .take(piece * ls.len())
-            .map(|(i, v)| v * 0.5 * ls[i / piece])
+            .map(|(i, v)| {
+                if i % piece < on {
+                    v * 0.5 * ls[i / piece]
+                } else {
+                    0.0
+                }
+            })
             .collect()
     };
     let rate = st.fast_rate;

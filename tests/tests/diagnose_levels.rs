@@ -21,7 +21,8 @@ use sd_model::median;
 
 use sd_diagnose::{Cause, CornerTrend, DampingTrend, DriftCheck, FreqTrend};
 use sd_tests::diagcases::{
-    level_case, level_rate_case, per_seed, rising_case, LevelCase, LevelEffect, Recording,
+    burst_case, level_case, level_rate_case, per_seed, rising_case, LevelCase, LevelEffect,
+    Recording,
 };
 
 /// The linear model's held-out statistic from which a level's nonlinearity counts as visible.
@@ -90,6 +91,9 @@ struct Outcome {
     /// Relative error of the predicted frequency shift at each held-out level.
     shift_errors: Vec<f64>,
     seconds: f64,
+    /// A record the diagnosis cut: one piece per level, every piece excited (no free decay
+    /// or pause as an experiment); `true` for separate records.
+    pieces_right: bool,
 }
 
 impl Outcome {
@@ -108,6 +112,10 @@ impl Outcome {
     }
 
     fn right(&self) -> bool {
+        self.pieces_right && self.effect_right()
+    }
+
+    fn effect_right(&self) -> bool {
         match self.case.effect {
             LevelEffect::Hardening => self.kind_right(FreqTrend::Hardening),
             LevelEffect::Softening => self.kind_right(FreqTrend::Softening),
@@ -161,12 +169,16 @@ enum Form {
     Separate(Recording),
     /// One non-periodic record whose amplitude steps through the levels (the diagnosis cuts).
     Rising,
+    /// [`Form::Rising`] as burst random: each level's force on for 60 % of its seconds, then
+    /// a free decay (the diagnosis cuts at the level changes only).
+    Burst,
 }
 
 fn run(seed: u64, effect: LevelEffect, levels: &[f64], form: Form) -> Option<Outcome> {
     let case = match form {
         Form::Separate(rec) => level_case(seed, effect, levels, rec)?,
         Form::Rising => rising_case(seed, effect, levels, NOISE)?,
+        Form::Burst => burst_case(seed, effect, levels, NOISE)?,
     };
     let form_label = format!("{form:?}");
     let t = std::time::Instant::now();
@@ -260,6 +272,8 @@ fn run(seed: u64, effect: LevelEffect, levels: &[f64], form: Form) -> Option<Out
             .collect(),
         shift_errors: shift_errors(&d, case.mode_hz),
         seconds,
+        pieces_right: matches!(form, Form::Separate(_))
+            || (d.pieces.len() == levels.len() && d.pieces.iter().all(|p| p.excited_s >= 1.0)),
         case,
     };
     println!(
@@ -319,7 +333,10 @@ fn cases(seeds: std::ops::Range<u64>, form: Form) -> Vec<Outcome> {
         .filter(|(effect, _)| {
             !matches!(
                 (form, effect),
-                (Form::Rising, LevelEffect::Drift | LevelEffect::DriftLevels)
+                (
+                    Form::Rising | Form::Burst,
+                    LevelEffect::Drift | LevelEffect::DriftLevels
+                )
             )
         })
         .filter_map(|(effect, levels)| run(s, effect, levels, form))
@@ -464,7 +481,7 @@ fn levels_default_subset() {
 /// record of rising amplitude the diagnosis cuts into pieces.
 #[test]
 fn levels_default_subset_nonperiodic() {
-    for form in [Form::Separate(NOISE), Form::Rising] {
+    for form in [Form::Separate(NOISE), Form::Rising, Form::Burst] {
         let out = cases(CI_SEEDS_NOISE, form);
         let (wrong, weak) = summarize(&out);
         assert!(out.len() >= 6, "only {} cases ran", out.len());
@@ -478,7 +495,7 @@ fn levels_default_subset_nonperiodic() {
 #[ignore]
 fn levels_reported_nonperiodic() {
     let mut wrong = 0;
-    for form in [Form::Separate(NOISE), Form::Rising] {
+    for form in [Form::Separate(NOISE), Form::Rising, Form::Burst] {
         println!("{form:?}");
         let out = cases(REPORT_SEEDS_NOISE, form);
         let (w, weak) = summarize(&out);
@@ -556,6 +573,7 @@ fn development_levels() {
     let form = match std::env::var("LEVEL_REC").as_deref() {
         Ok("noise") => Form::Separate(NOISE),
         Ok("rising") => Form::Rising,
+        Ok("burst") => Form::Burst,
         _ => Form::Separate(PERIODIC),
     };
     let out = cases(a..b, form);
@@ -575,7 +593,7 @@ fn report_of_a_rising_record() {
     std::fs::create_dir_all(&dir).unwrap();
     let figs = sd_report::diagnosis::write(&dir, &d, "a rising record").unwrap();
     let md = std::fs::read_to_string(dir.join("report.md")).unwrap();
-    assert!(md.contains("Records cut into pieces"), "{md}");
+    assert!(md.contains("How the records were used"), "{md}");
     assert!(md.contains("rising[0.0–5.0 s]"), "{md}");
     assert!(md.contains("that move with amplitude"), "{md}");
     let amp: Vec<&String> = figs

@@ -350,6 +350,7 @@ pub(super) fn one_level<'v, 'a: 'v>(disagreeing: impl Iterator<Item = &'v Val<'a
                 damping_trend: DampingTrend::None,
                 corner_trend: CornerTrend::None,
                 modes: Vec::new(),
+                tracks: Vec::new(),
                 drift_check: DriftCheck::DistortionSeen,
             },
             Gain::none(

@@ -132,7 +132,8 @@ pub(super) fn judge_model<'a>(
 }
 
 /// How far the model is from its own experiment, and whether that excess is noise,
-/// distortion (the non-excited lines) or fit error.
+/// distortion (the non-excited lines), fit error, or not separable (the excitation cannot
+/// measure the distortion).
 pub(super) fn own_fit(data: &Data<'_>, ch: &Checks, info: &mut ModelInfo) {
     let own = statistic(
         [(ch.fast_model.as_slice(), data.fast.inflation)],
@@ -143,10 +144,19 @@ pub(super) fn own_fit(data: &Data<'_>, ch: &Checks, info: &mut ModelInfo) {
             .iter()
             .any(|e| !e.passed)
     });
+    // above the noise without distortion seen: a fit error only where the variance holds
+    // the distortion (detection lines, realisations, a sibling, the LPM residual)
+    let unmeasurable = data
+        .fast
+        .bla
+        .as_ref()
+        .is_some_and(|b| !b.distortion.measured());
     info.own_fit = Some(if own.passes() {
         OwnFit::Noise
     } else if distorted {
         OwnFit::Distortion
+    } else if unmeasurable {
+        OwnFit::NotSeparable
     } else {
         OwnFit::FitError
     });

@@ -371,6 +371,15 @@ pub(super) fn nonlinearity(
     };
     let modes = model.report(&all, &fit_refs, &loo);
     let (kind, damping_trend, corner_trend) = kinds(&modes, normal_quantile(1.0 - alpha / 2.0));
+    progress("every physical mode tracked over the levels by local fits");
+    let tracks = tracked(data, &levels, &at, alpha);
+    // the dominant tracked mode names the kind and the damping trend
+    let (kind, damping_trend) = tracks
+        .iter()
+        .find(|t| t.dominant)
+        .map_or((kind, damping_trend), |t| {
+            (t.frequency_trend, t.damping_trend)
+        });
     let mut models = BTreeMap::new();
     for lv in &levels {
         models.insert(lv.name.clone(), model.model_at(lv)?);
@@ -383,6 +392,7 @@ pub(super) fn nonlinearity(
             damping_trend,
             corner_trend,
             modes: modes.clone(),
+            tracks,
             drift_check: check,
         }],
         extension: Extension::Amplitude(modes),
@@ -392,6 +402,29 @@ pub(super) fn nonlinearity(
         models,
         held,
     })
+}
+
+/// The physical modes tracked over `levels` ([`crate::tracks`]), the model experiment's
+/// physical fit on its thinned lines; empty when it fails.
+fn tracked(
+    data: &Data<'_>,
+    levels: &[Level<'_>],
+    at: &[Option<usize>],
+    alpha: f64,
+) -> Vec<crate::tracks::ModeTrack> {
+    let Ok(first) = levels[0].est.thinned() else {
+        return Vec::new();
+    };
+    let tl: Vec<crate::tracks::TrackLevel<'_>> = levels
+        .iter()
+        .enumerate()
+        .map(|(k, lv)| crate::tracks::TrackLevel {
+            name: &lv.name,
+            level: at[k].map_or(1.0, |i| data.vals[i].level),
+            frd: &lv.est.frd,
+        })
+        .collect();
+    crate::tracks::track_modes(&first.frd, &tl, alpha).unwrap_or_default()
 }
 
 /// Per level, the frequencies and dampings the model fitted without it predicted.
@@ -601,6 +634,7 @@ pub(super) fn per_level(
             damping_trend: DampingTrend::None,
             corner_trend: CornerTrend::None,
             modes: Vec::new(),
+            tracks: Vec::new(),
             drift_check: check,
         }],
         extension: Extension::PerLevel,

@@ -1,7 +1,7 @@
 //! Stage 1: the data — the model experiment, the validation experiments with their FRFs,
 //! levels and rate factors.
 
-use crate::data::{estimate, level, parts, rate_factor, Estimate, Part};
+use crate::data::{carry_within, estimate, level, parts, rate_factor, Estimate, Part};
 use crate::lemma6::Pair;
 use crate::stats::Statistic;
 use crate::{DiagnoseError, Result};
@@ -97,6 +97,18 @@ impl<'a> Data<'a> {
                 Ok((e, rate_factor(model_exp, e)?, estimate(e, Part::Whole)?))
             })
             .collect::<Result<Vec<_>>>()?;
+        // a full multisine's distortion from a sibling of the same channel, band and level
+        let mut set: Vec<(&Experiment, Estimate)> = std::iter::once((model_exp, fast))
+            .chain(vals.into_iter().map(|(e, _, w)| (e, w)))
+            .collect();
+        carry_within(&mut set)?;
+        let mut set = set.into_iter();
+        let (_, fast) = set
+            .next()
+            .ok_or_else(|| DiagnoseError::Setup("no model experiment".into()))?;
+        let vals: Vec<(&Experiment, usize, Estimate)> = set
+            .map(|(e, w)| Ok((e, rate_factor(model_exp, e)?, w)))
+            .collect::<Result<_>>()?;
         let data = Data {
             model_exp,
             fast,

@@ -189,6 +189,10 @@ impl ReportCtx<'_, '_> {
             },
             time_domain: td,
             distortion: est.distortion.clone(),
+            bla: est.bla.as_ref().map(|b| crate::BlaReport {
+                distortion: b.distortion.clone(),
+                bands: b.bands(),
+            }),
             held_out: None,
             extended_model: em,
         })
