@@ -6,8 +6,9 @@
 //! # Method
 //!
 //! 1. **The modes.** The physical modal fit of the model experiment (the lowest level's BLA,
-//!    [`sd_ident::physical_fit`]: stabilisation over orders, no pair narrower than the line
-//!    spacing unless the held-out lines demand it) gives the lightly damped pairs in the band
+//!    [`sd_ident::physical_fit`]: stabilisation over orders up to [`MODE_FIT_ORDER`] on at most
+//!    [`MODE_FIT_LINES`] lines, no pair narrower than the line spacing unless the held-out
+//!    lines demand it) gives the lightly damped pairs in the band
 //!    (ζ < [`MAX_DAMPING`]) with their share of the response.
 //! 2. **The band of each mode** is `f₀ ± B`, `B = max(4ζ₀f₀, 6Δf)` (four half-power
 //!    half-widths, at least six lines each side: room for a shift of about one bandwidth),
@@ -30,6 +31,10 @@ use serde::Serialize;
 
 /// Pairs at or above this damping are not tracked (overdamped: no resonance to follow).
 pub const MAX_DAMPING: f64 = 0.3;
+/// Most lines the physical fit that finds the modes sees (every `⌈L/2048⌉`-th).
+pub const MODE_FIT_LINES: usize = 2048;
+/// Highest order of that fit (eight pairs; `sdctl fit --stabilization` goes to 24).
+pub const MODE_FIT_ORDER: usize = 16;
 
 /// One level's local fit of a tracked mode.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -121,7 +126,15 @@ pub fn track_modes(
     levels: &[TrackLevel<'_>],
     alpha: f64,
 ) -> Result<Vec<ModeTrack>> {
-    let phys = physical_fit(modes_from, &StabilizationOptions::default(), &mut |_| {})?;
+    // the modes only need finding here (the local fits use every line): at most
+    // MODE_FIT_LINES lines and orders up to MODE_FIT_ORDER keep the stabilisation to seconds
+    let step = modes_from.len().div_ceil(MODE_FIT_LINES).max(1);
+    let thinned = modes_from.select(|i| i % step == 0)?;
+    let opt = StabilizationOptions {
+        max_order: MODE_FIT_ORDER,
+        ..StabilizationOptions::default()
+    };
+    let phys = physical_fit(&thinned, &opt, &mut |_| {})?;
     let pairs: Vec<_> = phys
         .modes
         .iter()
