@@ -13,7 +13,7 @@
 //! 2. **The band of each mode** is `f₀ ± B`, `B = max(4ζ₀f₀, 6Δf)` (four half-power
 //!    half-widths, at least six lines each side: room for a shift of about one bandwidth),
 //!    narrowed to 45 % of the distance to the neighbouring pairs, the same at every level.
-//! 3. **Local fit per level** ([`sd_ident::local_mode`]: one pole pair plus an affine
+//! 3. **Local fit per level** ([`sd_ident::local_mode()`]: one pole pair plus an affine
 //!    background, weighted by the level's total variance), started from `(f₀, ζ₀)`.
 //! 4. **Moves:** the levels' frequencies (dampings) differ beyond their standard errors when
 //!    `Σ (x_k − x̄)²/σ_k² > χ²_{K−1}(1 − α)` (`x̄` the weighted mean); the trend's sign is that
