@@ -24,7 +24,7 @@ fn bla_rows(md: &mut String, x: &ExperimentReport) {
     let _ = writeln!(md, "`{}`: {}.\n", x.name, b.distortion);
     let _ = writeln!(
         md,
-        "| band [Hz] | lines | noise σ/|Ĝ| [dB] | distortion σ/|Ĝ| [dB] |\n|---|---|---|---|"
+        "| band [Hz] | lines | noise σ/\\|Ĝ\\| [dB] | distortion σ/\\|Ĝ\\| [dB] |\n|---|---|---|---|"
     );
     let db = |r: f64| 20.0 * r.max(1e-300).log10();
     for band in &b.bands {
