@@ -223,8 +223,8 @@ pub enum Cause {
         corner_trend: CornerTrend,
         /// The modes that move with amplitude, with every level's points and the trends.
         modes: Vec<MovingMode>,
-        /// Every physical mode followed over the levels by local fits ([`tracks`]); `kind`
-        /// and `damping_trend` come from the dominant one when one moves.
+        /// Every physical mode followed over the levels by local fits ([`tracks`]), reported
+        /// beside the amplitude model (`kind` and `damping_trend` are the amplitude model's).
         tracks: Vec<tracks::ModeTrack>,
         /// What rules out drift over time as the reason the levels differ.
         drift_check: DriftCheck,

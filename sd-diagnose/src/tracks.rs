@@ -21,8 +21,8 @@
 //!    stated when the slope is beyond `z_{1−α/2}` standard errors.
 //! 5. **Dominant:** among the moving modes the largest `|f(ρ_max) − f(ρ_min)|/(2ζ₀f₀)` (the
 //!    shift in half-power bandwidths; the damping's relative change where the frequency does
-//!    not move) weighted by the mode's share of the response. The diagnosis's `kind` and
-//!    `damping_trend` come from it.
+//!    not move) weighted by the mode's share of the response. The diagnosis reports it beside
+//!    the amplitude model's `kind` and `damping_trend` (which do not come from it yet).
 
 use crate::{DampingTrend, FreqTrend, Result};
 use sd_ident::{local_mode, physical_fit, ModeKind, StabilizationOptions};

@@ -55,8 +55,8 @@ pub(super) fn tracks_section(md: &mut String, d: &Diagnosis) {
              pair and an affine background, weighted by the level's noise + distortion \
              variance). A mode moves when its levels differ beyond their standard errors (χ² \
              at the verdict's per-test false-alarm probability); the dominant moving mode — \
-             the largest shift in half-power bandwidths times its share of the response — \
-             names the kind and the damping trend.\n\n| mode [Hz] | ζ | share | band [Hz] | \
+             the largest shift in half-power bandwidths times its share of the response — is \
+             marked (the kind above is the amplitude model's).\n\n| mode [Hz] | ζ | share | band [Hz] | \
              frequency | damping | shift [bandwidths] |\n|---|---|---|---|---|---|---|"
         );
         for t in tracks {
