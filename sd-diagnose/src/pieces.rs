@@ -26,7 +26,9 @@
 //! minimum pieces). The segmentation runs on the excited windows only; a quiet run belongs to
 //! the excited run before it (its free decay: the response to that excitation, which `G·U` and
 //! the LPM's transient term describe) and a cut before an excited run that follows a pause is
-//! moved down to the whole second inside the pause. A record whose excited parts keep one
+//! moved down to the whole second inside the pause; a piece ends at the first whole second
+//! after its last excited window (the rest of its pause is dropped, `trimmed_end`). A
+//! record whose excited parts keep one
 //! amplitude is not cut: the whole record is one experiment, free decays included
 //! ([`RecordUse`] says so). Each piece's rms is that of its excited windows.
 
@@ -299,7 +301,9 @@ pub fn cut_records(experiments: &[Experiment]) -> Option<Cut> {
         let lowest = (0..rms.len())
             .min_by(|a, b| rms[*a].total_cmp(&rms[*b]))
             .unwrap_or(0);
+        let second = (fs.round() as usize).max(1);
         for (k, b) in bounds.windows(2).enumerate() {
+            let b = [b[0], trimmed_end(&seg, b[0], b[1], second)];
             let (start_s, end_s) = (b[0] as f64 / fs, b[1] as f64 / fs);
             let name = format!("{}[{start_s:.1}–{end_s:.1} s]", e.spec.name);
             let mut spec = e.spec.clone();
@@ -329,6 +333,23 @@ pub fn cut_records(experiments: &[Experiment]) -> Option<Cut> {
         pieces,
         records,
     })
+}
+
+/// The end of the piece `[a, b)` without its trailing pause: the first whole second (of
+/// `second` samples from `a`) at or after the end of its last excited window, when that is
+/// before `b`. The excitation's nonlinear distortion lives in the excited part and its decay;
+/// in a piece that is mostly pause it is not stationary, its lines are correlated over
+/// neighbouring frequencies, and the LPM's local residuals (which take them for independent)
+/// underestimate it. The decay cut off is a transient the LPM absorbs.
+fn trimmed_end(seg: &Segmentation, a: usize, b: usize, second: usize) -> usize {
+    // the windows wholly inside the piece (the next piece's burst may begin inside the last)
+    let last = (a.div_ceil(WINDOW)..(b / WINDOW).min(seg.quiet.len()))
+        .rev()
+        .find(|&k| !seg.quiet[k]);
+    let Some(k) = last else { return b };
+    let end = ((k + 1) * WINDOW).max(a);
+    let whole = a + (end - a).div_ceil(second) * second;
+    whole.min(b)
 }
 
 /// The rms of `x[a..b]` over its excited windows (over all of it when none is excited).
@@ -518,5 +539,9 @@ mod tests {
         assert_eq!(seg.cuts.len(), 1, "{:?}", seg.cuts);
         assert!((20_000..=30_000).contains(&seg.cuts[0]), "{:?}", seg.cuts);
         assert_eq!(seg.bursts(), 2);
+        // the first piece ends at the whole second after its excitation, the pause dropped
+        let end = trimmed_end(&seg, 0, seg.cuts[0], 1000);
+        assert!((20_000..=21_000).contains(&end), "{end}");
+        assert_eq!(trimmed_end(&seg, seg.cuts[0], n, 1000), n);
     }
 }
