@@ -37,6 +37,7 @@ pub mod ss;
 pub mod stage;
 pub mod tf;
 pub mod time;
+pub mod zeros;
 
 pub use alias::{alias, fold, folded_line, folding_frequencies, line_index, Alias};
 pub use c2d::{c2d, Discretization};

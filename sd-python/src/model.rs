@@ -2,7 +2,7 @@
 
 use crate::{py_err, sys_in, sys_out, value_err, SysIn, SysOut};
 use numpy::ndarray::Array3;
-use numpy::{Complex64, IntoPyArray, PyArray3, PyReadonlyArray1};
+use numpy::{Complex64, IntoPyArray, PyArray1, PyArray3, PyReadonlyArray1};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -208,6 +208,23 @@ fn freqresp<'py>(
     Ok((out.into_pyarray(py), path))
 }
 
+/// The poles (eigenvalues of A) of a model, sorted by modulus then argument.
+#[pyfunction]
+fn poles<'py>(py: Python<'py>, sys: SysIn<'py>) -> PyResult<Bound<'py, PyArray1<Complex64>>> {
+    let s = sys_in(&sys)?;
+    let p = py.detach(|| s.poles()).map_err(py_err)?;
+    Ok(p.into_pyarray(py))
+}
+
+/// The invariant zeros of a model (finite values where the system pencil loses rank; the
+/// Emami-Naeini–Van Dooren reduction), sorted by modulus.
+#[pyfunction]
+fn zeros<'py>(py: Python<'py>, sys: SysIn<'py>) -> PyResult<Bound<'py, PyArray1<Complex64>>> {
+    let s = sys_in(&sys)?;
+    let z = py.detach(|| s.zeros()).map_err(py_err)?;
+    Ok(z.into_pyarray(py))
+}
+
 /// A model from the toolkit's model JSON text (docs/formats.md; also `{"type": "tf", ...}`).
 #[pyfunction]
 fn model_from_json<'py>(py: Python<'py>, text: &str) -> PyResult<SysOut<'py>> {
@@ -228,6 +245,8 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(alias, m)?)?;
     m.add_function(wrap_pyfunction!(downsample, m)?)?;
     m.add_function(wrap_pyfunction!(freqresp, m)?)?;
+    m.add_function(wrap_pyfunction!(poles, m)?)?;
+    m.add_function(wrap_pyfunction!(zeros, m)?)?;
     m.add_function(wrap_pyfunction!(model_from_json, m)?)?;
     m.add_function(wrap_pyfunction!(model_to_json, m)?)?;
     Ok(())

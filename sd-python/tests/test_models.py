@@ -141,3 +141,41 @@ def test_d2c_matches_sdctl(stage, sdctl, tmp_path):
     ours = sd.d2c(fast)
     for m in "ABCD":
         close(getattr(ours, m), getattr(cli, m), 1e-9)
+
+
+def test_zeros_of_known_systems():
+    # (s² + 2s + 101)/(s³ + 3s² + 10s + 5): zeros −1 ± 10j, exact conjugates
+    g = sd.StateSpace([[-3.0, -10.0, -5.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+                      [[1.0], [0.0], [0.0]], [[1.0, 2.0, 101.0]], [[0.0]])
+    z = sd.zeros(g)
+    assert z.shape == (2,)
+    assert np.max(np.abs(np.sort_complex(z) - np.array([-1 - 10j, -1 + 10j]))) < 1e-12
+    assert z[0] == np.conj(z[1])
+    # a square 2×2 system with invertible D has the zeros eig(A − B D⁻¹ C): build A from
+    # the wanted zeros Z = diag(−2, 0.5) + a pair −1 ± 3j, rotated
+    rng = np.random.default_rng(3)
+    zm = np.array([[-2.0, 0, 0, 0], [0, 0.5, 0, 0], [0, 0, -1.0, 3.0], [0, 0, -3.0, -1.0]])
+    q, _ = np.linalg.qr(rng.standard_normal((4, 4)))
+    zm = q @ zm @ q.T
+    b, c = rng.standard_normal((4, 2)), rng.standard_normal((2, 4))
+    d = np.eye(2) + 0.3 * rng.standard_normal((2, 2))
+    a = zm + b @ np.linalg.solve(d, c)
+    z = np.sort_complex(sd.zeros(sd.StateSpace(a, b, c, d, dt=1e-3)))
+    want = np.sort_complex(np.array([-2.0, 0.5, -1 - 3j, -1 + 3j]))
+    assert np.max(np.abs(z - want)) < 1e-11
+    # a generic non-square system has none; the poles are A's eigenvalues
+    wide = sd.StateSpace(rng.standard_normal((5, 5)), rng.standard_normal((5, 3)),
+                         rng.standard_normal((2, 5)), np.zeros((2, 3)))
+    assert sd.zeros(wide).size == 0
+    p = sd.poles(wide)
+    assert np.max(np.abs(np.sort_complex(p) - np.sort_complex(np.linalg.eigvals(wide.A)))) < 1e-12
+
+
+def test_complex_input_is_refused_not_made_real():
+    a = np.array([[1.0 + 0.5j]])
+    with pytest.raises(TypeError, match="A is complex"):
+        sd.dare(a, [[1.0]], [[1.0]], [[1.0]])
+    with pytest.raises(TypeError, match="B is complex"):
+        sd.StateSpace([[0.0]], [[1j]], [[1.0]], [[0.0]])
+    with pytest.raises(TypeError, match="u is complex"):
+        sd.frf_from_arrays(None, np.ones(64) * 1j, np.ones(64), 1000.0)

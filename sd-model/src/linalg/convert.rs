@@ -30,8 +30,8 @@ pub fn eigenvalues(a: &DMatrix<f64>) -> Result<Vec<C>> {
     Ok(ev.into_iter().map(|z| C::new(z.re, z.im)).collect())
 }
 
-/// Generalized eigenvalues `(α, β)` of the pencil `A − λ E` (λ = α/β), by faer's QZ without
-/// eigenvectors (faer 0.24's eigenvector back-substitution under-sizes its workspace for some
+/// Generalized eigenvalues `(α, β)` of the pencil `A − λ E` (λ = α/β; complex ones in exact
+/// conjugate pairs), by faer's QZ without eigenvectors (faer 0.24's eigenvector back-substitution under-sizes its workspace for some
 /// small pencils and panics; the eigenvalues need none of it).
 pub fn generalized_eigenvalues(a: &DMatrix<f64>, e: &DMatrix<f64>) -> Result<Vec<(C, C)>> {
     let n = a.nrows();
@@ -66,9 +66,22 @@ pub fn generalized_eigenvalues(a: &DMatrix<f64>, e: &DMatrix<f64>) -> Result<Vec
     .map_err(|e| ModelError::NotConverged {
         what: format!("the QZ iteration ({e:?})"),
     })?;
-    Ok((0..n)
-        .map(|i| (C::new(s_re[i], s_im[i]), C::new(s_b[i], 0.0)))
-        .collect())
+    // a complex pair is (αᵣ + iαᵢ)/β for its first member (αᵢ > 0); faer scales the second
+    // member's (α, β) differently from the first (its quotient is not the conjugate), so the
+    // second is the first's conjugate, exactly, as the real pencil requires
+    let mut out: Vec<(C, C)> = Vec::with_capacity(n);
+    let mut i = 0;
+    while i < n {
+        let first = (C::new(s_re[i], s_im[i]), C::new(s_b[i], 0.0));
+        out.push(first);
+        if s_im[i] > 0.0 && i + 1 < n && s_im[i + 1] < 0.0 {
+            out.push((first.0.conj(), first.1));
+            i += 2;
+        } else {
+            i += 1;
+        }
+    }
+    Ok(out)
 }
 
 /// Singular values (descending) and thin factors `(U, σ, V)` of a real matrix, by faer's SVD.

@@ -42,6 +42,8 @@ __all__ = [
     "alias",
     "downsample",
     "freqresp",
+    "poles",
+    "zeros",
     "dare",
     "care",
     "loopshape",
@@ -55,9 +57,20 @@ __all__ = [
 ]
 
 
+def _real(x: Any, name: str) -> np.ndarray:
+    """``x`` as float64; ``TypeError`` naming ``name`` when it is complex (an imaginary part is
+    never dropped: numpy's own conversion only warns)."""
+    a = np.asarray(x)
+    if np.iscomplexobj(a):
+        raise TypeError(f"{name} is complex: this function takes real data only (its imaginary "
+                        "part would be dropped); pass the real matrices of the problem")
+    return np.asarray(a, dtype=np.float64)
+
+
 def _matrix(x: Any, name: str, rows: Optional[int] = None, cols: Optional[int] = None) -> np.ndarray:
-    """A float64 2-D array (scalars and vectors promoted; empty shapes from rows/cols)."""
-    a = np.asarray(x, dtype=np.float64)
+    """A float64 2-D array (scalars and vectors promoted; empty shapes from rows/cols);
+    ``TypeError`` for complex input."""
+    a = _real(x, name)
     if a.size == 0:
         return np.zeros((rows or 0, cols or 0))
     if a.ndim == 0:
@@ -160,7 +173,7 @@ class Frd:
 
     def __init__(self, freq_hz: Any, response: Any, variance: Any = None, dt: Optional[float] = None,
                  warnings: Sequence[str] = ()):
-        f = np.ascontiguousarray(np.asarray(freq_hz, dtype=np.float64).reshape(-1))
+        f = np.ascontiguousarray(_real(freq_hz, "freq_hz").reshape(-1))
         r = np.asarray(response, dtype=np.complex128)
         if r.ndim == 1:
             r = r.reshape(1, 1, -1)
@@ -169,7 +182,7 @@ class Frd:
         self.freq_hz = f
         self.response = np.ascontiguousarray(r)
         if variance is not None:
-            v = np.asarray(variance, dtype=np.float64)
+            v = _real(variance, "variance")
             variance = np.ascontiguousarray(v.reshape(1, 1, -1) if v.ndim == 1 else v)
         self.variance = variance
         self.dt = None if dt is None else float(dt)
@@ -325,11 +338,25 @@ def freqresp(sys, f_hz: Any, squeeze: bool = True, return_path: bool = False):
     """The frequency response at ``f_hz`` (Hz): complex ``(ny, nu, nf)``, or ``(nf,)`` for a
     SISO model when ``squeeze``. ``return_path`` adds which evaluator ran ("block_diagonal" O(n)
     per point, "hessenberg" O(n²), "dense" O(n³))."""
-    f = np.ascontiguousarray(np.asarray(f_hz, dtype=np.float64).reshape(-1))
+    f = np.ascontiguousarray(_real(f_hz, "f_hz").reshape(-1))
     g, path = _native.freqresp(_ss(sys)._tuple(), f)
     if squeeze and g.shape[0] == 1 and g.shape[1] == 1:
         g = g[0, 0]
     return (g, path) if return_path else g
+
+
+def poles(sys) -> np.ndarray:
+    """The poles (eigenvalues of A), complex, sorted by modulus then argument."""
+    return _native.poles(_ss(sys)._tuple())
+
+
+def zeros(sys) -> np.ndarray:
+    """The invariant zeros: the finite values where the system pencil ``[A − λI, B; C, D]``
+    loses rank, complex (conjugate pairs exact), sorted by modulus. Square and non-square,
+    continuous and discrete models (Emami-Naeini & Van Dooren's reduction, then the
+    eigenvalues of the reduced pencil). ``NumericalError`` when the pencil is normal-rank
+    deficient (a transfer matrix singular at every frequency, e.g. a zero channel)."""
+    return _native.zeros(_ss(sys)._tuple())
 
 
 # ---------------------------------------------------------------- design and analysis
@@ -411,8 +438,8 @@ def frf_from_arrays(r, u, y, fs: float, period: Optional[int] = None, skip_perio
     """The FRF of recorded arrays at ``fs`` Hz: ``period`` samples per period (None: the
     local polynomial method for non-periodic data), ``skip_periods`` transient periods, ``r`` the
     reference (None: open loop ``Y/U``)."""
-    vec = lambda x: np.ascontiguousarray(np.asarray(x, dtype=np.float64).reshape(-1))
-    t, w = _native.frf_from_arrays(None if r is None else vec(r), vec(u), vec(y), float(fs),
+    vec = lambda x, name: np.ascontiguousarray(_real(x, name).reshape(-1))
+    t, w = _native.frf_from_arrays(None if r is None else vec(r, "r"), vec(u, "u"), vec(y, "y"), float(fs),
                                    None if period is None else int(period), int(skip_periods),
                                    excited_fraction, bool(keep_low_snr))
     return _frd_from_native(t, w)
