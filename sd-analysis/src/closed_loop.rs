@@ -343,10 +343,16 @@ impl ClosedLoop {
         let vals: Vec<C> = f.iter().map(|&x| lval(x)).collect();
         let mut phase_x: Vec<(f64, f64)> = Vec::new();
         let mut gain_x: Vec<(f64, f64)> = Vec::new();
-        // ω = 0 (if L is finite there) and the Nyquist frequency: real values of L
-        let at_zero = match self.l.time() {
-            SampleTime::Continuous => lat(C::new(0.0, 0.0)),
-            SampleTime::Discrete { .. } => lat(C::new(1.0, 0.0)),
+        // ω = 0 (if L is finite there: no pole of P or K at s = 0 / z = 1, where the
+        // evaluation returns rounding noise of order 1/ε, not a phase crossover) and the
+        // Nyquist frequency: real values of L
+        let at_zero = if pole_at_dc(&self.p)? || pole_at_dc(&self.k)? {
+            C::new(f64::INFINITY, 0.0)
+        } else {
+            match self.l.time() {
+                SampleTime::Continuous => lat(C::new(0.0, 0.0)),
+                SampleTime::Discrete { .. } => lat(C::new(1.0, 0.0)),
+            }
         };
         if at_zero.is_finite() && at_zero.re <= 0.0 && at_zero.im.abs() <= 1e-12 * at_zero.norm() {
             phase_x.push((0.0, 1.0 / at_zero.norm()));
@@ -517,4 +523,22 @@ fn bisect(mut a: f64, mut b: f64, g: impl Fn(f64) -> f64) -> f64 {
         }
     }
     0.5 * (a + b)
+}
+
+/// Whether `sys` has a pole at DC (`s = 0`, or `z = 1` when discrete): `A` (or `I − A`) singular
+/// to `10³·n·ε·‖·‖_F` (rounding of a similarity transform's conditioning included), by its
+/// smallest singular value. Eigenvalues would not do: a pole of multiplicity k at the origin
+/// comes out of the QR algorithm `ε^{1/k}` away from it.
+fn pole_at_dc(sys: &StateSpace) -> Result<bool> {
+    let n = sys.n();
+    if n == 0 {
+        return Ok(false);
+    }
+    let m = match sys.time() {
+        SampleTime::Continuous => sys.a().clone(),
+        SampleTime::Discrete { .. } => nalgebra::DMatrix::identity(n, n) - sys.a(),
+    };
+    let (_, s, _) = sd_model::linalg::convert::svd(&m)?;
+    let smin = s.last().copied().unwrap_or(0.0);
+    Ok(smin <= 1e3 * n as f64 * f64::EPSILON * m.norm())
 }

@@ -211,9 +211,14 @@ pub fn model_from_json_str(text: &str) -> Result<StateSpace> {
             checked_object(&v, "state-space model JSON", SS_KEYS)?;
             let s: SsJson =
                 serde_json::from_value(v).map_err(|e| parse_err("state-space model JSON", e))?;
-            let ny = s.d.len();
-            let nu = s.d.first().map(|r| r.len()).unwrap_or(0);
+            // D fixes the shape; an empty D (`[]`: no outputs, or `[[], …]`: no inputs) leaves
+            // the count it cannot show to B's width and C's rows
             let n = s.a.len();
+            let ny = if s.d.is_empty() { s.c.len() } else { s.d.len() };
+            let nu = match s.d.first() {
+                Some(r) if !r.is_empty() => r.len(),
+                _ => s.b.first().map_or(0, |r| r.len()),
+            };
             let time = SampleTime::from_option(s.ts)?;
             let a = rows_to_matrix(&s.a, n, n, "a")?;
             let b = rows_to_matrix(&s.b, n, nu, "b")?;
@@ -506,6 +511,31 @@ pub fn frd_json_chunks(
 #[allow(clippy::unwrap_used, clippy::expect_used)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn empty_matrices_are_refused_or_shaped_never_filled() {
+        // B and C empty beside a one-state A and a 1×1 D: refused, not filled with zeros
+        let e = model_from_json_str(
+            r#"{"type": "ss", "a": [[1.0]], "b": [], "c": [], "d": [[1.0]], "ts": null}"#,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("\"b\" (rows)"), "{e}");
+        // a model without outputs (C 0×n, D 0×m) is legal: its inputs come from B
+        let s = model_from_json_str(
+            r#"{"type": "ss", "a": [[-1.0]], "b": [[1.0, 2.0]], "c": [], "d": [], "ts": null}"#,
+        )
+        .unwrap();
+        assert_eq!((s.n(), s.nu(), s.ny()), (1, 2, 0));
+        let back = model_from_json_str(&model_to_json_string(&s).unwrap()).unwrap();
+        assert_eq!((back.nu(), back.ny()), (2, 0));
+        // without inputs: D written as one empty row per output
+        let s = model_from_json_str(
+            r#"{"type": "ss", "a": [[-1.0]], "b": [[]], "c": [[3.0]], "d": [[]], "ts": null}"#,
+        )
+        .unwrap();
+        assert_eq!((s.nu(), s.ny()), (0, 1));
+    }
 
     #[test]
     fn roundtrip_and_static_gain() {

@@ -64,3 +64,16 @@ def test_bad_data(tmp_path):
 
 def test_numerical_error_is_an_arithmetic_error():
     assert issubclass(sd.NumericalError, ArithmeticError)
+
+
+def test_empty_matrices_are_refused_or_shaped_never_filled():
+    # B and C empty beside a one-state A and a 1×1 D: refused, not filled with zeros
+    with pytest.raises(ValueError, match="B is empty"):
+        sd.StateSpace([[1.0]], [], [], [[1.0]])
+    # a model without outputs is legal (C 0×n, D 0×m)
+    g = sd.StateSpace([[-1.0]], [[1.0, 2.0]], np.zeros((0, 1)), np.zeros((0, 2)))
+    assert g.C.shape == (0, 1) and g.D.shape == (0, 2)
+    assert sd.StateSpace.from_json(g.to_json()).D.shape == (0, 2)
+    # and without inputs, D given as []
+    h = sd.StateSpace([[-1.0]], [], [[3.0]], [])
+    assert h.B.shape == (1, 0) and h.D.shape == (1, 0)

@@ -283,3 +283,76 @@ fn margins_on_fifty_random_loops() {
          checked independently; {pc_misses} where its value misses the grid minimum"
     );
 }
+
+/// A type-2 loop `L = (s + 0.1)/(s²(s + 1))`: `L(0)` is infinite, not a phase crossover at DC.
+/// The phase is −180° + atan(10ω) − atan(ω) > −180° at every ω > 0, so there is no phase
+/// crossover at all: the gain margin is infinite (python-control's convention), in the
+/// companion realization and in a rotated one, continuous and discretised (z = 1 double pole).
+#[test]
+fn a_type_two_loop_has_no_phase_crossover_at_dc() {
+    use nalgebra::DMatrix;
+    let p = sd_model::TransferFunction::new(
+        vec![1.0, 0.1],
+        vec![1.0, 1.0, 0.0, 0.0],
+        sd_model::SampleTime::Continuous,
+    )
+    .unwrap()
+    .to_ss()
+    .unwrap();
+    let one = StateSpace::new(
+        DMatrix::zeros(0, 0),
+        DMatrix::zeros(0, 1),
+        DMatrix::zeros(1, 0),
+        DMatrix::from_element(1, 1, 1.0),
+        sd_model::SampleTime::Continuous,
+    )
+    .unwrap();
+    // a rotation of the states (not orthogonal: its conditioning ~10)
+    let t = DMatrix::from_row_slice(3, 3, &[1.0, 0.5, -0.2, 0.3, 2.0, 0.1, -0.4, 0.2, 1.5]);
+    let ti = t.clone().try_inverse().unwrap();
+    let rotated = StateSpace::new(
+        &ti * p.a() * &t,
+        &ti * p.b(),
+        p.c() * &t,
+        p.d().clone(),
+        p.time(),
+    )
+    .unwrap();
+    for (name, sys) in [("companion", &p), ("rotated", &rotated)] {
+        let m = ClosedLoop::new(sys, &one).unwrap().margins().unwrap();
+        assert!(
+            m.gain_margin.is_infinite() && m.all_phase_crossovers.is_empty(),
+            "{name}: gain margin {} at {:?}",
+            m.gain_margin,
+            m.all_phase_crossovers
+        );
+        // the phase margin: at |L| = 1, −180° + atan(10ω) − atan(ω), positive
+        let w = sd_tests_phase_crossover(m.gain_crossover_hz);
+        assert!(
+            (m.phase_margin_deg - w).abs() < 1e-6,
+            "{name}: {} vs {w}",
+            m.phase_margin_deg
+        );
+    }
+    let pd = sd_model::c2d::c2d(&p, 0.01, sd_model::c2d::Discretization::Zoh).unwrap();
+    let kd = StateSpace::new(
+        DMatrix::zeros(0, 0),
+        DMatrix::zeros(0, 1),
+        DMatrix::zeros(1, 0),
+        DMatrix::from_element(1, 1, 1.0),
+        sd_model::SampleTime::Discrete { ts: 0.01 },
+    )
+    .unwrap();
+    let m = ClosedLoop::new(&pd, &kd).unwrap().margins().unwrap();
+    assert!(
+        m.all_phase_crossovers.iter().all(|(f, _)| *f > 0.0),
+        "discrete: a crossover at DC {:?}",
+        m.all_phase_crossovers
+    );
+}
+
+/// The phase margin of `(s + 0.1)/(s²(s + 1))` at its gain crossover `f` (Hz).
+fn sd_tests_phase_crossover(f: f64) -> f64 {
+    let w = 2.0 * std::f64::consts::PI * f;
+    (10.0 * w).atan().to_degrees() - w.atan().to_degrees()
+}

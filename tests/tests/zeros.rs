@@ -324,4 +324,3 @@ fn the_stage_models_zeros_are_zeros_of_their_transfer_functions() {
         }
     }
 }
-

@@ -68,11 +68,19 @@ def _real(x: Any, name: str) -> np.ndarray:
 
 
 def _matrix(x: Any, name: str, rows: Optional[int] = None, cols: Optional[int] = None) -> np.ndarray:
-    """A float64 2-D array (scalars and vectors promoted; empty shapes from rows/cols);
-    ``TypeError`` for complex input."""
+    """A float64 2-D array (scalars and vectors promoted); ``TypeError`` for complex input.
+    An empty input keeps its own 2-D shape; ``[]`` takes the shape ``(rows, cols)`` only where
+    that shape holds no entry (a model without inputs, outputs or states) — an empty matrix is
+    never filled with zeros."""
     a = _real(x, name)
     if a.size == 0:
-        return np.zeros((rows or 0, cols or 0))
+        if a.ndim == 2 and (rows is None or a.shape[0] == rows) and (cols is None or a.shape[1] == cols):
+            return np.ascontiguousarray(a)
+        want = (rows or 0, cols or 0)
+        if rows is not None and cols is not None and rows * cols == 0:
+            return np.zeros(want)
+        raise ValueError(f"{name} is empty but must be {rows if rows is not None else '?'}×"
+                         f"{cols if cols is not None else '?'} for this model: give its entries")
     if a.ndim == 0:
         a = a.reshape(1, 1)
     elif a.ndim == 1:
@@ -93,11 +101,16 @@ class StateSpace:
     def __init__(self, A: Any, B: Any, C: Any, D: Any, dt: Optional[float] = None):
         a = _matrix(A, "A")
         n = a.shape[0]
-        d = _matrix(D, "D")
-        self.A = a
-        self.B = _matrix(B, "B", n, d.shape[1])
-        self.C = _matrix(C, "C", d.shape[0], n)
-        self.D = d
+        if np.asarray(D).size == 0:
+            # an empty D (no inputs or no outputs): its shape from B and C
+            b = _matrix(B, "B", n, None if np.asarray(B).size else 0)
+            c = _matrix(C, "C", None if np.asarray(C).size else 0, n)
+            d = _matrix(D, "D", c.shape[0], b.shape[1])
+        else:
+            d = _matrix(D, "D")
+            b = _matrix(B, "B", n, d.shape[1])
+            c = _matrix(C, "C", d.shape[0], n)
+        self.A, self.B, self.C, self.D = a, b, c, d
         if dt is not None and (dt is True or float(dt) == 0.0):
             raise ValueError(
                 "dt must be a sample period in seconds, or None for continuous time "
