@@ -25,6 +25,7 @@
 //!    the amplitude model's `kind` and `damping_trend` (which do not come from it yet).
 
 use crate::{DampingTrend, FreqTrend, Result};
+use rayon::prelude::*;
 use sd_ident::{local_mode, physical_fit, ModeKind, StabilizationOptions};
 use sd_model::{chi2_quantile, normal_quantile, Frd};
 use serde::Serialize;
@@ -142,41 +143,45 @@ pub fn track_modes(
         .collect();
     let df = phys.line_spacing_hz;
     let z = normal_quantile(1.0 - alpha / 2.0);
-    let mut tracks = Vec::new();
-    for (i, m) in pairs.iter().enumerate() {
-        let mut half = (4.0 * m.damping * m.freq_hz).max(6.0 * df);
-        for (k, o) in pairs.iter().enumerate() {
-            if k != i {
-                half = half.min(0.45 * (o.freq_hz - m.freq_hz).abs());
+    // the modes' local fits are independent: in parallel, collected in order
+    let mut tracks: Vec<ModeTrack> = (0..pairs.len())
+        .into_par_iter()
+        .filter_map(|i| {
+            let m = pairs[i];
+            let mut half = (4.0 * m.damping * m.freq_hz).max(6.0 * df);
+            for (k, o) in pairs.iter().enumerate() {
+                if k != i {
+                    half = half.min(0.45 * (o.freq_hz - m.freq_hz).abs());
+                }
             }
-        }
-        let band = (m.freq_hz - half, m.freq_hz + half);
-        let points: Vec<TrackPoint> = levels
-            .iter()
-            .filter_map(|lv| {
-                let fit = local_mode(lv.frd, band, (m.freq_hz, m.damping)).ok()?;
-                Some(TrackPoint {
-                    experiment: lv.name.to_string(),
-                    relative_level: lv.level,
-                    freq_hz: fit.freq_hz,
-                    freq_std: fit.freq_std,
-                    damping: fit.damping,
-                    damping_std: fit.damping_std,
+            let band = (m.freq_hz - half, m.freq_hz + half);
+            let points: Vec<TrackPoint> = levels
+                .iter()
+                .filter_map(|lv| {
+                    let fit = local_mode(lv.frd, band, (m.freq_hz, m.damping)).ok()?;
+                    Some(TrackPoint {
+                        experiment: lv.name.to_string(),
+                        relative_level: lv.level,
+                        freq_hz: fit.freq_hz,
+                        freq_std: fit.freq_std,
+                        damping: fit.damping,
+                        damping_std: fit.damping_std,
+                    })
                 })
-            })
-            .collect();
-        if points.len() < 2 {
-            continue;
-        }
-        tracks.push(track(
-            m.freq_hz,
-            m.damping,
-            m.share,
-            band,
-            points,
-            (alpha, z),
-        ));
-    }
+                .collect();
+            if points.len() < 2 {
+                return None;
+            }
+            Some(track(
+                m.freq_hz,
+                m.damping,
+                m.share,
+                band,
+                points,
+                (alpha, z),
+            ))
+        })
+        .collect();
     mark_dominant(&mut tracks);
     Ok(tracks)
 }

@@ -19,6 +19,7 @@
 use crate::error::{IdentError, Result};
 use nalgebra::DMatrix;
 use num_complex::Complex64 as C;
+use rayon::prelude::*;
 use rustfft::FftPlanner;
 use sd_model::{Frd, SampleTime};
 
@@ -111,16 +112,23 @@ pub fn lpm(fs: f64, x: &DMatrix<f64>, z: &DMatrix<f64>, opt: &LpmOptions) -> Res
     let xs = dft_columns(x);
     let zs = dft_columns(z);
     let (lo, hi) = (1usize, half - 1);
-    let mut freq = Vec::new();
-    let mut resp = Vec::new();
-    let mut var = Vec::new();
-    let mut noise = Vec::new();
-    let mut covs = Vec::new();
-    for k in lo..=hi {
-        // window centre shifted to stay inside [lo, hi]
-        let start = k.saturating_sub(hw).max(lo).min(hi + 1 - w);
-        let f = local_fit((&xs, &zs), k, start, (w, hw, r))?;
-        freq.push(k as f64 * fs / n_samp as f64);
+    // the lines' local problems are independent: solved in parallel, collected in order
+    let fits = (lo..=hi)
+        .into_par_iter()
+        .map(|k| {
+            // window centre shifted to stay inside [lo, hi]
+            let start = k.saturating_sub(hw).max(lo).min(hi + 1 - w);
+            local_fit((&xs, &zs), k, start, (w, hw, r))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let freq: Vec<f64> = (lo..=hi).map(|k| k as f64 * fs / n_samp as f64).collect();
+    let (mut resp, mut var, mut noise, mut covs) = (
+        Vec::with_capacity(fits.len()),
+        Vec::with_capacity(fits.len()),
+        Vec::with_capacity(fits.len()),
+        Vec::with_capacity(fits.len()),
+    );
+    for f in fits {
         resp.push(f.g);
         var.push(f.var);
         noise.push(f.noise);

@@ -39,6 +39,7 @@
 use crate::fit::{fit, model_cost, FitOptions, FitResult, ModalTerm, Weighting};
 use crate::{IdentError, Result};
 use num_complex::Complex64 as C;
+use rayon::prelude::*;
 use sd_model::Frd;
 use std::f64::consts::PI;
 
@@ -199,15 +200,28 @@ pub fn physical_fit(
     let held = frd.select(|i| i % 2 == 1)?;
     let q = (Z95 * (2.0 / held.len() as f64).sqrt()).exp();
     let rbs: Vec<usize> = opt.rigid_body.map_or_else(|| vec![0, 1, 2], |r| vec![r]);
-    let mut scanned: Vec<Scanned> = Vec::new();
-    for &rb in &rbs {
-        for order in orders_of(rb, opt.max_order) {
-            progress(&format!("order {order}, rigid body {rb}"));
-            if let Some(s) = scan_order(&train, &held, order, rb, opt, spacing, q)? {
-                scanned.push(s);
-            }
-        }
-    }
+    // every (rigid body, order) fit is independent: in parallel, kept in scan order
+    let jobs: Vec<(usize, usize)> = rbs
+        .iter()
+        .flat_map(|&rb| {
+            orders_of(rb, opt.max_order)
+                .into_iter()
+                .map(move |o| (rb, o))
+        })
+        .collect();
+    progress(&format!(
+        "{} fits (orders up to {}, rigid body {:?})",
+        jobs.len(),
+        opt.max_order,
+        rbs
+    ));
+    let scanned: Vec<Scanned> = jobs
+        .par_iter()
+        .map(|&(rb, order)| scan_order(&train, &held, order, rb, opt, spacing, q))
+        .collect::<Result<Vec<_>>>()?
+        .into_iter()
+        .flatten()
+        .collect();
     let best = scanned
         .iter()
         .map(|s| s.row.heldout_cost)
