@@ -490,12 +490,25 @@ fn levels_default_subset_nonperiodic() {
     }
 }
 
-/// The reported seeds of the non-periodic forms (`2250..2266`).
+/// The reported seeds of the non-periodic forms (`2250..2266`); `LEVEL_FORMS=burst` (or
+/// `noise`, `rising`, comma-separated) runs only those forms.
 #[test]
 #[ignore]
 fn levels_reported_nonperiodic() {
     let mut wrong = 0;
-    for form in [Form::Separate(NOISE), Form::Rising, Form::Burst] {
+    let only = std::env::var("LEVEL_FORMS").ok();
+    let wanted = |name: &str| {
+        only.as_deref()
+            .is_none_or(|o| o.split(',').any(|x| x.trim() == name))
+    };
+    for (name, form) in [
+        ("noise", Form::Separate(NOISE)),
+        ("rising", Form::Rising),
+        ("burst", Form::Burst),
+    ] {
+        if !wanted(name) {
+            continue;
+        }
         println!("{form:?}");
         let out = cases(REPORT_SEEDS_NOISE, form);
         let (w, weak) = summarize(&out);
