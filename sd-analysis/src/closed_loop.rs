@@ -110,8 +110,14 @@ pub struct Summary {
     pub sensitivity_peak_hz: f64,
     /// Gain margin in dB (SISO; NaN for MIMO).
     pub gain_margin_db: f64,
+    /// Where the gain margin is read: the phase crossover (Hz; NaN when there is none, an
+    /// infinite gain margin, and for MIMO).
+    pub gain_margin_hz: f64,
     /// Phase margin in degrees (SISO; NaN for MIMO).
     pub phase_margin_deg: f64,
+    /// Where the phase margin is read: the gain crossover (Hz; NaN when there is none, and for
+    /// MIMO).
+    pub phase_margin_hz: f64,
     /// `1/‖S‖∞`.
     pub modulus_margin: f64,
 }
@@ -473,17 +479,22 @@ impl ClosedLoop {
         let (radius, stable) = self.stability()?;
         let (peak, peak_hz) = self.sensitivity_peak()?;
         let siso = self.p.nu() == 1 && self.p.ny() == 1;
-        let (gm_db, pm, cross, bw) = if siso {
+        let ((gm_db, gm_hz), (pm, pm_hz), cross, bw) = if siso {
             let m = self.margins()?;
             let cross = m.lowest_gain_crossover_hz();
             (
-                m.gain_margin_db(),
-                m.phase_margin_deg,
+                (m.gain_margin_db(), m.phase_crossover_hz),
+                (m.phase_margin_deg, m.gain_crossover_hz),
                 cross.unwrap_or(f64::NAN),
                 self.bandwidth_hz()?.unwrap_or(f64::NAN),
             )
         } else {
-            (f64::NAN, f64::NAN, f64::NAN, f64::NAN)
+            (
+                (f64::NAN, f64::NAN),
+                (f64::NAN, f64::NAN),
+                f64::NAN,
+                f64::NAN,
+            )
         };
         Ok(Summary {
             stable,
@@ -493,7 +504,9 @@ impl ClosedLoop {
             sensitivity_peak_db: 20.0 * peak.log10(),
             sensitivity_peak_hz: peak_hz,
             gain_margin_db: gm_db,
+            gain_margin_hz: gm_hz,
             phase_margin_deg: pm,
+            phase_margin_hz: pm_hz,
             modulus_margin: 1.0 / peak,
         })
     }

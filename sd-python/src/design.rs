@@ -166,7 +166,9 @@ fn analyze<'py>(py: Python<'py>, p: SysIn<'py>, k: SysIn<'py>) -> PyResult<Bound
     d.set_item("sensitivity_peak_db", s.sensitivity_peak_db)?;
     d.set_item("sensitivity_peak_hz", s.sensitivity_peak_hz)?;
     d.set_item("gain_margin_db", s.gain_margin_db)?;
+    d.set_item("gain_margin_hz", s.gain_margin_hz)?;
     d.set_item("phase_margin_deg", s.phase_margin_deg)?;
+    d.set_item("phase_margin_hz", s.phase_margin_hz)?;
     d.set_item("modulus_margin", s.modulus_margin)?;
     Ok(d)
 }

@@ -65,6 +65,35 @@ fn margins_and_peaks_match_python_control() {
                 m.gain_margin, m.phase_crossover_hz
             );
         }
+        // where the margins are read (what `analyze` prints beside them): python-control's
+        // phase and gain crossover frequencies
+        let sm = cl.summary().unwrap();
+        assert_eq!(
+            sm.gain_margin_hz.to_bits(),
+            m.phase_crossover_hz.to_bits(),
+            "{name}"
+        );
+        assert_eq!(
+            sm.phase_margin_hz.to_bits(),
+            m.gain_crossover_hz.to_bits(),
+            "{name}"
+        );
+        if g("gm").is_finite() && g("wpc_hz").is_finite() {
+            check(
+                "gain margin's frequency",
+                sm.gain_margin_hz,
+                g("wpc_hz"),
+                1e-6,
+            );
+        }
+        if g("pm").is_finite() && g("wgc_hz").is_finite() {
+            check(
+                "phase margin's frequency",
+                sm.phase_margin_hz,
+                g("wgc_hz"),
+                1e-6,
+            );
+        }
         // independent check of every finite gain margin: K·GM puts a closed-loop pole on the
         // stability boundary
         if m.gain_margin.is_finite() && m.gain_margin > 0.0 {

@@ -95,7 +95,9 @@ impl Args {
                 "sensitivity_peak_db": s.sensitivity_peak_db,
                 "sensitivity_peak_hz": s.sensitivity_peak_hz,
                 "gain_margin_db": s.gain_margin_db,
+                "gain_margin_hz": s.gain_margin_hz,
                 "phase_margin_deg": s.phase_margin_deg,
+                "phase_margin_hz": s.phase_margin_hz,
                 "modulus_margin": s.modulus_margin,
             });
             if let (Some(r), Some(obj)) = (&robust, v.as_object_mut()) {
@@ -118,7 +120,7 @@ impl Args {
             }
             emit(
             &(format!(
-                "closed loop {} (spectral {} {:.6})\ncrossover {:.3} Hz (|L| = 1), closed-loop bandwidth {:.3} Hz (|T| −3 dB)\n|S| peak {:.2} dB at {:.3} Hz (modulus margin {:.4})\ngain margin {:.2} dB, phase margin {:.2} deg",
+                "closed loop {} (spectral {} {:.6})\ncrossover {:.3} Hz (|L| = 1), closed-loop bandwidth {:.3} Hz (|T| −3 dB)\n|S| peak {:.2} dB at {:.3} Hz (modulus margin {:.4})\ngain margin {}, phase margin {}",
                 if s.stable { "stable" } else { "UNSTABLE" },
                 if p.time().is_continuous() { "abscissa" } else { "radius" },
                 s.closed_loop_radius,
@@ -127,8 +129,8 @@ impl Args {
                 s.sensitivity_peak_db,
                 s.sensitivity_peak_hz,
                 s.modulus_margin,
-                s.gain_margin_db,
-                s.phase_margin_deg
+                margin_text(s.gain_margin_db, s.gain_margin_hz, "dB"),
+                margin_text(s.phase_margin_deg, s.phase_margin_hz, "deg"),
             ) + &extra),
             None,
         )
@@ -242,6 +244,15 @@ fn nyquist_text(n: &sd_analysis::Nyquist, continuous: bool) -> String {
         );
     }
     t
+}
+
+/// A margin with where it is read: `6.02 dB at 12.345 Hz`, or `inf dB (no crossing)`.
+fn margin_text(value: f64, at_hz: f64, unit: &str) -> String {
+    if at_hz.is_finite() {
+        format!("{value:.2} {unit} at {at_hz:.3} Hz")
+    } else {
+        format!("{value:.2} {unit} (no crossing)")
+    }
 }
 
 /// The loop-at-a-time margins as text, one line per channel.

@@ -421,7 +421,7 @@ def weight_pid(bandwidth_hz: float, mass: float, dt: Optional[float] = None, int
 def analyze(P, K) -> Result:
     """The loop of plant ``P`` and controller ``K`` (negative feedback), as ``sdctl analyze``:
     ``stable``, ``closed_loop_radius``, ``bandwidth_hz``, ``crossover_hz``,
-    ``sensitivity_peak_db`` / ``_hz``, ``gain_margin_db``, ``phase_margin_deg``,
+    ``sensitivity_peak_db`` / ``_hz``, ``gain_margin_db`` / ``_hz``, ``phase_margin_deg`` / ``_hz``,
     ``modulus_margin``; for a stable loop ``loop_at_a_time`` (per input and output channel the
     classic and disk margins, and the simultaneous disk margins); ``nyquist``: the generalised
     Nyquist criterion (``encirclements`` of the origin by det(I + L), ``open_loop_unstable``,
