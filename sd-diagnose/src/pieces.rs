@@ -27,7 +27,7 @@
 //! the excited run before it (its free decay: the response to that excitation, which `G·U` and
 //! the LPM's transient term describe) and a cut before an excited run that follows a pause is
 //! moved down to the whole second inside the pause; a piece ends at the first whole second
-//! after its last excited window (the rest of its pause is dropped, `trimmed_end`). A
+//! after its response has died out (the rest of its pause is dropped, `trimmed_end`). A
 //! record whose excited parts keep one
 //! amplitude is not cut: the whole record is one experiment, free decays included
 //! ([`RecordUse`] says so). Each piece's rms is that of its excited windows.
@@ -303,7 +303,7 @@ pub fn cut_records(experiments: &[Experiment]) -> Option<Cut> {
             .unwrap_or(0);
         let second = (fs.round() as usize).max(1);
         for (k, b) in bounds.windows(2).enumerate() {
-            let b = [b[0], trimmed_end(&seg, b[0], b[1], second)];
+            let b = [b[0], trimmed_end(&seg, &e.y, (b[0], b[1]), second)];
             let (start_s, end_s) = (b[0] as f64 / fs, b[1] as f64 / fs);
             let name = format!("{}[{start_s:.1}–{end_s:.1} s]", e.spec.name);
             let mut spec = e.spec.clone();
@@ -335,20 +335,58 @@ pub fn cut_records(experiments: &[Experiment]) -> Option<Cut> {
     })
 }
 
-/// The end of the piece `[a, b)` without its trailing pause: the first whole second (of
-/// `second` samples from `a`) at or after the end of its last excited window, when that is
-/// before `b`. The excitation's nonlinear distortion lives in the excited part and its decay;
-/// in a piece that is mostly pause it is not stationary, its lines are correlated over
-/// neighbouring frequencies, and the LPM's local residuals (which take them for independent)
-/// underestimate it. The decay cut off is a transient the LPM absorbs.
-fn trimmed_end(seg: &Segmentation, a: usize, b: usize, second: usize) -> usize {
+/// The end of the piece `[a, b)` without the part of its trailing pause after the response
+/// has died out: the first whole second (of `second` samples from `a`) at or after the first
+/// window past the last excited one where the output `y`'s sample-to-sample change (free of a
+/// position offset the stage keeps) is back within a factor 2 of its level over the pause's
+/// last quarter (the noise). Before `b` only; a response still decaying over the pause's third
+/// quarter (more than a factor 2 above the last) has not settled and keeps the whole pause.
+///
+/// Why both limits: the nonlinear distortion lives in the burst and its decay, so over a piece
+/// that is largely settled pause it is not stationary, its DFT lines are correlated over
+/// neighbouring bins, and the LPM's local residuals (which take them for independent)
+/// underestimate it; but a piece cut while lightly damped modes still ring carries a final
+/// transient narrower than the LPM's window, which its polynomial cannot absorb. Cut where the
+/// decay has ended, a burst keeps what makes burst random leakage-free.
+fn trimmed_end(seg: &Segmentation, y: &[f64], (a, b): (usize, usize), second: usize) -> usize {
     // the windows wholly inside the piece (the next piece's burst may begin inside the last)
     let last = (a.div_ceil(WINDOW)..(b / WINDOW).min(seg.quiet.len()))
         .rev()
         .find(|&k| !seg.quiet[k]);
     let Some(k) = last else { return b };
-    let end = ((k + 1) * WINDOW).max(a);
-    let whole = a + (end - a).div_ceil(second) * second;
+    let first_quiet = (k + 1).max(a.div_ceil(WINDOW));
+    let last_w = (b / WINDOW).min(y.len() / WINDOW);
+    if last_w < first_quiet + 4 {
+        return b;
+    }
+    // log-rms of the output's first difference per window after the excitation
+    let change: Vec<f64> = (first_quiet..last_w)
+        .map(|w| {
+            let lo = w * WINDOW;
+            let hi = ((w + 1) * WINDOW).min(y.len() - 1);
+            let ms =
+                (lo..hi).map(|i| (y[i + 1] - y[i]).powi(2)).sum::<f64>() / (hi - lo).max(1) as f64;
+            0.5 * ms.max(1e-300).ln()
+        })
+        .collect();
+    let median = |v: &[f64]| {
+        let mut s = v.to_vec();
+        s.sort_by(f64::total_cmp);
+        s[s.len() / 2]
+    };
+    let noise = median(&change[change.len() * 3 / 4..]);
+    // still decaying at the end of the pause (the third quarter above the last): not settled
+    if median(&change[change.len() / 2..change.len() * 3 / 4]) > noise + std::f64::consts::LN_2 {
+        return b;
+    }
+    let Some(settled) = change
+        .iter()
+        .position(|l| *l <= noise + std::f64::consts::LN_2)
+    else {
+        return b;
+    };
+    let end = (first_quiet + settled) * WINDOW;
+    let whole = a + end.saturating_sub(a).div_ceil(second) * second;
     whole.min(b)
 }
 
@@ -539,9 +577,29 @@ mod tests {
         assert_eq!(seg.cuts.len(), 1, "{:?}", seg.cuts);
         assert!((20_000..=30_000).contains(&seg.cuts[0]), "{:?}", seg.cuts);
         assert_eq!(seg.bursts(), 2);
-        // the first piece ends at the whole second after its excitation, the pause dropped
-        let end = trimmed_end(&seg, 0, seg.cuts[0], 1000);
-        assert!((20_000..=21_000).contains(&end), "{end}");
-        assert_eq!(trimmed_end(&seg, seg.cuts[0], n, 1000), n);
+        // an output that decays with τ = 0.25 s after the excitation stops (plus a 1e-7
+        // sensor noise): the first piece ends on a whole second after the decay (some ten τ
+        // to the noise), the rest of the pause dropped; the last piece keeps its end
+        let noise_y = noise(n, 8);
+        let mut y = vec![0.0; n];
+        for i in 1..n {
+            y[i] = 0.996 * y[i - 1] + x[i];
+        }
+        let y: Vec<f64> = y.iter().zip(&noise_y).map(|(v, e)| v + 1e-7 * e).collect();
+        let end = trimmed_end(&seg, &y, (0, seg.cuts[0]), 1000);
+        assert!(
+            end % 1000 == 0 && (21_000..seg.cuts[0]).contains(&end),
+            "{end}"
+        );
+        assert_eq!(trimmed_end(&seg, &y, (seg.cuts[0], n), 1000), n);
+        // an output still decaying at the piece's end (τ = 2 s) keeps the whole pause
+        let mut slow = vec![0.0; n];
+        for i in 1..n {
+            slow[i] = 0.9995 * slow[i - 1] + x[i];
+        }
+        assert_eq!(
+            trimmed_end(&seg, &slow, (0, seg.cuts[0]), 1000),
+            seg.cuts[0]
+        );
     }
 }
