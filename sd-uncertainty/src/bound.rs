@@ -197,9 +197,22 @@ pub struct Coverage {
 /// alone.
 ///
 /// # Errors
-/// Not SISO; no line in common.
+/// Not SISO; a sampled FRD at another rate than the bound's; no line in common.
 pub fn coverage(bound: &Bound, measured: &Frd) -> Result<Coverage> {
     siso("the FRD", measured.shape())?;
+    // a bound holds at its own rate: a sampled measurement at another rate is another plant
+    // (its lines fold differently), and a share of "covered" lines would mean nothing
+    if let Some(t) = measured.time().ts() {
+        if (t - bound.ts).abs() > 1e-9 * bound.ts {
+            return Err(UncertaintyError::Input(format!(
+                "the FRD is sampled at {:.6} Hz and the bound at {:.6} Hz: a bound holds at its \
+                 own rate; bring the bound to the FRD's rate (`sdctl downsample --uncertainty`) \
+                 or compare with an FRD measured at the bound's rate",
+                1.0 / t,
+                1.0 / bound.ts
+            )));
+        }
+    }
     let tol = 1e-9 * bound.freq_hz.last().copied().unwrap_or(1.0).max(1.0);
     let (mut lines, mut covered) = (0, 0);
     for (i, f) in measured.freq_hz().iter().enumerate() {

@@ -39,6 +39,13 @@ fn bound_covers_the_truth_and_the_slow_measurement() {
     let slow_frd = measure(&truth, 1000.0, NonIdealities::default(), 12);
     let slow = downsample(&b, 5, slow_frd.freq_hz()).unwrap();
     let cov_slow = coverage(&slow.bound, &slow_frd).unwrap();
+    // the 5 kHz bound against the 1 kHz measurement (another plant: its lines fold): refused,
+    // not a share of lines
+    let e = coverage(&b, &slow_frd).unwrap_err().to_string();
+    assert!(
+        e.contains("1000.000000 Hz") && e.contains("5000.000000 Hz"),
+        "{e}"
+    );
     let p_slow = sd_multirate::downsample(&p_fast, 5).unwrap();
     let cov_truth_slow = truth_coverage(&p_slow, &slow.bound);
     // conservatism: the bound over the truth's error (median), over all lines and over those
