@@ -355,20 +355,18 @@ fn trimmed_end(seg: &Segmentation, y: &[f64], (a, b): (usize, usize), second: us
         .find(|&k| !seg.quiet[k]);
     let Some(k) = last else { return b };
     let first_quiet = (k + 1).max(a.div_ceil(WINDOW));
-    let last_w = (b / WINDOW).min(y.len() / WINDOW);
-    if last_w < first_quiet + 4 {
+    // log-rms of the output's first difference per window after the excitation ([`log_rms`]
+    // of the differenced output, the windows aligned with the excitation's)
+    let lo = first_quiet * WINDOW;
+    let hi = (b / WINDOW * WINDOW).min(y.len().saturating_sub(1));
+    if hi <= lo {
         return b;
     }
-    // log-rms of the output's first difference per window after the excitation
-    let change: Vec<f64> = (first_quiet..last_w)
-        .map(|w| {
-            let lo = w * WINDOW;
-            let hi = ((w + 1) * WINDOW).min(y.len() - 1);
-            let ms =
-                (lo..hi).map(|i| (y[i + 1] - y[i]).powi(2)).sum::<f64>() / (hi - lo).max(1) as f64;
-            0.5 * ms.max(1e-300).ln()
-        })
-        .collect();
+    let diff: Vec<f64> = (lo..hi).map(|i| y[i + 1] - y[i]).collect();
+    let change = log_rms(&diff);
+    if change.len() < 4 {
+        return b;
+    }
     let median = |v: &[f64]| {
         let mut s = v.to_vec();
         s.sort_by(f64::total_cmp);

@@ -356,7 +356,7 @@ fn a_type_two_loop_has_no_phase_crossover_at_dc() {
             m.all_phase_crossovers
         );
         // the phase margin: at |L| = 1, −180° + atan(10ω) − atan(ω), positive
-        let w = sd_tests_phase_crossover(m.gain_crossover_hz);
+        let w = type_two_phase_margin_deg(m.gain_crossover_hz);
         assert!(
             (m.phase_margin_deg - w).abs() < 1e-6,
             "{name}: {} vs {w}",
@@ -381,7 +381,7 @@ fn a_type_two_loop_has_no_phase_crossover_at_dc() {
 }
 
 /// The phase margin of `(s + 0.1)/(s²(s + 1))` at its gain crossover `f` (Hz).
-fn sd_tests_phase_crossover(f: f64) -> f64 {
+fn type_two_phase_margin_deg(f: f64) -> f64 {
     let w = 2.0 * std::f64::consts::PI * f;
     (10.0 * w).atan().to_degrees() - w.atan().to_degrees()
 }
