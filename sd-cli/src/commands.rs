@@ -62,6 +62,9 @@ enum Cmd {
     /// What the model's simulation gets wrong on the validation experiments, its cause, the
     /// extended model and its gain on held-out data.
     Diagnose(crate::cmd::diagnose::Args),
+    /// What a diagnosis's model and extension predict on new experiments (at each one's rate
+    /// and amplitude): DIR/prediction.json, report.md and figures.
+    Predict(crate::cmd::predict::Args),
     /// Loopshaping weights as model JSON (continuous unless --ts is given).
     Weight(crate::cmd::weight::Args),
     /// Bound on a model's error from a measured FRF at a stated confidence (uncertainty JSON),
@@ -127,6 +130,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Cmd::Intersample(a) => a.run(),
         Cmd::Testbed(a) => a.run(),
         Cmd::Diagnose(a) => a.run(),
+        Cmd::Predict(a) => a.run(),
         Cmd::Weight(a) => a.run(),
         Cmd::Uncertainty(a) => a.run(),
         Cmd::Coverage(a) => a.run(),

@@ -113,21 +113,23 @@ impl LevelFit {
 /// The fitted amplitude-dependent model.
 #[derive(Clone, Debug)]
 pub(crate) struct AmplitudeModel {
-    basis: ModalBasis,
-    h: f64,
+    pub(crate) basis: ModalBasis,
+    pub(crate) h: f64,
     /// Candidate pair indices.
-    cand: Vec<usize>,
+    pub(crate) cand: Vec<usize>,
     /// Per candidate: frequency and damping trends, and whether each moves.
-    trends: Vec<(Trend, Trend, bool, bool)>,
+    pub(crate) trends: Vec<(Trend, Trend, bool, bool)>,
     /// Reference amplitude per candidate (the model experiment's).
-    reference: Vec<f64>,
+    pub(crate) reference: Vec<f64>,
     /// The reference experiment's input rms in each candidate's linear band.
-    reference_force: Vec<f64>,
+    pub(crate) reference_force: Vec<f64>,
     /// Per candidate, every fitted level's (force ratio, amplitude ratio): how much the mode
     /// responds per force at each level.
-    per_force: Vec<Vec<(f64, f64)>>,
+    pub(crate) per_force: Vec<Vec<(f64, f64)>>,
+    /// Per candidate, the lowest and highest relative amplitude of the fitted levels.
+    pub(crate) range: Vec<(f64, f64)>,
     /// Residues common to the levels (set by [`AmplitudeModel::fit`]).
-    residues: Option<Residues>,
+    pub(crate) residues: Option<Residues>,
 }
 
 /// Weighted rows of a modal fit: `(line, 1/σ)` for lines with a variance.
@@ -863,7 +865,16 @@ impl AmplitudeModel {
                 (t.2, t.3) = (false, false);
             }
         }
+        let range = (0..cand.len())
+            .map(|m| {
+                fits.iter()
+                    .map(|f| f.amplitude[m] / reference[m].max(f64::MIN_POSITIVE))
+                    .filter(|r| r.is_finite() && *r > 0.0)
+                    .fold((f64::INFINITY, 0.0f64), |(lo, hi), r| (lo.min(r), hi.max(r)))
+            })
+            .collect();
         let mut me = AmplitudeModel {
+            range,
             basis: basis.clone(),
             h,
             cand: cand.to_vec(),
@@ -1028,7 +1039,12 @@ impl AmplitudeModel {
     /// A level's mode amplitudes, each self-consistent with its predicted pole
     /// ([`AmplitudeModel::amplitude_of`]), as the level fits measure them.
     pub(crate) fn amplitudes(&self, lv: &Level<'_>) -> Vec<f64> {
-        let rec = Records::of(lv.exp);
+        self.amplitudes_of(lv.exp)
+    }
+
+    /// [`AmplitudeModel::amplitudes`] of any experiment at the model's rate.
+    pub(crate) fn amplitudes_of(&self, e: &Experiment) -> Vec<f64> {
+        let rec = Records::of(e);
         (0..self.cand.len())
             .map(|m| self.amplitude_of(m, &rec))
             .collect()
@@ -1042,6 +1058,26 @@ impl AmplitudeModel {
         let f = lv.est.frd.freq_hz();
         let phi = b.responses(self.h, NonIdeal::ideal(), f)?;
         Ok(predicted_lines(lv.est, &phi, self.res()?))
+    }
+
+    /// The moving candidates: `(candidate, linear frequency (Hz), the top of the band its
+    /// amplitude is measured in (Hz))`.
+    pub(crate) fn moving(&self) -> Vec<(usize, f64, f64)> {
+        self.cand
+            .iter()
+            .enumerate()
+            .filter(|(m, _)| self.trends[*m].2 || self.trends[*m].3)
+            .map(|(m, &pm)| {
+                let p = self.basis.poles()[pm];
+                let f = natural(p, [[0.0; 2]; 2]).0;
+                let top = if self.basis.is_rigid_damping(pm) {
+                    corner_top(&self.basis, pm)
+                } else {
+                    band_of(p).1
+                };
+                (m, f, top)
+            })
+            .collect()
     }
 
     /// Whether any mode moves with amplitude in this model.
@@ -1065,7 +1101,12 @@ impl AmplitudeModel {
     /// The bands of the moving modes at a level: from the lower to the higher of the linear
     /// and the predicted frequency, widened by `max(5ζ, 2 %)` (empty when nothing moves).
     pub(crate) fn moving_bands(&self, lv: &Level<'_>) -> Vec<(f64, f64)> {
-        let pred = self.predicted(lv);
+        self.moving_bands_with(&self.amplitudes(lv))
+    }
+
+    /// [`AmplitudeModel::moving_bands`] at the mode amplitudes `amp`.
+    pub(crate) fn moving_bands_with(&self, amp: &[f64]) -> Vec<(f64, f64)> {
+        let pred = self.predicted_with(amp);
         self.cand
             .iter()
             .enumerate()
@@ -1085,8 +1126,12 @@ impl AmplitudeModel {
 
     /// The discrete model at a level.
     pub(crate) fn model_at(&self, lv: &Level<'_>) -> Result<StateSpace> {
-        let amp = self.amplitudes(lv);
-        self.basis.with_poles(&self.pairs_at(&amp))?.model(
+        self.model_with(&self.amplitudes(lv))
+    }
+
+    /// The discrete model at the mode amplitudes `amp` (one per candidate).
+    pub(crate) fn model_with(&self, amp: &[f64]) -> Result<StateSpace> {
+        self.basis.with_poles(&self.pairs_at(amp))?.model(
             &self.res()?.r,
             self.h,
             NonIdeal::ideal(),
@@ -1096,7 +1141,12 @@ impl AmplitudeModel {
     /// Natural frequency (Hz) and damping of every candidate predicted at a level's
     /// amplitudes.
     pub(crate) fn predicted(&self, lv: &Level<'_>) -> Vec<(f64, f64)> {
-        let pairs = self.pairs_at(&self.amplitudes(lv));
+        self.predicted_with(&self.amplitudes(lv))
+    }
+
+    /// Natural frequency (Hz) and damping of every candidate at the mode amplitudes `amp`.
+    pub(crate) fn predicted_with(&self, amp: &[f64]) -> Vec<(f64, f64)> {
+        let pairs = self.pairs_at(amp);
         self.cand
             .iter()
             .map(|&pm| {

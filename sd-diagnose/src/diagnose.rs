@@ -107,9 +107,16 @@ pub fn diagnose_with_progress(
     for x in &mut experiments {
         x.held_out = outcome.held.get(&x.name).copied();
     }
+    let cause = joined(&outcome.causes);
+    let predictor = crate::Predictor::of(
+        &judged.model,
+        (&outcome.extension, &cause),
+        extended_model.as_ref(),
+        outcome.amplitude.as_deref(),
+    );
     Ok(Diagnosis {
         verdict: outcome.verdict,
-        cause: joined(&outcome.causes),
+        cause,
         parameters: merged_parameters(&outcome.causes),
         causes: outcome.causes,
         partial: outcome.partial,
@@ -124,5 +131,6 @@ pub fn diagnose_with_progress(
         pieces,
         records,
         extended_model,
+        predictor,
     })
 }

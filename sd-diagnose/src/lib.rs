@@ -69,6 +69,8 @@ mod lemma6;
 pub mod mimo;
 pub mod modal;
 mod model;
+pub mod predictor;
+pub mod prediction;
 pub mod pieces;
 pub mod stats;
 pub mod timedomain;
@@ -84,6 +86,10 @@ pub use mimo::{
     MimoDiagnosis, MimoGain,
 };
 pub use pieces::{Piece, RecordUse};
+pub use prediction::{
+    predict_experiments, InBand, ModeAmplitude, PredictedExperiment, Prediction, Unpredictable,
+};
+pub use predictor::{AmplitudePredictor, Predictor, SavedExtension};
 pub use sd_ident::{BandLevel, Distortion, Role, Unmeasurable};
 pub use stats::Statistic;
 pub use timedomain::AveragedPeriod;
@@ -802,6 +808,10 @@ pub struct Diagnosis {
     /// discretises it at any rate).
     #[serde(skip)]
     pub extended_model: Option<ExtendedModel>,
+    /// The model and the extension as `sdctl predict` takes them to new experiments (written
+    /// by the report as `predictor.json`).
+    #[serde(skip)]
+    pub predictor: Predictor,
 }
 
 impl Diagnosis {

@@ -272,7 +272,15 @@ impl ModalBasis {
         Self::build((self.rigid, self.rigid_damping), &real, &pairs)
     }
 
-    fn build((rigid, damping): (usize, f64), real: &[f64], pairs: &[C]) -> Result<Self> {
+    /// What the basis is made of: (rigid-body poles, the rigid body's damping), the real
+    /// poles and the pairs (upper half plane), all continuous (rad/s): what
+    /// [`ModalBasis::build`] takes back.
+    pub(crate) fn parts(&self) -> ((usize, f64), &[f64], &[C]) {
+        ((self.rigid, self.rigid_damping), &self.real, &self.pairs)
+    }
+
+    /// The basis of [`ModalBasis::parts`].
+    pub(crate) fn build((rigid, damping): (usize, f64), real: &[f64], pairs: &[C]) -> Result<Self> {
         Ok(ModalBasis {
             blocks: Self::blocks((rigid, damping), real, pairs)?,
             rigid,
@@ -660,6 +668,16 @@ impl Residues {
     /// ordered as the gradient `[φ, ∂φ/∂poles]` of [`Residues::predict_full`].
     pub(crate) fn joint_covariance(&self) -> Option<&DMatrix<f64>> {
         self.full.as_ref()
+    }
+
+    /// Residues taken as known (no covariance): a saved model's.
+    pub(crate) fn known(r: Vec<f64>) -> Self {
+        let n = r.len();
+        Residues {
+            r,
+            cov: DMatrix::zeros(n, n),
+            full: None,
+        }
     }
 
     /// The covariances times `k`.

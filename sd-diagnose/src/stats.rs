@@ -212,6 +212,17 @@ pub(crate) fn check_alpha(alpha: f64) -> crate::Result<()> {
     }
 }
 
+/// The lines inside any of `bands` (all of them when there are no bands).
+pub(crate) fn in_bands(lines: Vec<Line>, bands: &[(f64, f64)]) -> Vec<Line> {
+    if bands.is_empty() {
+        return lines;
+    }
+    lines
+        .into_iter()
+        .filter(|l| bands.iter().any(|(lo, hi)| l.f >= *lo && l.f <= *hi))
+        .collect()
+}
+
 #[cfg(test)]
 #[allow(clippy::unwrap_used)]
 mod tests {

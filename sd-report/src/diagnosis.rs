@@ -22,17 +22,17 @@ mod tracks;
 use data::{bla_section, own_excess, own_fit_sentence, pieces_section};
 use tracks::tracks_section;
 
-const MEASURED: RGBColor = RGBColor(0, 0, 0);
-const MODEL: RGBColor = RGBColor(200, 30, 30);
+pub(crate) const MEASURED: RGBColor = RGBColor(0, 0, 0);
+pub(crate) const MODEL: RGBColor = RGBColor(200, 30, 30);
 const EXTENDED: RGBColor = RGBColor(20, 110, 200);
 const NOISE: RGBColor = RGBColor(150, 150, 150);
 
-fn db(x: &[C]) -> Vec<f64> {
+pub(crate) fn db(x: &[C]) -> Vec<f64> {
     x.iter().map(|v| 20.0 * v.norm().log10()).collect()
 }
 
 /// A file-name-safe version of an experiment name.
-fn slug(name: &str) -> String {
+pub(crate) fn slug(name: &str) -> String {
     name.chars()
         .map(|c| {
             if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
@@ -107,7 +107,7 @@ pub fn describe(h: &Extension) -> String {
 /// One magnitude figure: the given curves, the extension's (if any) and the noise level σ;
 /// returns its file name.
 #[allow(clippy::too_many_arguments)]
-fn magnitude_figure<'a>(
+pub(crate) fn magnitude_figure<'a>(
     dir: &Path,
     name: String,
     title: &str,
@@ -143,7 +143,7 @@ fn magnitude_figure<'a>(
 }
 
 /// Phase in degrees of each value.
-fn deg(x: &[C]) -> Vec<f64> {
+pub(crate) fn deg(x: &[C]) -> Vec<f64> {
     x.iter().map(|v| v.arg().to_degrees()).collect()
 }
 
@@ -440,7 +440,8 @@ pub fn write(dir: &Path, d: &Diagnosis, title: &str) -> Result<Vec<String>> {
 }
 
 /// Everything a diagnosis writes, for `sdctl diagnose` and `cargo xtask paper` alike:
-/// `diagnosis.json` (its fields in docs/diagnosis.md), the model files, `report.md` and the
+/// `diagnosis.json` (its fields in docs/diagnosis.md), the model files, `predictor.json` (what
+/// `sdctl predict` reads, docs/formats.md), `report.md` and the
 /// figures, into `dir` (created when missing); returns the figure file names. Each file is
 /// written atomically; `sdctl diagnose` stages the whole folder so that a run is published as
 /// a whole.
@@ -460,6 +461,11 @@ pub fn write_all(dir: &Path, d: &Diagnosis, title: &str) -> Result<Vec<String>> 
             sd_model::model_to_json_string(model).map_err(|e| ReportError::Json(e.to_string()))?;
         crate::write_atomic(&dir.join(&file), &text)?;
     }
+    let predictor = d
+        .predictor
+        .to_json_string()
+        .map_err(|e| ReportError::Json(e.to_string()))?;
+    crate::write_atomic(&dir.join("predictor.json"), &predictor)?;
     write(dir, d, title)
 }
 

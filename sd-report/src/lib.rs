@@ -7,6 +7,8 @@
 pub mod diagnosis;
 pub mod mimo;
 pub mod plot;
+#[cfg(feature = "diagnosis")]
+pub mod prediction;
 pub mod stabilization;
 
 /// Errors of the report.

@@ -334,6 +334,36 @@ pub fn build(seed: u64, effect: Effect, rec: Recording) -> Option<Case> {
     })
 }
 
+/// [`build`] plus one more validation experiment at another whole fraction of the fast rate
+/// (the smallest divisor of the rate from 2 to 10 other than the case's factor; its own noise
+/// and phase seed), with the same hidden effect: data a rate-tied extension fitted on the
+/// case's two experiments has never seen. Rate-tied effects only (`None` for a filter or
+/// cubic stiffness, which change the drawn truth).
+pub fn with_another_rate(seed: u64, effect: Effect, rec: Recording) -> Option<(Case, Experiment)> {
+    if matches!(effect, Effect::Filter(_) | Effect::Cubic) {
+        return None;
+    }
+    let case = build(seed, effect, rec)?;
+    let mut r = Rng::new(seed * 7919 + 17);
+    let st = stage(&mut r);
+    let factor = (2..=10usize).find(|f| *f != st.factor && st.fast_rate as usize % f == 0)?;
+    let x = identify(
+        &st,
+        &rec,
+        &Exp {
+            lines: Lines::Full,
+            name: "other_rate",
+            rate: st.fast_rate / factor as f64,
+            rms: 0.5,
+            ni: effect.nonideal(),
+            seed: seed * 3 + 5,
+            role: Role::Validation,
+            signal: None,
+        },
+    )?;
+    Some((case, x))
+}
+
 fn sign(r: &mut Rng) -> f64 {
     if r.uniform() < 0.5 {
         -1.0
@@ -543,6 +573,19 @@ pub fn level_case(
     levels: &[f64],
     rec: Recording,
 ) -> Option<LevelCase> {
+    let top = levels.iter().cloned().fold(1.0, f64::max);
+    level_case_sized(seed, effect, levels, rec, top)
+}
+
+/// [`level_case`] with the cubic stiffness sized for the level `top` (levels above it move
+/// the mode further than [`SHIFT`]: data beyond the sized range).
+pub fn level_case_sized(
+    seed: u64,
+    effect: LevelEffect,
+    levels: &[f64],
+    rec: Recording,
+    top: f64,
+) -> Option<LevelCase> {
     let (mut st, m0) = level_stage(seed);
     let len = st.fast_rate as usize * (1 + rec.steady);
     let exp = |st: &Stage, l: f64, k: usize| Exp {
@@ -567,7 +610,6 @@ pub fn level_case(
                 .collect()
         }),
     };
-    let top = levels.iter().cloned().fold(1.0, f64::max);
     if matches!(effect, LevelEffect::Hardening | LevelEffect::Softening) {
         let base = identify(&st, &rec, &exp(&st, 1.0, 0))?;
         size_cubic(&mut st, effect, &base, top);

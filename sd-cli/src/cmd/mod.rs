@@ -15,6 +15,7 @@ pub(crate) mod intersample;
 pub(crate) mod loopshape;
 pub(crate) mod multisine;
 pub(crate) mod norm;
+pub(crate) mod predict;
 pub(crate) mod reduce;
 pub(crate) mod roots;
 pub(crate) mod testbed;

@@ -29,6 +29,8 @@ pub(super) struct Outcome {
     pub(super) models: BTreeMap<String, StateSpace>,
     /// Per whole held-out experiment, its statistics before and after.
     pub(super) held: BTreeMap<String, HeldOut>,
+    /// The amplitude-dependent model, where that is the extension.
+    pub(super) amplitude: Option<Box<crate::amplitude::AmplitudeModel>>,
 }
 
 impl Outcome {
@@ -42,6 +44,7 @@ impl Outcome {
             gain,
             models: BTreeMap::new(),
             held: BTreeMap::new(),
+            amplitude: None,
         }
     }
 }
@@ -461,5 +464,6 @@ pub(super) fn fast_model_error(data: &Data<'_>, j: &Judged<'_>, ch: &Checks) -> 
         },
         models: BTreeMap::new(),
         held: BTreeMap::new(),
+        amplitude: None,
     })
 }

@@ -11,7 +11,7 @@ use crate::amplitude::{
 use crate::data::held_out_label;
 use crate::lemma6::Pair;
 use crate::modal::ModalBasis;
-use crate::stats::{statistic, Line, Statistic};
+use crate::stats::{in_bands, statistic, Line, Statistic};
 use crate::{
     Cause, CornerTrend, DampingTrend, DriftCheck, DriftSign, Evidence, EvidenceKind, Extension,
     FreqTrend, Gain, HeldOut, Result, Verdict,
@@ -396,6 +396,7 @@ pub(super) fn nonlinearity(
         gain,
         models,
         held,
+        amplitude: Some(Box::new(model)),
     })
 }
 
@@ -510,16 +511,6 @@ pub(super) fn levels_left_out(
     ))
 }
 
-/// The lines inside any of `bands` (all of them when there are no bands).
-pub(super) fn in_bands(lines: Vec<Line>, bands: &[(f64, f64)]) -> Vec<Line> {
-    if bands.is_empty() {
-        return lines;
-    }
-    lines
-        .into_iter()
-        .filter(|l| bands.iter().any(|(lo, hi)| l.f >= *lo && l.f <= *hi))
-        .collect()
-}
 
 /// Two levels: the amplitude model fitted on the model experiment and the other level's
 /// earlier periods, judged on its later ones (labelled so).
@@ -638,5 +629,6 @@ pub(super) fn per_level(
         gain,
         models: BTreeMap::new(),
         held: BTreeMap::new(),
+        amplitude: None,
     }
 }

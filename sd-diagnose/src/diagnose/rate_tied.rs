@@ -194,6 +194,7 @@ pub(super) fn rate_tied(
                 gain,
                 models: BTreeMap::new(),
                 held: BTreeMap::new(),
+                amplitude: None,
             },
             s.ambiguous,
         ));
@@ -213,6 +214,7 @@ pub(super) fn rate_tied(
             gain: s.gain,
             models: BTreeMap::new(),
             held: BTreeMap::new(),
+            amplitude: None,
         },
         false,
     ))

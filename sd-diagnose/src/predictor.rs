@@ -1,0 +1,419 @@
+//! What a diagnosis leaves behind for new data: the plain model and the extension it found,
+//! in a form that is written (`predictor.json`, docs/formats.md) and read back exactly.
+//!
+//! A rate-tied extension is the continuous modal model with its hold delay and averaging
+//! window (discretised at each new experiment's own period by
+//! [`sd_multirate::c2d_nonideal`]); the per-experiment clock errors the diagnosis estimated
+//! belong to those experiments' clocks and are not carried. An amplitude-dependent extension
+//! is the modal basis (continuous poles), the moving modes' frequency and damping trends in
+//! the relative amplitude, the reference amplitudes and forces that measure a new
+//! experiment's amplitude (`AmplitudeModel::amplitudes_of`), the range of relative amplitudes
+//! it was fitted on and the common residues. Every number is kept at full precision (JSON
+//! numbers written by `serde_json` round-trip `f64` exactly); an infinite standard error (a
+//! trend the data did not determine) is written as `null`.
+
+use crate::amplitude::AmplitudeModel;
+use crate::modal::{ModalBasis, Residues};
+use crate::{DiagnoseError, Extension, Result, Trend};
+use num_complex::Complex64 as C;
+use sd_model::StateSpace;
+use serde::{Deserialize, Serialize};
+
+/// Format tag of `predictor.json`.
+pub const PREDICTOR_FORMAT: &str = "sd-predictor";
+/// Version of `predictor.json` this crate writes and reads.
+pub const PREDICTOR_VERSION: u32 = 1;
+
+/// The plain model and the extension a diagnosis found, as `sdctl predict` reads them.
+#[derive(Debug, Clone)]
+pub struct Predictor {
+    /// The model judged (discrete, at the model experiment's period).
+    pub model: StateSpace,
+    /// The extension.
+    pub extension: SavedExtension,
+}
+
+/// An extension as written to `predictor.json`.
+#[derive(Debug, Clone)]
+pub enum SavedExtension {
+    /// The diagnosis found none (the cause it named, for the message).
+    None {
+        /// The named cause.
+        cause: String,
+    },
+    /// Rate-tied non-idealities on the continuous modal model.
+    RateTied {
+        /// The continuous modal model (residues refitted under the non-idealities).
+        continuous: StateSpace,
+        /// Hold delay (fraction of each experiment's period).
+        hold_delay: f64,
+        /// Averaging window (fraction of the period).
+        averaging: f64,
+    },
+    /// The model experiment's measured FRF at the folding frequencies: not a model, it
+    /// predicts nothing new.
+    FastFrf,
+    /// One linear model per level: no model of the amplitude between them.
+    PerLevel,
+    /// The amplitude-dependent modal model.
+    Amplitude(AmplitudePredictor),
+}
+
+/// The amplitude-dependent modal model a diagnosis fitted (its parts are written to
+/// `predictor.json`; docs/formats.md).
+#[derive(Debug, Clone)]
+pub struct AmplitudePredictor(pub(crate) Box<AmplitudeModel>);
+
+impl SavedExtension {
+    /// Its name in `predictor.json` and `prediction.json`.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            SavedExtension::None { .. } => "none",
+            SavedExtension::RateTied { .. } => "rate_tied",
+            SavedExtension::FastFrf => "fast_frf",
+            SavedExtension::PerLevel => "per_level",
+            SavedExtension::Amplitude(_) => "amplitude",
+        }
+    }
+}
+
+impl Predictor {
+    /// The predictor of a diagnosis's outcome: its model, and its extension as found
+    /// (`extended` the rate-tied one's continuous model, `amplitude` the amplitude model).
+    pub(crate) fn of(
+        model: &StateSpace,
+        (extension, cause): (&Extension, &str),
+        extended: Option<&crate::ExtendedModel>,
+        amplitude: Option<&AmplitudeModel>,
+    ) -> Self {
+        let extension = match (extension, extended, amplitude) {
+            (Extension::RateTied(_), Some(x), _) => SavedExtension::RateTied {
+                continuous: x.continuous.clone(),
+                hold_delay: x.hold_delay,
+                averaging: x.averaging,
+            },
+            (Extension::Amplitude(_), _, Some(m)) => {
+                SavedExtension::Amplitude(AmplitudePredictor(Box::new(m.clone())))
+            }
+            (Extension::FastFrf, _, _) => SavedExtension::FastFrf,
+            (Extension::PerLevel, _, _) => SavedExtension::PerLevel,
+            _ => SavedExtension::None {
+                cause: cause.to_string(),
+            },
+        };
+        Predictor {
+            model: model.clone(),
+            extension,
+        }
+    }
+
+    /// `predictor.json`.
+    ///
+    /// # Errors
+    /// A model that cannot be written (non-finite entries).
+    pub fn to_json_string(&self) -> Result<String> {
+        let file = File {
+            format: PREDICTOR_FORMAT.into(),
+            version: PREDICTOR_VERSION,
+            model: model_value(&self.model)?,
+            extension: match &self.extension {
+                SavedExtension::None { cause } => Saved::None {
+                    cause: cause.clone(),
+                },
+                SavedExtension::RateTied {
+                    continuous,
+                    hold_delay,
+                    averaging,
+                } => Saved::RateTied {
+                    continuous: model_value(continuous)?,
+                    hold_delay: *hold_delay,
+                    averaging: *averaging,
+                },
+                SavedExtension::FastFrf => Saved::FastFrf,
+                SavedExtension::PerLevel => Saved::PerLevel,
+                SavedExtension::Amplitude(m) => Saved::Amplitude(Box::new(saved_amplitude(&m.0)?)),
+            },
+        };
+        serde_json::to_string_pretty(&file).map_err(|e| DiagnoseError::Setup(e.to_string()))
+    }
+
+    /// Reads `predictor.json`; unknown keys, another format or version, and models that do
+    /// not fit together are errors that name what is wrong.
+    ///
+    /// # Errors
+    /// [`DiagnoseError::Setup`] naming the problem.
+    pub fn from_json_str(text: &str) -> Result<Self> {
+        let bad = |m: String| DiagnoseError::Setup(format!("predictor.json: {m}"));
+        let file: File = serde_json::from_str(text).map_err(|e| bad(e.to_string()))?;
+        if file.format != PREDICTOR_FORMAT || file.version != PREDICTOR_VERSION {
+            return Err(bad(format!(
+                "format `{}` version {} is not `{PREDICTOR_FORMAT}` version \
+                 {PREDICTOR_VERSION}: write it again with this version's `sdctl diagnose`",
+                file.format, file.version
+            )));
+        }
+        let model = model_of(&file.model).map_err(|e| bad(format!("model: {e}")))?;
+        let h = model.ts().ok_or_else(|| {
+            bad("the model is continuous; it must be discrete at the model experiment's rate".into())
+        })?;
+        if model.nu() != 1 || model.ny() != 1 {
+            return Err(bad(format!(
+                "the model has {} inputs and {} outputs; a diagnosis's model is SISO",
+                model.nu(),
+                model.ny()
+            )));
+        }
+        let extension = match file.extension {
+            Saved::None { cause } => SavedExtension::None { cause },
+            Saved::RateTied {
+                continuous,
+                hold_delay,
+                averaging,
+            } => {
+                let continuous = model_of(&continuous).map_err(|e| bad(format!("extension: {e}")))?;
+                if continuous.ts().is_some() || continuous.nu() != 1 || continuous.ny() != 1 {
+                    return Err(bad(
+                        "the rate-tied extension must be a continuous SISO model".into()
+                    ));
+                }
+                if !(0.0..=sd_multirate::MAX_HOLD_DELAY).contains(&hold_delay)
+                    || !(0.0..=1.0).contains(&averaging)
+                {
+                    return Err(bad(format!(
+                        "hold_delay {hold_delay} (0 to {}) or averaging {averaging} (0 to 1) \
+                         out of range",
+                        sd_multirate::MAX_HOLD_DELAY
+                    )));
+                }
+                SavedExtension::RateTied {
+                    continuous,
+                    hold_delay,
+                    averaging,
+                }
+            }
+            Saved::FastFrf => SavedExtension::FastFrf,
+            Saved::PerLevel => SavedExtension::PerLevel,
+            Saved::Amplitude(a) => {
+                SavedExtension::Amplitude(AmplitudePredictor(Box::new(amplitude_of(*a, h).map_err(bad)?)))
+            }
+        };
+        Ok(Predictor { model, extension })
+    }
+}
+
+/// The file.
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct File {
+    format: String,
+    version: u32,
+    model: serde_json::Value,
+    extension: Saved,
+}
+
+/// The extension in the file.
+#[derive(Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+enum Saved {
+    None {
+        cause: String,
+    },
+    RateTied {
+        continuous: serde_json::Value,
+        hold_delay: f64,
+        averaging: f64,
+    },
+    FastFrf,
+    PerLevel,
+    Amplitude(Box<SavedAmplitude>),
+}
+
+/// The amplitude model in the file (fields of [`AmplitudeModel`]; poles in rad/s as
+/// `[re, im]`).
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SavedAmplitude {
+    rigid_body: usize,
+    rigid_damping: f64,
+    real_poles: Vec<f64>,
+    pairs: Vec<[f64; 2]>,
+    candidates: Vec<SavedCandidate>,
+    residues: Vec<f64>,
+}
+
+/// One candidate mode of the amplitude model.
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SavedCandidate {
+    pole: usize,
+    frequency: SavedTrend,
+    damping: SavedTrend,
+    frequency_moves: bool,
+    damping_moves: bool,
+    reference_amplitude: f64,
+    reference_force: f64,
+    per_force: Vec<[f64; 2]>,
+    fitted_range: [f64; 2],
+}
+
+/// A [`Trend`] with its undetermined (infinite) standard errors as `null`.
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SavedTrend {
+    exponent: i32,
+    at_reference: f64,
+    at_reference_std: Option<f64>,
+    slope: f64,
+    slope_std: Option<f64>,
+    covariance: f64,
+}
+
+impl SavedTrend {
+    fn of(t: &Trend) -> Self {
+        let finite = |x: f64| x.is_finite().then_some(x);
+        SavedTrend {
+            exponent: t.exponent,
+            at_reference: t.at_reference,
+            at_reference_std: finite(t.at_reference_std),
+            slope: t.slope,
+            slope_std: finite(t.slope_std),
+            covariance: t.covariance,
+        }
+    }
+
+    fn trend(&self) -> std::result::Result<Trend, String> {
+        if ![2, 1, -1].contains(&self.exponent) {
+            return Err(format!(
+                "a trend's exponent is 2, 1 or −1, not {}",
+                self.exponent
+            ));
+        }
+        Ok(Trend {
+            exponent: self.exponent,
+            at_reference: self.at_reference,
+            at_reference_std: self.at_reference_std.unwrap_or(f64::INFINITY),
+            slope: self.slope,
+            slope_std: self.slope_std.unwrap_or(f64::INFINITY),
+            covariance: self.covariance,
+        })
+    }
+}
+
+fn model_value(m: &StateSpace) -> Result<serde_json::Value> {
+    let text = sd_model::model_to_json_string(m)?;
+    serde_json::from_str(&text).map_err(|e| DiagnoseError::Setup(e.to_string()))
+}
+
+fn model_of(v: &serde_json::Value) -> std::result::Result<StateSpace, String> {
+    sd_model::model_from_json_str(&v.to_string()).map_err(|e| e.to_string())
+}
+
+fn saved_amplitude(m: &AmplitudeModel) -> Result<SavedAmplitude> {
+    let ((rigid_body, rigid_damping), real, pairs) = m.basis.parts();
+    let residues = m
+        .residues
+        .as_ref()
+        .map(|r| r.r.clone())
+        .ok_or_else(|| DiagnoseError::Numerical("amplitude model without residues".into()))?;
+    let candidates = m
+        .cand
+        .iter()
+        .enumerate()
+        .map(|(k, &pole)| {
+            let (ft, zt, fm, zm) = &m.trends[k];
+            SavedCandidate {
+                pole,
+                frequency: SavedTrend::of(ft),
+                damping: SavedTrend::of(zt),
+                frequency_moves: *fm,
+                damping_moves: *zm,
+                reference_amplitude: m.reference[k],
+                reference_force: m.reference_force[k],
+                per_force: m.per_force[k].iter().map(|&(a, b)| [a, b]).collect(),
+                fitted_range: [m.range[k].0, m.range[k].1],
+            }
+        })
+        .collect();
+    Ok(SavedAmplitude {
+        rigid_body,
+        rigid_damping,
+        real_poles: real.to_vec(),
+        pairs: pairs.iter().map(|p| [p.re, p.im]).collect(),
+        candidates,
+        residues,
+    })
+}
+
+/// The amplitude model of the file at the model's period `h`, checked: finite stable poles,
+/// candidates that index them, one residue per basis function.
+fn amplitude_of(a: SavedAmplitude, h: f64) -> std::result::Result<AmplitudeModel, String> {
+    if a.rigid_body > 2 || !(a.rigid_damping >= 0.0 && a.rigid_damping.is_finite()) {
+        return Err(format!(
+            "rigid_body {} (0 to 2) or rigid_damping {} (finite, ≥ 0) out of range",
+            a.rigid_body, a.rigid_damping
+        ));
+    }
+    let pairs: Vec<C> = a.pairs.iter().map(|p| C::new(p[0], p[1])).collect();
+    if a.real_poles.iter().any(|p| !p.is_finite())
+        || pairs
+            .iter()
+            .any(|p| !(p.re.is_finite() && p.im.is_finite() && p.im > 0.0))
+    {
+        return Err("the amplitude model's poles must be finite, its pairs given by the \
+                    pole with the positive imaginary part"
+            .into());
+    }
+    let basis = ModalBasis::build((a.rigid_body, a.rigid_damping), &a.real_poles, &pairs)
+        .map_err(|e| e.to_string())?;
+    let n_poles = basis.poles().len();
+    let n_functions = basis
+        .responses(h, sd_multirate::NonIdeal::ideal(), &[0.0])
+        .map_err(|e| e.to_string())?
+        .first()
+        .map_or(0, Vec::len);
+    if a.residues.len() != n_functions || a.residues.iter().any(|r| !r.is_finite()) {
+        return Err(format!(
+            "{} residues for a basis of {n_functions} functions (all finite)",
+            a.residues.len()
+        ));
+    }
+    let mut m = AmplitudeModel {
+        basis,
+        h,
+        cand: Vec::new(),
+        trends: Vec::new(),
+        reference: Vec::new(),
+        reference_force: Vec::new(),
+        per_force: Vec::new(),
+        range: Vec::new(),
+        residues: Some(Residues::known(a.residues)),
+    };
+    for c in a.candidates {
+        if c.pole >= n_poles {
+            return Err(format!(
+                "candidate pole {} of a basis with {n_poles} movable poles",
+                c.pole
+            ));
+        }
+        let positive = |x: f64| x.is_finite() && x > 0.0;
+        if !positive(c.reference_amplitude)
+            || !positive(c.reference_force)
+            || c.per_force.iter().flatten().any(|x| !positive(*x))
+        {
+            return Err("reference amplitudes, forces and per_force ratios must be positive".into());
+        }
+        m.cand.push(c.pole);
+        m.trends.push((
+            c.frequency.trend()?,
+            c.damping.trend()?,
+            c.frequency_moves,
+            c.damping_moves,
+        ));
+        m.reference.push(c.reference_amplitude);
+        m.reference_force.push(c.reference_force);
+        m.per_force
+            .push(c.per_force.iter().map(|p| (p[0], p[1])).collect());
+        m.range.push((c.fitted_range[0], c.fitted_range[1]));
+    }
+    Ok(m)
+}
