@@ -1930,3 +1930,60 @@ fn multiaxis_diagnose_names_the_actuator() {
         "--model is for SISO experiments",
     );
 }
+
+#[test]
+fn diagnose_then_predict_another_rate() {
+    let dir = tmpdir("predict");
+    let exp = |name: &str, rate: f64, role: &str| {
+        format!(
+            "[[experiment]]\nname = \"{name}\"\nrate_hz = {rate:.1}\nrole = \"{role}\"\n\
+             pid_bandwidth_hz = 25.0\nperiod = {p}\nperiods = 5\nf_min = 1.0\nf_max = {fmax:.1}\n\
+             injection = \"input\"\n",
+            p = rate as usize,
+            fmax = rate / 2.0 - 1.0
+        )
+    };
+    let head = "[nonideal]\nhold_delay = 0.4\n";
+    let cfg = write(
+        &dir,
+        "stage.toml",
+        &format!("{head}{}{}", exp("fast", 5000.0, "model"), exp("slow", 1000.0, "validation")),
+    );
+    let cfg_new = write(
+        &dir,
+        "new.toml",
+        &format!("seed = 3\n{head}{}{}", exp("mid", 2500.0, "model"), exp("odd", 1500.0, "model")),
+    );
+    let path = |p: &str| dir.join(p).to_string_lossy().into_owned();
+    sdctl_ok(&["testbed", "--config", &cfg, "--out", &path("data")]);
+    sdctl_ok(&["testbed", "--config", &cfg_new, "--out", &path("new")]);
+    sdctl_ok(&["diagnose", &path("data/experiments.toml"), "--out", &path("diag")]);
+    sdctl_ok(&["predict", &path("diag"), &path("new/experiments.toml"), "--out", &path("pred")]);
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("pred/prediction.json")).unwrap())
+            .unwrap();
+    assert_eq!(v["extension"], "rate_tied");
+    let (mid, odd) = (&v["experiments"][0], &v["experiments"][1]);
+    assert_eq!(mid["name"], "mid");
+    assert!(mid["why"].is_null());
+    // the delay fitted at 5 kHz and 1 kHz predicts 2.5 kHz: the plain model misses it, the
+    // extension is near the noise
+    assert!(mid["ratio"].as_f64().unwrap() > 2.0, "{mid}");
+    assert!(mid["extended"].as_f64().unwrap() < 1.5 * mid["threshold"].as_f64().unwrap());
+    assert_eq!(odd["reason"]["code"], "rate");
+    assert!(odd["why"].as_str().unwrap().contains("no whole fraction"));
+    let report = std::fs::read_to_string(dir.join("pred/report.md")).unwrap();
+    assert!(report.contains("frf_mid.svg") && report.contains("| mid | 2500 |"), "{report}");
+    // nothing to predict: exit 2 with the reason; a folder without predictor.json: exit 2
+    let cfg_odd = write(&dir, "odd.toml", &format!("{head}{}", exp("odd", 1500.0, "model")));
+    sdctl_ok(&["testbed", "--config", &cfg_odd, "--out", &path("odd")]);
+    assert_input_error(
+        &sdctl(&["predict", &path("diag"), &path("odd/experiments.toml"), "--out", &path("p1")]),
+        "no experiment can be predicted: `odd`: its rate 1500 Hz is no whole fraction",
+    );
+    assert_input_error(
+        &sdctl(&["predict", &path("data"), &path("new/experiments.toml"), "--out", &path("p2")]),
+        "predictor.json: not found",
+    );
+}
+

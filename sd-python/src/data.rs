@@ -302,6 +302,58 @@ fn diagnose(
     json_text(&d.to_json())
 }
 
+/// What the diagnosis in `diagnosis_dir` (its `predictor.json`) predicts on the experiments of
+/// `manifest` (`sdctl predict`): `prediction.json`'s text; with `out`, also the report folder.
+/// An error when no experiment can be predicted (each one's reason in the message).
+#[pyfunction]
+#[pyo3(signature = (diagnosis_dir, manifest, alpha, out))]
+fn predict(
+    py: Python<'_>,
+    diagnosis_dir: &str,
+    manifest: &str,
+    alpha: f64,
+    out: Option<&str>,
+) -> PyResult<String> {
+    let path = Path::new(diagnosis_dir).join("predictor.json");
+    let text = std::fs::read_to_string(&path).map_err(|e| {
+        value_err(format!(
+            "{}: {e}; give a folder written by diagnose(out=...) or `sdctl diagnose`",
+            path.display()
+        ))
+    })?;
+    let p = py
+        .detach(|| {
+            let predictor = sd_diagnose::Predictor::from_json_str(&text)?;
+            let exps = sd_ident::load_experiments(Path::new(manifest), |_| true)
+                .map_err(|e| sd_diagnose::DiagnoseError::Setup(format!("{manifest}: {e}")))?;
+            sd_diagnose::predict_experiments(&predictor, &exps, alpha)
+        })
+        .map_err(py_err)?;
+    if p.predicted() == 0 {
+        let why: Vec<String> = p
+            .experiments
+            .iter()
+            .map(|x| format!("`{}`: {}", x.name, x.why.as_deref().unwrap_or("?")))
+            .collect();
+        return Err(value_err(format!(
+            "no experiment can be predicted: {}",
+            why.join("; ")
+        )));
+    }
+    if let Some(dir) = out {
+        py.detach(|| {
+            std::fs::create_dir_all(dir).map_err(|source| sd_report::ReportError::Io {
+                path: dir.to_string(),
+                source,
+            })?;
+            sd_report::prediction::write_prediction(Path::new(dir), &p, diagnosis_dir)
+        })
+        .map_err(|e| value_err(e.to_string()))?;
+    }
+    let v = serde_json::to_value(&p).map_err(|e| value_err(e.to_string()))?;
+    json_text(&v)
+}
+
 /// Writes `files` into the folder `dir` (created), each atomically.
 fn write_files(dir: &str, files: &[(String, String)]) -> PyResult<()> {
     let dir = Path::new(dir);
@@ -419,6 +471,7 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(frf_from_arrays, m)?)?;
     m.add_function(wrap_pyfunction!(fit, m)?)?;
     m.add_function(wrap_pyfunction!(diagnose, m)?)?;
+    m.add_function(wrap_pyfunction!(predict, m)?)?;
     m.add_function(wrap_pyfunction!(testbed, m)?)?;
     m.add_function(wrap_pyfunction!(frd_from_json, m)?)?;
     m.add_function(wrap_pyfunction!(frd_to_json, m)?)?;

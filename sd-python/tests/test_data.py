@@ -127,3 +127,46 @@ def test_fit_of_a_mimo_frd_matches_sdctl(sdctl, tmp_path):
     assert r3.cost == pytest.approx(cli3["cost"], rel=1e-6, abs=1e-20)
     with pytest.raises(ValueError, match="input_delay"):
         sd.fit(frd, 4, input_delay="soon")
+
+
+_OTHER_RATE = """seed = 2
+[nonideal]
+averaging = 0.6
+
+[[experiment]]
+name = "mid"
+rate_hz = 2500.0
+role = "model"
+pid_bandwidth_hz = 25.0
+period = 2500
+periods = 5
+transient_periods = 1
+f_min = 1.0
+f_max = 1249.0
+injection = "input"
+"""
+
+
+def test_predict_matches_sdctl_on_another_rate(stage_data, sdctl, tmp_path):
+    sd.diagnose(stage_data.manifest, out=tmp_path / "diag")
+    new = sd.testbed(_OTHER_RATE, out=tmp_path / "new")
+    ours = sd.predict(tmp_path / "diag", new.manifest, out=tmp_path / "py")
+    sdctl("predict", tmp_path / "diag", new.manifest, "--out", tmp_path / "cli")
+    cli = json.loads((tmp_path / "cli" / "prediction.json").read_text())
+    assert ours.to_dict().keys() == cli.keys()
+    x, c = ours.experiments[0], cli["experiments"][0]
+    assert ours.extension == "rate_tied" and x.why is None
+    # the averaging window fitted at 5 kHz and 1 kHz predicts the 2.5 kHz experiment
+    assert x.ratio == pytest.approx(c["ratio"], rel=1e-12) and x.ratio > 2.0
+    assert (tmp_path / "py" / "report.md").is_file()
+    assert (tmp_path / "py" / "frf_mid.svg").is_file()
+
+
+def test_predict_refuses_when_nothing_can_be_predicted(stage_data, tmp_path):
+    sd.diagnose(stage_data.manifest, out=tmp_path / "diag")
+    new = sd.testbed(_OTHER_RATE.replace("2500.0", "1500.0").replace("2500", "1500")
+                     .replace("1249.0", "749.0"), out=tmp_path / "new")
+    with pytest.raises(ValueError, match="no whole fraction"):
+        sd.predict(tmp_path / "diag", new.manifest)
+    with pytest.raises(ValueError, match="predictor.json"):
+        sd.predict(tmp_path / "new", new.manifest)

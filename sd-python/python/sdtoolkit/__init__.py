@@ -53,6 +53,7 @@ __all__ = [
     "fit",
     "analyze",
     "diagnose",
+    "predict",
     "testbed",
 ]
 
@@ -495,6 +496,20 @@ def diagnose(manifest: Union[str, os.PathLike], model=None, alpha: float = 0.01,
     m = None if model is None else _ss(model, "model")._tuple()
     text = _native.diagnose(os.fspath(manifest), m, float(alpha), int(max_order),
                             None if out is None else os.fspath(out))
+    return Result(json.loads(text))
+
+
+def predict(diagnosis_dir: Union[str, os.PathLike], manifest: Union[str, os.PathLike],
+            alpha: float = 0.01, out: Union[str, os.PathLike, None] = None) -> Result:
+    """What a diagnosis's model and extension predict on new experiments (``sdctl predict``):
+    ``diagnosis_dir`` is a folder written by ``diagnose(out=...)`` (its ``predictor.json``),
+    ``manifest`` the new experiments. Returns the fields of ``prediction.json``
+    (docs/diagnosis.md): ``extension``, ``experiments`` with ``name``, ``plain``, ``extended``
+    (the calibrated statistics, 1 = noise level), ``ratio``, ``threshold``, ``in_band``,
+    ``amplitudes`` and ``why`` (None, or why it cannot be predicted). ValueError when no
+    experiment can be predicted; ``out`` also writes the report folder."""
+    text = _native.predict(os.fspath(diagnosis_dir), os.fspath(manifest), float(alpha),
+                           None if out is None else os.fspath(out))
     return Result(json.loads(text))
 
 
