@@ -1947,18 +1947,37 @@ fn diagnose_then_predict_another_rate() {
     let cfg = write(
         &dir,
         "stage.toml",
-        &format!("{head}{}{}", exp("fast", 5000.0, "model"), exp("slow", 1000.0, "validation")),
+        &format!(
+            "{head}{}{}",
+            exp("fast", 5000.0, "model"),
+            exp("slow", 1000.0, "validation")
+        ),
     );
     let cfg_new = write(
         &dir,
         "new.toml",
-        &format!("seed = 3\n{head}{}{}", exp("mid", 2500.0, "model"), exp("odd", 1500.0, "model")),
+        &format!(
+            "seed = 3\n{head}{}{}",
+            exp("mid", 2500.0, "model"),
+            exp("odd", 1500.0, "model")
+        ),
     );
     let path = |p: &str| dir.join(p).to_string_lossy().into_owned();
     sdctl_ok(&["testbed", "--config", &cfg, "--out", &path("data")]);
     sdctl_ok(&["testbed", "--config", &cfg_new, "--out", &path("new")]);
-    sdctl_ok(&["diagnose", &path("data/experiments.toml"), "--out", &path("diag")]);
-    sdctl_ok(&["predict", &path("diag"), &path("new/experiments.toml"), "--out", &path("pred")]);
+    sdctl_ok(&[
+        "diagnose",
+        &path("data/experiments.toml"),
+        "--out",
+        &path("diag"),
+    ]);
+    sdctl_ok(&[
+        "predict",
+        &path("diag"),
+        &path("new/experiments.toml"),
+        "--out",
+        &path("pred"),
+    ]);
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("pred/prediction.json")).unwrap())
             .unwrap();
@@ -1973,17 +1992,35 @@ fn diagnose_then_predict_another_rate() {
     assert_eq!(odd["reason"]["code"], "rate");
     assert!(odd["why"].as_str().unwrap().contains("no whole fraction"));
     let report = std::fs::read_to_string(dir.join("pred/report.md")).unwrap();
-    assert!(report.contains("frf_mid.svg") && report.contains("| mid | 2500 |"), "{report}");
+    assert!(
+        report.contains("frf_mid.svg") && report.contains("| mid | 2500 |"),
+        "{report}"
+    );
     // nothing to predict: exit 2 with the reason; a folder without predictor.json: exit 2
-    let cfg_odd = write(&dir, "odd.toml", &format!("{head}{}", exp("odd", 1500.0, "model")));
+    let cfg_odd = write(
+        &dir,
+        "odd.toml",
+        &format!("{head}{}", exp("odd", 1500.0, "model")),
+    );
     sdctl_ok(&["testbed", "--config", &cfg_odd, "--out", &path("odd")]);
     assert_input_error(
-        &sdctl(&["predict", &path("diag"), &path("odd/experiments.toml"), "--out", &path("p1")]),
+        &sdctl(&[
+            "predict",
+            &path("diag"),
+            &path("odd/experiments.toml"),
+            "--out",
+            &path("p1"),
+        ]),
         "no experiment can be predicted: `odd`: its rate 1500 Hz is no whole fraction",
     );
     assert_input_error(
-        &sdctl(&["predict", &path("data"), &path("new/experiments.toml"), "--out", &path("p2")]),
+        &sdctl(&[
+            "predict",
+            &path("data"),
+            &path("new/experiments.toml"),
+            "--out",
+            &path("p2"),
+        ]),
         "predictor.json: not found",
     );
 }
-

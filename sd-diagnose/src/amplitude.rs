@@ -870,7 +870,9 @@ impl AmplitudeModel {
                 fits.iter()
                     .map(|f| f.amplitude[m] / reference[m].max(f64::MIN_POSITIVE))
                     .filter(|r| r.is_finite() && *r > 0.0)
-                    .fold((f64::INFINITY, 0.0f64), |(lo, hi), r| (lo.min(r), hi.max(r)))
+                    .fold((f64::INFINITY, 0.0f64), |(lo, hi), r| {
+                        (lo.min(r), hi.max(r))
+                    })
             })
             .collect();
         let mut me = AmplitudeModel {
@@ -1131,11 +1133,9 @@ impl AmplitudeModel {
 
     /// The discrete model at the mode amplitudes `amp` (one per candidate).
     pub(crate) fn model_with(&self, amp: &[f64]) -> Result<StateSpace> {
-        self.basis.with_poles(&self.pairs_at(amp))?.model(
-            &self.res()?.r,
-            self.h,
-            NonIdeal::ideal(),
-        )
+        self.basis
+            .with_poles(&self.pairs_at(amp))?
+            .model(&self.res()?.r, self.h, NonIdeal::ideal())
     }
 
     /// Natural frequency (Hz) and damping of every candidate predicted at a level's

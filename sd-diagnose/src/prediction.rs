@@ -213,7 +213,10 @@ pub struct Prediction {
 impl Prediction {
     /// Experiments the extension predicted.
     pub fn predicted(&self) -> usize {
-        self.experiments.iter().filter(|x| x.reason.is_none()).count()
+        self.experiments
+            .iter()
+            .filter(|x| x.reason.is_none())
+            .count()
     }
 }
 
@@ -239,7 +242,11 @@ pub fn predict_experiments(
     })?;
     let cut = crate::pieces::cut_records(experiments);
     let (list, pieces, records) = match &cut {
-        Some(c) => (c.experiments.as_slice(), c.pieces.clone(), c.records.clone()),
+        Some(c) => (
+            c.experiments.as_slice(),
+            c.pieces.clone(),
+            c.records.clone(),
+        ),
         None => (experiments, Vec::new(), Vec::new()),
     };
     let out = list

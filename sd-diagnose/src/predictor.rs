@@ -154,7 +154,10 @@ impl Predictor {
         }
         let model = model_of(&file.model).map_err(|e| bad(format!("model: {e}")))?;
         let h = model.ts().ok_or_else(|| {
-            bad("the model is continuous; it must be discrete at the model experiment's rate".into())
+            bad(
+                "the model is continuous; it must be discrete at the model experiment's rate"
+                    .into(),
+            )
         })?;
         if model.nu() != 1 || model.ny() != 1 {
             return Err(bad(format!(
@@ -170,10 +173,11 @@ impl Predictor {
                 hold_delay,
                 averaging,
             } => {
-                let continuous = model_of(&continuous).map_err(|e| bad(format!("extension: {e}")))?;
+                let continuous =
+                    model_of(&continuous).map_err(|e| bad(format!("extension: {e}")))?;
                 if continuous.ts().is_some() || continuous.nu() != 1 || continuous.ny() != 1 {
                     return Err(bad(
-                        "the rate-tied extension must be a continuous SISO model".into()
+                        "the rate-tied extension must be a continuous SISO model".into(),
                     ));
                 }
                 if !(0.0..=sd_multirate::MAX_HOLD_DELAY).contains(&hold_delay)
@@ -193,9 +197,9 @@ impl Predictor {
             }
             Saved::FastFrf => SavedExtension::FastFrf,
             Saved::PerLevel => SavedExtension::PerLevel,
-            Saved::Amplitude(a) => {
-                SavedExtension::Amplitude(AmplitudePredictor(Box::new(amplitude_of(*a, h).map_err(bad)?)))
-            }
+            Saved::Amplitude(a) => SavedExtension::Amplitude(AmplitudePredictor(Box::new(
+                amplitude_of(*a, h).map_err(bad)?,
+            ))),
         };
         Ok(Predictor { model, extension })
     }
@@ -359,9 +363,11 @@ fn amplitude_of(a: SavedAmplitude, h: f64) -> std::result::Result<AmplitudeModel
             .iter()
             .any(|p| !(p.re.is_finite() && p.im.is_finite() && p.im > 0.0))
     {
-        return Err("the amplitude model's poles must be finite, its pairs given by the \
+        return Err(
+            "the amplitude model's poles must be finite, its pairs given by the \
                     pole with the positive imaginary part"
-            .into());
+                .into(),
+        );
     }
     let basis = ModalBasis::build((a.rigid_body, a.rigid_damping), &a.real_poles, &pairs)
         .map_err(|e| e.to_string())?;
@@ -400,7 +406,9 @@ fn amplitude_of(a: SavedAmplitude, h: f64) -> std::result::Result<AmplitudeModel
             || !positive(c.reference_force)
             || c.per_force.iter().flatten().any(|x| !positive(*x))
         {
-            return Err("reference amplitudes, forces and per_force ratios must be positive".into());
+            return Err(
+                "reference amplitudes, forces and per_force ratios must be positive".into(),
+            );
         }
         m.cand.push(c.pole);
         m.trends.push((

@@ -90,7 +90,10 @@ fn amplitude_failures(o: &AmplitudeOutcome) -> Vec<String> {
     match (&held.reason, &held.in_band, held.amplitudes.first()) {
         (None, Some(b), Some(a)) => {
             if !(2.4..=3.6).contains(&a.relative) {
-                bad.push(format!("seed {}: level 3 measured ×{:.2}", o.seed, a.relative));
+                bad.push(format!(
+                    "seed {}: level 3 measured ×{:.2}",
+                    o.seed, a.relative
+                ));
             }
             if b.ratio < 2.0 {
                 bad.push(format!(
@@ -99,11 +102,17 @@ fn amplitude_failures(o: &AmplitudeOutcome) -> Vec<String> {
                 ));
             }
         }
-        _ => bad.push(format!("seed {}: level 3 not predicted: {:?}", o.seed, held.why)),
+        _ => bad.push(format!(
+            "seed {}: level 3 not predicted: {:?}",
+            o.seed, held.why
+        )),
     }
     if let Some(far) = p.experiments.get(1) {
         if !matches!(far.reason, Some(Unpredictable::Amplitude { .. })) {
-            bad.push(format!("seed {}: level 12 predicted: {:?}", o.seed, far.ratio));
+            bad.push(format!(
+                "seed {}: level 12 predicted: {:?}",
+                o.seed, far.ratio
+            ));
         }
     }
     bad
@@ -149,7 +158,10 @@ fn rate_failures(seed: u64, cause: &str, p: &Prediction) -> Vec<String> {
 
 #[test]
 fn a_held_out_level_is_predicted_from_the_saved_extension() {
-    let out: Vec<_> = per_seed(8..10, amplitude_case).into_iter().flatten().collect();
+    let out: Vec<_> = per_seed(8..10, amplitude_case)
+        .into_iter()
+        .flatten()
+        .collect();
     assert_eq!(out.len(), 2);
     let bad: Vec<String> = out.iter().flat_map(amplitude_failures).collect();
     assert!(bad.is_empty(), "{bad:#?}");
@@ -171,7 +183,11 @@ fn another_rate_is_predicted_and_a_wrong_rate_is_refused() {
         "{:?}",
         p.experiments[0].reason
     );
-    assert!(p.experiments[0].why.as_deref().unwrap().contains("no whole fraction"));
+    assert!(p.experiments[0]
+        .why
+        .as_deref()
+        .unwrap()
+        .contains("no whole fraction"));
 }
 
 #[test]
@@ -200,7 +216,9 @@ fn a_damaged_predictor_file_is_refused_with_its_fault() {
     let e = Predictor::from_json_str(&misspelt).unwrap_err().to_string();
     assert!(e.contains("hold_dely"), "{e}");
     let other_version = text.replacen("\"version\": 1", "\"version\": 7", 1);
-    let e = Predictor::from_json_str(&other_version).unwrap_err().to_string();
+    let e = Predictor::from_json_str(&other_version)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("version 7"), "{e}");
     let e = Predictor::from_json_str("{").unwrap_err().to_string();
     assert!(e.starts_with("predictor.json"), "{e}");
@@ -226,7 +244,8 @@ fn prediction_reported() {
             o.seed,
             o.effect,
             o.cause,
-            held.and_then(|x| x.amplitudes.first()).map_or(f64::NAN, |a| a.relative),
+            held.and_then(|x| x.amplitudes.first())
+                .map_or(f64::NAN, |a| a.relative),
             b.map_or(f64::NAN, |b| b.plain),
             b.map_or(f64::NAN, |b| b.extended),
             b.map_or(f64::NAN, |b| b.ratio),

@@ -55,11 +55,9 @@ impl Args {
             )));
         }
         let figs = crate::io::write_folder(&self.out, |dir| {
-            sd_report::prediction::write_prediction(dir, &p, &self.diagnosis).map_err(|e| {
-                match e {
-                    sd_report::ReportError::Json(_) => CliError::numerical(e.to_string()),
-                    _ => CliError::input(e.to_string()),
-                }
+            sd_report::prediction::write_prediction(dir, &p, &self.diagnosis).map_err(|e| match e {
+                sd_report::ReportError::Json(_) => CliError::numerical(e.to_string()),
+                _ => CliError::input(e.to_string()),
             })
         })?;
         let ratios: Vec<String> = p

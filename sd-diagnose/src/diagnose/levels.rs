@@ -511,7 +511,6 @@ pub(super) fn levels_left_out(
     ))
 }
 
-
 /// Two levels: the amplitude model fitted on the model experiment and the other level's
 /// earlier periods, judged on its later ones (labelled so).
 pub(super) fn later_periods(
