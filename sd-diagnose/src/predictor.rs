@@ -44,7 +44,7 @@ pub enum SavedExtension {
     /// Rate-tied non-idealities on the continuous modal model.
     RateTied {
         /// The continuous modal model (residues refitted under the non-idealities).
-        continuous: StateSpace,
+        continuous: Box<StateSpace>,
         /// Hold delay (fraction of each experiment's period).
         hold_delay: f64,
         /// Averaging window (fraction of the period).
@@ -88,7 +88,7 @@ impl Predictor {
     ) -> Self {
         let extension = match (extension, extended, amplitude) {
             (Extension::RateTied(_), Some(x), _) => SavedExtension::RateTied {
-                continuous: x.continuous.clone(),
+                continuous: Box::new(x.continuous.clone()),
                 hold_delay: x.hold_delay,
                 averaging: x.averaging,
             },
@@ -190,7 +190,7 @@ impl Predictor {
                     )));
                 }
                 SavedExtension::RateTied {
-                    continuous,
+                    continuous: Box::new(continuous),
                     hold_delay,
                     averaging,
                 }
