@@ -81,6 +81,9 @@ struct Outcome {
     case: LevelCase,
     cause: String,
     kind: Option<FreqTrend>,
+    /// The dominant tracked mode's frequency trend (`sd_diagnose::tracks`; `None` without a
+    /// dominant moving mode), measured beside `kind`.
+    track_kind: Option<FreqTrend>,
     damping: Option<DampingTrend>,
     drift_check: Option<DriftCheck>,
     corner: Option<CornerTrend>,
@@ -205,6 +208,22 @@ fn run(seed: u64, effect: LevelEffect, levels: &[f64], form: Form) -> Option<Out
             println!("    {:.3} / {:.3} {}", e.statistic, e.threshold, e.test);
         }
         for c in &d.causes {
+            if let Cause::Nonlinearity { tracks, .. } = c {
+                for t in tracks {
+                    println!(
+                        "    track {:.2} Hz ζ {:.4} share {:.3} moves f {} ζ {} {:?} {:?} shift {:.3} bw dominant {}",
+                        t.freq_hz, t.damping, t.share, t.frequency_moves, t.damping_moves,
+                        t.frequency_trend, t.damping_trend, t.shift_bandwidths, t.dominant
+                    );
+                    for p in &t.points {
+                        println!(
+                            "      {} ρ {:.2} f {:.3}±{:.3} ζ {:.4}±{:.4}",
+                            p.experiment, p.relative_level, p.freq_hz, p.freq_std, p.damping,
+                            p.damping_std
+                        );
+                    }
+                }
+            }
             if let Cause::Nonlinearity { modes, .. } = c {
                 for m in modes {
                     println!(
@@ -234,17 +253,23 @@ fn run(seed: u64, effect: LevelEffect, levels: &[f64], form: Form) -> Option<Out
         }
     }
     let (mut kind, mut damping, mut drift_check, mut corner) = (None, None, None, None);
+    let mut track_kind = None;
     for c in &d.causes {
         if let Cause::Nonlinearity {
             kind: k,
             damping_trend,
             drift_check: dc,
             corner_trend,
+            tracks,
             ..
         } = c
         {
             corner = Some(*corner_trend);
             kind = Some(*k);
+            track_kind = tracks
+                .iter()
+                .find(|t| t.dominant)
+                .map(|t| t.frequency_trend);
             damping = Some(*damping_trend);
             drift_check = Some(*dc);
         }
@@ -252,6 +277,7 @@ fn run(seed: u64, effect: LevelEffect, levels: &[f64], form: Form) -> Option<Out
     let out = Outcome {
         cause: d.cause.clone(),
         kind,
+        track_kind,
         damping,
         drift_check,
         corner,
@@ -277,10 +303,11 @@ fn run(seed: u64, effect: LevelEffect, levels: &[f64], form: Form) -> Option<Out
         case,
     };
     println!(
-        "seed {seed} {effect:?} {levels:?} {form_label:.9}: {} kind {:?} damping {:?} corner {:?} gain {:?} levels {:?} \
+        "seed {seed} {effect:?} {levels:?} {form_label:.9}: {} kind {:?} (tracks {:?}) damping {:?} corner {:?} gain {:?} levels {:?} \
          shift errors {:?} ({:.1} s){}",
         out.cause,
         out.kind,
+        out.track_kind,
         out.damping,
         out.corner,
         out.gain.map(|g| (g * 10.0).round() / 10.0),
@@ -420,6 +447,27 @@ fn summarize(out: &[Outcome]) -> (usize, usize) {
         "cubic kind: {named} of {} named right, {unseen} `none` with no level visible, {} wrong",
         nl.len(),
         nl.iter().filter(|o| !o.right()).count()
+    );
+    let tracks_named = nl
+        .iter()
+        .filter(|o| o.track_kind == Some(expected(o)))
+        .count();
+    let others = of(&[
+        LevelEffect::Coulomb,
+        LevelEffect::Linear,
+        LevelEffect::Drift,
+        LevelEffect::DriftLevels,
+    ]);
+    let tracks_claimed = others
+        .iter()
+        .filter(|o| o.track_kind.is_some_and(|k| k != FreqTrend::None))
+        .count();
+    println!(
+        "tracked dominant mode (beside the kind, not deciding it): cubic kind right in \
+         {tracks_named} of {}; a frequency trend claimed in {tracks_claimed} of {} \
+         friction, linear and drifting cases",
+        nl.len(),
+        others.len()
     );
     let coulomb = of(&[LevelEffect::Coulomb]);
     let (cvis, cvis_x) = visible_gains(&coulomb);
