@@ -487,3 +487,85 @@ fn error_bar_panel<DB: DrawingBackend>(
     legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
     Ok(())
 }
+
+/// One series of measured points with standard errors (joined in abscissa order).
+pub struct PointSeries<'a> {
+    /// Legend entry.
+    pub label: &'a str,
+    /// Abscissa, value, standard error (a non-finite error draws no bar).
+    pub points: &'a [(f64, f64, f64)],
+}
+
+/// Panels stacked vertically over one logarithmic abscissa `x_desc`, each with its ordinate
+/// description and several series of points with ±2σ error bars, one colour per series (the
+/// same series index, the same colour, in every panel).
+pub fn series_plot(
+    path: &str,
+    title: &str,
+    x_desc: &str,
+    panels: &[(&str, Vec<PointSeries<'_>>)],
+) -> crate::Result<()> {
+    let root = SVGBackend::new(path, (900, 360 * panels.len().max(1) as u32)).into_drawing_area();
+    root.fill(&WHITE).map_err(crate::plot_err)?;
+    let root = root
+        .titled(title, ("sans-serif", 22))
+        .map_err(crate::plot_err)?;
+    let areas = root.split_evenly((panels.len().max(1), 1));
+    for (area, (y_desc, series)) in areas.iter().zip(panels) {
+        series_panel(area, x_desc, y_desc, series)?;
+    }
+    root.present().map_err(crate::plot_err)?;
+    Ok(())
+}
+
+fn series_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    x_desc: &str,
+    y_desc: &str,
+    series: &[PointSeries<'_>],
+) -> crate::Result<()> {
+    let bar = |q: &(f64, f64, f64)| {
+        let s = if q.2.is_finite() { 2.0 * q.2 } else { 0.0 };
+        [q.1 - s, q.1 + s]
+    };
+    let all = || series.iter().flat_map(|s| s.points.iter());
+    let Some((x0, x1)) = padded(all().map(|q| q.0).filter(|x| *x > 0.0).map(f64::ln)) else {
+        return Err(crate::ReportError::Plot(format!(
+            "{y_desc}: nothing to plot"
+        )));
+    };
+    let (y0, y1) = padded(all().flat_map(bar)).unwrap_or((0.0, 1.0));
+    let mut chart = ChartBuilder::on(area)
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(90)
+        .build_cartesian_2d((x0.exp()..x1.exp()).log_scale(), y0..y1)
+        .map_err(crate::plot_err)?;
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .draw()
+        .map_err(crate::plot_err)?;
+    for (k, s) in series.iter().enumerate() {
+        let c = Palette99::pick(k).to_rgba();
+        let mut pts: Vec<(f64, f64, f64)> = s.points.to_vec();
+        pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+        chart
+            .draw_series(LineSeries::new(
+                pts.iter().map(|q| (q.0, q.1)),
+                c.stroke_width(1),
+            ))
+            .map_err(crate::plot_err)?
+            .label(s.label)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
+        chart
+            .draw_series(pts.iter().map(|q| {
+                let [a, b] = bar(q);
+                ErrorBar::new_vertical(q.0, a, q.1, b, c.filled(), 8)
+            }))
+            .map_err(crate::plot_err)?;
+    }
+    legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
+    Ok(())
+}

@@ -56,7 +56,8 @@ pub(super) fn tracks_section(md: &mut String, d: &Diagnosis) {
              variance). A mode moves when its levels differ beyond their standard errors (χ² \
              at the verdict's per-test false-alarm probability); the dominant moving mode — \
              the largest shift in half-power bandwidths times its share of the response — is \
-             marked (the kind above is the amplitude model's).\n\n| mode [Hz] | ζ | share | band [Hz] | \
+             marked; its frequency and damping trends are the kind and damping trend named \
+             above (none when no tracked mode moves). `tracks.svg` shows every mode.\n\n| mode [Hz] | ζ | share | band [Hz] | \
              frequency | damping | shift [bandwidths] |\n|---|---|---|---|---|---|---|"
         );
         for t in tracks {
@@ -90,4 +91,77 @@ pub(super) fn tracks_section(md: &mut String, d: &Diagnosis) {
         }
         let _ = writeln!(md);
     }
+}
+
+/// `tracks.svg`: every tracked mode's frequency shift (% of its frequency at the model
+/// experiment) and damping against the relative excitation level, ±2σ; `None` without
+/// tracks.
+pub(super) fn tracks_figure(dir: &std::path::Path, d: &Diagnosis) -> crate::Result<Option<String>> {
+    let Some(tracks) = d.causes.iter().find_map(|c| match c {
+        Cause::Nonlinearity { tracks, .. } if !tracks.is_empty() => Some(tracks),
+        _ => None,
+    }) else {
+        return Ok(None);
+    };
+    let labels: Vec<String> = tracks
+        .iter()
+        .map(|t| {
+            format!(
+                "{:.1} Hz{}",
+                t.freq_hz,
+                if t.dominant { " (dominant)" } else { "" }
+            )
+        })
+        .collect();
+    let shift: Vec<Vec<(f64, f64, f64)>> = tracks
+        .iter()
+        .map(|t| {
+            t.points
+                .iter()
+                .map(|p| {
+                    let k = 100.0 / t.freq_hz;
+                    (
+                        p.relative_level,
+                        (p.freq_hz - t.freq_hz) * k,
+                        p.freq_std * k,
+                    )
+                })
+                .collect()
+        })
+        .collect();
+    let damping: Vec<Vec<(f64, f64, f64)>> = tracks
+        .iter()
+        .map(|t| {
+            t.points
+                .iter()
+                .map(|p| (p.relative_level, p.damping, p.damping_std))
+                .collect()
+        })
+        .collect();
+    fn view<'a>(
+        labels: &'a [String],
+        v: &'a [Vec<(f64, f64, f64)>],
+    ) -> Vec<crate::plot::PointSeries<'a>> {
+        v.iter()
+            .zip(labels)
+            .map(|(p, l)| crate::plot::PointSeries {
+                label: l,
+                points: p,
+            })
+            .collect()
+    }
+    let name = "tracks.svg".to_string();
+    crate::plot::series_plot(
+        &dir.join(&name).display().to_string(),
+        "Every physical mode over the levels (local fits, ±2σ)",
+        "relative excitation level (input rms / the model experiment's)",
+        &[
+            (
+                "frequency shift [% of f at the model experiment]",
+                view(&labels, &shift),
+            ),
+            ("damping ratio ζ [-]", view(&labels, &damping)),
+        ],
+    )?;
+    Ok(Some(name))
 }
