@@ -15,7 +15,8 @@
 //!    between neighbouring levels), narrowed to 45 % of the distance to the neighbouring
 //!    pairs.
 //! 3. **Local fit per level** ([`sd_ident::local_mode()`]: one pole pair plus an affine
-//!    background, weighted by the level's total variance), from the model experiment
+//!    background, weighted by the level's total variance; its standard errors widened by
+//!    `√c` for an LPM estimate's line correlation `c`), from the model experiment
 //!    outwards in level: each level's band centred on its `|G|` peak within reach of the
 //!    frequency fitted at the level next to it (45 % of the distance to the neighbouring
 //!    pairs, at most [`MAX_STEP`] of the frequency; at the model experiment, near the
@@ -31,8 +32,11 @@
 //!    stated when the slope is beyond `z_{1−α/2}` standard errors.
 //! 5. **Dominant:** among the moving modes the largest `|f(ρ_max) − f(ρ_min)|/(2ζ₀f₀)` (the
 //!    shift in half-power bandwidths; the damping's relative change where the frequency does
-//!    not move) weighted by the mode's share of the response. The diagnosis reports it beside
-//!    the amplitude model's `kind` and `damping_trend` (which do not come from it yet).
+//!    not move) weighted by the mode's share of the response. Its frequency trend is the
+//!    diagnosis's `kind` and its damping trend the `damping_trend` ([`decided`]); when no
+//!    tracked mode moves both are `none` (the amplitude model's poles may still move: a
+//!    friction corner is no pair, and a global fit's weak pair is not a physical mode); the
+//!    amplitude model's stand only when no mode could be tracked.
 
 use crate::{DampingTrend, FreqTrend, Result};
 use rayon::prelude::*;
@@ -73,7 +77,8 @@ pub struct ModeTrack {
     pub damping: f64,
     /// Its share of the model experiment's response ([`sd_ident::PhysicalMode::share`]).
     pub share: f64,
-    /// The band of its local fits (Hz).
+    /// The band of its local fit at the model experiment (Hz; every other level's band, as
+    /// wide, is centred on that level's peak).
     pub band_hz: (f64, f64),
     /// The levels' frequencies differ beyond their standard errors.
     pub frequency_moves: bool,
@@ -99,6 +104,10 @@ pub struct TrackLevel<'a> {
     pub level: f64,
     /// Its FRF with the total variance.
     pub frd: &'a Frd,
+    /// Correlation inflation of its neighbouring lines (1: independent, as a periodic
+    /// record's; an LPM estimate's `Σ_d ρ(d)²`): the local fit takes the lines as
+    /// independent, so its standard errors are widened by `√inflation`.
+    pub inflation: f64,
 }
 
 /// Weighted mean, χ² of constancy, and the weighted slope against `x` with its z-score.
@@ -223,10 +232,11 @@ fn follow(
     let at = order.iter().position(|&i| i == 0).unwrap_or(0);
     let mut fitted: Vec<Option<TrackPoint>> = vec![None; levels.len()];
     // upwards from the reference (itself included), then downwards from it
-    for walk in [order[at..].to_vec(), order[..at].iter().rev().copied().collect()] {
-        let mut from = fitted[0]
-            .as_ref()
-            .map_or(start, |p| (p.freq_hz, p.damping));
+    for walk in [
+        order[at..].to_vec(),
+        order[..at].iter().rev().copied().collect(),
+    ] {
+        let mut from = fitted[0].as_ref().map_or(start, |p| (p.freq_hz, p.damping));
         for i in walk {
             let lv = &levels[i];
             let centre = peak(lv.frd, from.0, reach).unwrap_or(from.0);
@@ -235,17 +245,19 @@ fn follow(
                 continue;
             };
             // a fit that does not determine its damping found no resonance in the band
-            if !(fit.damping_std < fit.damping) {
+            let determined = fit.damping_std < fit.damping;
+            if !determined {
                 continue;
             }
             from = (fit.freq_hz, fit.damping);
+            let widen = lv.inflation.max(1.0).sqrt();
             fitted[i] = Some(TrackPoint {
                 experiment: lv.name.to_string(),
                 relative_level: lv.level,
                 freq_hz: fit.freq_hz,
-                freq_std: fit.freq_std,
+                freq_std: fit.freq_std * widen,
                 damping: fit.damping,
-                damping_std: fit.damping_std,
+                damping_std: fit.damping_std * widen,
             });
         }
     }
@@ -310,6 +322,24 @@ fn track(
         dominant: false,
         points,
     }
+}
+
+/// `kind` and `damping_trend` from the tracked modes (module documentation, step 5): the
+/// dominant moving mode's frequency and damping trends; none when no tracked mode moves;
+/// `fallback`'s (the amplitude model's) only when no mode could be tracked.
+pub fn decided(
+    tracks: &[ModeTrack],
+    fallback: (FreqTrend, DampingTrend),
+) -> (FreqTrend, DampingTrend) {
+    if tracks.is_empty() {
+        return fallback;
+    }
+    tracks
+        .iter()
+        .find(|t| t.dominant)
+        .map_or((FreqTrend::None, DampingTrend::None), |d| {
+            (d.frequency_trend, d.damping_trend)
+        })
 }
 
 /// Marks the dominant moving mode (module documentation, step 5).

@@ -218,7 +218,11 @@ fn run(seed: u64, effect: LevelEffect, levels: &[f64], form: Form) -> Option<Out
                     for p in &t.points {
                         println!(
                             "      {} ρ {:.2} f {:.3}±{:.3} ζ {:.4}±{:.4}",
-                            p.experiment, p.relative_level, p.freq_hz, p.freq_std, p.damping,
+                            p.experiment,
+                            p.relative_level,
+                            p.freq_hz,
+                            p.freq_std,
+                            p.damping,
                             p.damping_std
                         );
                     }
@@ -463,7 +467,7 @@ fn summarize(out: &[Outcome]) -> (usize, usize) {
         .filter(|o| o.track_kind.is_some_and(|k| k != FreqTrend::None))
         .count();
     println!(
-        "tracked dominant mode (beside the kind, not deciding it): cubic kind right in \
+        "tracked dominant mode (what names the kind where modes are tracked): cubic kind right in \
          {tracks_named} of {}; a frequency trend claimed in {tracks_claimed} of {} \
          friction, linear and drifting cases",
         nl.len(),

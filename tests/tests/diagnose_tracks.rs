@@ -70,7 +70,12 @@ fn one_seed(seed: u64) -> (usize, usize, usize) {
         .iter()
         .zip(&names)
         .zip(LEVELS)
-        .map(|((frd, name), level)| TrackLevel { name, level, frd })
+        .map(|((frd, name), level)| TrackLevel {
+            name,
+            level,
+            frd,
+            inflation: 1.0,
+        })
         .collect();
     let tracks = track_modes(&frds[0], &levels, 0.01).unwrap();
     let near = |f: f64| {

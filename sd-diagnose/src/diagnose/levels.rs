@@ -372,9 +372,9 @@ pub(super) fn nonlinearity(
     let modes = model.report(&all, &fit_refs, &loo);
     let (kind, damping_trend, corner_trend) = kinds(&modes, normal_quantile(1.0 - alpha / 2.0));
     progress("every physical mode tracked over the levels by local fits");
-    // reported beside the amplitude model; not yet what names the kind (a Coulomb-damped
-    // rigid body's record moved a tracked mode's frequency in the level suite's seed 50)
+    // the dominant tracked mode names the kind and the damping trend where it states them
     let tracks = tracked(data, &levels, &at, alpha);
+    let (kind, damping_trend) = crate::tracks::decided(&tracks, (kind, damping_trend));
     let mut models = BTreeMap::new();
     for lv in &levels {
         models.insert(lv.name.clone(), model.model_at(lv)?);
@@ -418,6 +418,7 @@ fn tracked(
             name: &lv.name,
             level: at[k].map_or(1.0, |i| data.vals[i].level),
             frd: &lv.est.frd,
+            inflation: lv.est.inflation,
         })
         .collect();
     crate::tracks::track_modes(&first.frd, &tl, alpha).unwrap_or_default()
