@@ -257,7 +257,9 @@ struct SavedCandidate {
     reference_amplitude: f64,
     reference_force: f64,
     per_force: Vec<[f64; 2]>,
-    fitted_range: [f64; 2],
+    /// `null` when no fitted level measured the mode's amplitude (a mode that then does not
+    /// move).
+    fitted_range: Option<[f64; 2]>,
 }
 
 /// A [`Trend`] with its undetermined (infinite) standard errors as `null`.
@@ -312,6 +314,41 @@ fn model_of(v: &serde_json::Value) -> std::result::Result<StateSpace, String> {
     sd_model::model_from_json_str(&v.to_string()).map_err(|e| e.to_string())
 }
 
+/// Every number of the saved amplitude model finite (JSON has no infinity or NaN: serde_json
+/// would write `null`, which reads back as an error far from its cause).
+fn check_finite(a: &SavedAmplitude) -> Result<()> {
+    let mut all: Vec<(&str, f64)> = vec![("rigid_damping", a.rigid_damping)];
+    all.extend(a.real_poles.iter().map(|x| ("real_poles", *x)));
+    all.extend(a.pairs.iter().flatten().map(|x| ("pairs", *x)));
+    all.extend(a.residues.iter().map(|x| ("residues", *x)));
+    for c in &a.candidates {
+        for t in [&c.frequency, &c.damping] {
+            all.extend([
+                ("trend at_reference", t.at_reference),
+                ("trend slope", t.slope),
+                ("trend covariance", t.covariance),
+            ]);
+        }
+        all.extend([
+            ("reference_amplitude", c.reference_amplitude),
+            ("reference_force", c.reference_force),
+        ]);
+        all.extend(c.per_force.iter().flatten().map(|x| ("per_force", *x)));
+        all.extend(
+            c.fitted_range
+                .iter()
+                .flatten()
+                .map(|x| ("fitted_range", *x)),
+        );
+    }
+    match all.iter().find(|(_, x)| !x.is_finite()) {
+        Some((name, x)) => Err(DiagnoseError::Numerical(format!(
+            "the amplitude model's {name} is {x}: it cannot be saved"
+        ))),
+        None => Ok(()),
+    }
+}
+
 fn saved_amplitude(m: &AmplitudeModel) -> Result<SavedAmplitude> {
     let ((rigid_body, rigid_damping), real, pairs) = m.basis.parts();
     let residues = m
@@ -334,18 +371,21 @@ fn saved_amplitude(m: &AmplitudeModel) -> Result<SavedAmplitude> {
                 reference_amplitude: m.reference[k],
                 reference_force: m.reference_force[k],
                 per_force: m.per_force[k].iter().map(|&(a, b)| [a, b]).collect(),
-                fitted_range: [m.range[k].0, m.range[k].1],
+                fitted_range: (m.range[k].0.is_finite() && m.range[k].1 > 0.0)
+                    .then_some([m.range[k].0, m.range[k].1]),
             }
         })
         .collect();
-    Ok(SavedAmplitude {
+    let saved = SavedAmplitude {
         rigid_body,
         rigid_damping,
         real_poles: real.to_vec(),
         pairs: pairs.iter().map(|p| [p.re, p.im]).collect(),
         candidates,
         residues,
-    })
+    };
+    check_finite(&saved)?;
+    Ok(saved)
 }
 
 /// The amplitude model of the file at the model's period `h`, checked: finite stable poles,
@@ -410,6 +450,11 @@ fn amplitude_of(a: SavedAmplitude, h: f64) -> std::result::Result<AmplitudeModel
                 "reference amplitudes, forces and per_force ratios must be positive".into(),
             );
         }
+        if c.fitted_range
+            .is_some_and(|r| !(positive(r[0]) && positive(r[1]) && r[0] <= r[1]))
+        {
+            return Err("a fitted_range is [lowest, highest], both positive".into());
+        }
         m.cand.push(c.pole);
         m.trends.push((
             c.frequency.trend()?,
@@ -421,7 +466,83 @@ fn amplitude_of(a: SavedAmplitude, h: f64) -> std::result::Result<AmplitudeModel
         m.reference_force.push(c.reference_force);
         m.per_force
             .push(c.per_force.iter().map(|p| (p[0], p[1])).collect());
-        m.range.push((c.fitted_range[0], c.fitted_range[1]));
+        m.range.push(
+            c.fitted_range
+                .map_or((f64::INFINITY, 0.0), |r| (r[0], r[1])),
+        );
     }
     Ok(m)
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    fn trend(at: f64) -> SavedTrend {
+        SavedTrend {
+            exponent: 2,
+            at_reference: at,
+            at_reference_std: None,
+            slope: 0.5,
+            slope_std: Some(0.1),
+            covariance: 0.0,
+        }
+    }
+
+    /// A rigid body and one pair at about 95 Hz, the pair moving.
+    fn saved(h: f64) -> SavedAmplitude {
+        let basis = ModalBasis::build((2, 0.0), &[], &[C::new(-10.0, 600.0)]).unwrap();
+        let n = basis
+            .responses(h, sd_multirate::NonIdeal::ideal(), &[1.0])
+            .unwrap()[0]
+            .len();
+        SavedAmplitude {
+            rigid_body: 2,
+            rigid_damping: 0.0,
+            real_poles: Vec::new(),
+            pairs: vec![[-10.0, 600.0]],
+            candidates: vec![SavedCandidate {
+                pole: 0,
+                frequency: trend(95.5),
+                damping: trend(0.017),
+                frequency_moves: true,
+                damping_moves: false,
+                reference_amplitude: 1e-6,
+                reference_force: 0.5,
+                per_force: vec![[1.0, 1.0], [2.0, 1.9]],
+                fitted_range: Some([1.0, 1.9]),
+            }],
+            residues: vec![1.0; n],
+        }
+    }
+
+    #[test]
+    fn a_saved_amplitude_model_reads_back_and_its_faults_are_named() {
+        let h = 1e-3;
+        let m = amplitude_of(saved(h), h).unwrap();
+        let again = saved_amplitude(&m).unwrap();
+        assert_eq!(again.pairs, saved(h).pairs);
+        assert_eq!(again.residues, saved(h).residues);
+        assert_eq!(again.candidates[0].fitted_range, Some([1.0, 1.9]));
+        let mut bad = saved(h);
+        bad.candidates[0].pole = 3;
+        assert!(amplitude_of(bad, h)
+            .unwrap_err()
+            .contains("candidate pole 3"));
+        let mut bad = saved(h);
+        bad.residues.pop();
+        assert!(amplitude_of(bad, h).unwrap_err().contains("residues"));
+        let mut bad = saved(h);
+        bad.candidates[0].fitted_range = Some([2.0, 1.0]);
+        assert!(amplitude_of(bad, h).unwrap_err().contains("fitted_range"));
+        let mut bad = saved(h);
+        bad.candidates[0].frequency.exponent = 3;
+        assert!(amplitude_of(bad, h).unwrap_err().contains("exponent"));
+        // a number JSON cannot hold is refused before it is written as null
+        let mut nan = saved(h);
+        nan.candidates[0].damping.slope = f64::NAN;
+        let e = check_finite(&nan).unwrap_err().to_string();
+        assert!(e.contains("trend slope is NaN"), "{e}");
+    }
 }
