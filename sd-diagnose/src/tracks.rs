@@ -201,7 +201,7 @@ pub fn track_modes(
 }
 
 /// Largest relative step of a mode's frequency between neighbouring levels that its peak is
-/// sought over ([`follow`]).
+/// sought over (module documentation, step 3).
 pub const MAX_STEP: f64 = 0.1;
 
 /// The frequency of the largest `|G|` within `reach` of `f` (`None` without a line there).
