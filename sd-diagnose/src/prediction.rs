@@ -218,6 +218,23 @@ impl Prediction {
             .filter(|x| x.reason.is_none())
             .count()
     }
+
+    /// When no experiment was predicted: one line with every experiment's reason (what
+    /// `sdctl predict` and `sd.predict` refuse with).
+    pub fn nothing_predicted(&self) -> Option<String> {
+        if self.predicted() > 0 {
+            return None;
+        }
+        let why: Vec<String> = self
+            .experiments
+            .iter()
+            .map(|x| format!("`{}`: {}", x.name, x.why.as_deref().unwrap_or("?")))
+            .collect();
+        Some(format!(
+            "no experiment can be predicted: {}",
+            why.join("; ")
+        ))
+    }
 }
 
 /// Predicts `experiments` with the predictor's plain model and extension (module

@@ -329,16 +329,8 @@ fn predict(
             sd_diagnose::predict_experiments(&predictor, &exps, alpha)
         })
         .map_err(py_err)?;
-    if p.predicted() == 0 {
-        let why: Vec<String> = p
-            .experiments
-            .iter()
-            .map(|x| format!("`{}`: {}", x.name, x.why.as_deref().unwrap_or("?")))
-            .collect();
-        return Err(value_err(format!(
-            "no experiment can be predicted: {}",
-            why.join("; ")
-        )));
+    if let Some(msg) = p.nothing_predicted() {
+        return Err(value_err(msg));
     }
     if let Some(dir) = out {
         py.detach(|| {

@@ -375,17 +375,71 @@ pub fn error_bar_plot(
     x_desc: &str,
     panels: &[ErrorBarPanel<'_>],
 ) -> crate::Result<()> {
-    let root = SVGBackend::new(path, (900, 360 * panels.len().max(1) as u32)).into_drawing_area();
+    stacked(path, title, panels.len(), |area, k| {
+        error_bar_panel(area, x_desc, &panels[k])
+    })
+}
+
+type Area<'a> = DrawingArea<SVGBackend<'a>, plotters::coord::Shift>;
+
+/// `n` panels stacked vertically under `title` in one SVG, each drawn by `draw(area, k)`.
+fn stacked(
+    path: &str,
+    title: &str,
+    n: usize,
+    draw: impl Fn(&Area<'_>, usize) -> crate::Result<()>,
+) -> crate::Result<()> {
+    let root = SVGBackend::new(path, (900, 360 * n.max(1) as u32)).into_drawing_area();
     root.fill(&WHITE).map_err(crate::plot_err)?;
     let root = root
         .titled(title, ("sans-serif", 22))
         .map_err(crate::plot_err)?;
-    let areas = root.split_evenly((panels.len().max(1), 1));
-    for (area, p) in areas.iter().zip(panels) {
-        error_bar_panel(area, x_desc, p)?;
+    for (k, area) in root.split_evenly((n.max(1), 1)).iter().enumerate().take(n) {
+        draw(area, k)?;
     }
     root.present().map_err(crate::plot_err)?;
     Ok(())
+}
+
+/// A value and its ±2σ bounds (no bar for a non-finite σ).
+fn two_sigma(q: &(f64, f64, f64)) -> [f64; 2] {
+    let s = if q.2.is_finite() { 2.0 * q.2 } else { 0.0 };
+    [q.1 - s, q.1 + s]
+}
+
+/// A panel's chart: logarithmic abscissa over `(x0, x1)`, ordinate `(y0, y1)`, its mesh drawn.
+fn log_x_chart<'a, 'b>(
+    area: &'a Area<'b>,
+    (x0, x1): (f64, f64),
+    (y0, y1): (f64, f64),
+    (x_desc, y_desc): (&str, &str),
+) -> crate::Result<
+    ChartContext<
+        'a,
+        SVGBackend<'b>,
+        Cartesian2d<LogCoord<f64>, plotters::coord::types::RangedCoordf64>,
+    >,
+> {
+    let mut chart = ChartBuilder::on(area)
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(90)
+        .build_cartesian_2d((x0..x1).log_scale(), y0..y1)
+        .map_err(crate::plot_err)?;
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .y_label_formatter(&|v| {
+            if v.abs() >= 0.1 && v.abs() < 1e5 {
+                format!("{v:.2}")
+            } else {
+                format!("{v:.2e}")
+            }
+        })
+        .draw()
+        .map_err(crate::plot_err)?;
+    Ok(chart)
 }
 
 /// The range of `v` padded by 8 % (and a tiny absolute amount for a constant).
@@ -402,11 +456,7 @@ fn padded(v: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
     Some((lo - pad, hi + pad))
 }
 
-fn error_bar_panel<DB: DrawingBackend>(
-    area: &DrawingArea<DB, plotters::coord::Shift>,
-    x_desc: &str,
-    p: &ErrorBarPanel<'_>,
-) -> crate::Result<()> {
+fn error_bar_panel(area: &Area<'_>, x_desc: &str, p: &ErrorBarPanel<'_>) -> crate::Result<()> {
     let xs = p
         .points
         .iter()
@@ -419,10 +469,7 @@ fn error_bar_panel<DB: DrawingBackend>(
             p.y_desc
         )));
     };
-    let bar = |q: &(f64, f64, f64)| {
-        let s = if q.2.is_finite() { 2.0 * q.2 } else { 0.0 };
-        [q.1 - s, q.1 + s]
-    };
+    let bar = two_sigma;
     let ys = p
         .points
         .iter()
@@ -430,25 +477,7 @@ fn error_bar_panel<DB: DrawingBackend>(
         .chain(p.curve.iter().flat_map(bar))
         .chain(p.predicted.iter().map(|q| q.1));
     let (y0, y1) = padded(ys).unwrap_or((0.0, 1.0));
-    let mut chart = ChartBuilder::on(area)
-        .margin(12)
-        .x_label_area_size(45)
-        .y_label_area_size(90)
-        .build_cartesian_2d((x0.exp()..x1.exp()).log_scale(), y0..y1)
-        .map_err(crate::plot_err)?;
-    chart
-        .configure_mesh()
-        .x_desc(x_desc)
-        .y_desc(p.y_desc)
-        .y_label_formatter(&|v| {
-            if v.abs() >= 0.1 && v.abs() < 1e5 {
-                format!("{v:.2}")
-            } else {
-                format!("{v:.2e}")
-            }
-        })
-        .draw()
-        .map_err(crate::plot_err)?;
+    let mut chart = log_x_chart(area, (x0.exp(), x1.exp()), (y0, y1), (x_desc, p.y_desc))?;
     let blue = RGBColor(31, 119, 180);
     let lo: Vec<(f64, f64)> = p.curve.iter().map(|q| (q.0, bar(q)[0])).collect();
     let hi: Vec<(f64, f64)> = p.curve.iter().rev().map(|q| (q.0, bar(q)[1])).collect();
@@ -505,29 +534,18 @@ pub fn series_plot(
     x_desc: &str,
     panels: &[(&str, Vec<PointSeries<'_>>)],
 ) -> crate::Result<()> {
-    let root = SVGBackend::new(path, (900, 360 * panels.len().max(1) as u32)).into_drawing_area();
-    root.fill(&WHITE).map_err(crate::plot_err)?;
-    let root = root
-        .titled(title, ("sans-serif", 22))
-        .map_err(crate::plot_err)?;
-    let areas = root.split_evenly((panels.len().max(1), 1));
-    for (area, (y_desc, series)) in areas.iter().zip(panels) {
-        series_panel(area, x_desc, y_desc, series)?;
-    }
-    root.present().map_err(crate::plot_err)?;
-    Ok(())
+    stacked(path, title, panels.len(), |area, k| {
+        series_panel(area, x_desc, panels[k].0, &panels[k].1)
+    })
 }
 
-fn series_panel<DB: DrawingBackend>(
-    area: &DrawingArea<DB, plotters::coord::Shift>,
+fn series_panel(
+    area: &Area<'_>,
     x_desc: &str,
     y_desc: &str,
     series: &[PointSeries<'_>],
 ) -> crate::Result<()> {
-    let bar = |q: &(f64, f64, f64)| {
-        let s = if q.2.is_finite() { 2.0 * q.2 } else { 0.0 };
-        [q.1 - s, q.1 + s]
-    };
+    let bar = two_sigma;
     let all = || series.iter().flat_map(|s| s.points.iter());
     let Some((x0, x1)) = padded(all().map(|q| q.0).filter(|x| *x > 0.0).map(f64::ln)) else {
         return Err(crate::ReportError::Plot(format!(
@@ -535,18 +553,7 @@ fn series_panel<DB: DrawingBackend>(
         )));
     };
     let (y0, y1) = padded(all().flat_map(bar)).unwrap_or((0.0, 1.0));
-    let mut chart = ChartBuilder::on(area)
-        .margin(12)
-        .x_label_area_size(45)
-        .y_label_area_size(90)
-        .build_cartesian_2d((x0.exp()..x1.exp()).log_scale(), y0..y1)
-        .map_err(crate::plot_err)?;
-    chart
-        .configure_mesh()
-        .x_desc(x_desc)
-        .y_desc(y_desc)
-        .draw()
-        .map_err(crate::plot_err)?;
+    let mut chart = log_x_chart(area, (x0.exp(), x1.exp()), (y0, y1), (x_desc, y_desc))?;
     for (k, s) in series.iter().enumerate() {
         let c = Palette99::pick(k).to_rgba();
         let mut pts: Vec<(f64, f64, f64)> = s.points.to_vec();

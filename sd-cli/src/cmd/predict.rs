@@ -43,16 +43,8 @@ impl Args {
         }
         let p = sd_diagnose::predict_experiments(&predictor, &exps, self.alpha)
             .map_err(|e| crate::io::from_diagnose(&self.manifest, e))?;
-        if p.predicted() == 0 {
-            let why: Vec<String> = p
-                .experiments
-                .iter()
-                .map(|x| format!("`{}`: {}", x.name, x.why.as_deref().unwrap_or("?")))
-                .collect();
-            return Err(CliError::input(format!(
-                "no experiment can be predicted: {}",
-                why.join("; ")
-            )));
+        if let Some(msg) = p.nothing_predicted() {
+            return Err(CliError::input(msg));
         }
         let figs = crate::io::write_folder(&self.out, |dir| {
             sd_report::prediction::write_prediction(dir, &p, &self.diagnosis).map_err(|e| match e {

@@ -192,6 +192,92 @@ pub(crate) fn kinds(modes: &[MovingMode], z: f64) -> (FreqTrend, DampingTrend, C
     (f, d, c)
 }
 
+/// Per candidate (module documentation, **Trend**): its frequency and damping trends over
+/// the levels whose fit determines it, and whether each moves (χ² at `alpha` over twice the
+/// candidates); a candidate with fewer than two such levels, or points the weighted fit
+/// cannot use, keeps its linear pole.
+pub(super) fn candidate_trends(
+    basis: &ModalBasis,
+    cand: &[usize],
+    fits: &[&LevelFit],
+    reference: &[f64],
+    alpha: f64,
+) -> Vec<(Trend, Trend, bool, bool)> {
+    let a_mode = alpha / (2.0 * cand.len().max(1) as f64);
+    let mut trends = Vec::new();
+    for m in 0..cand.len() {
+        let rho = |f: &LevelFit| f.amplitude[m] / reference[m].max(f64::MIN_POSITIVE);
+        let lin = natural(basis.poles()[cand[m]], [[0.0; 2]; 2]);
+        // levels where the fit determines the mode (module documentation)
+        // (and whose amplitude was measured: a positive finite ratio)
+        let good: Vec<&&LevelFit> = fits
+            .iter()
+            .filter(|f| determined(f.modal[m], lin) && rho(f).is_finite() && rho(f) > 0.0)
+            .collect();
+        let fp: Vec<(f64, f64, f64)> = good
+            .iter()
+            .map(|f| (rho(f), f.modal[m].0, f.modal[m].2))
+            .collect();
+        let zp: Vec<(f64, f64, f64)> = good
+            .iter()
+            .map(|f| (rho(f), f.modal[m].1, f.modal[m].3))
+            .collect();
+        let fallback = Trend {
+            exponent: EXPONENTS[0],
+            at_reference: lin.0,
+            at_reference_std: f64::INFINITY,
+            slope: 0.0,
+            slope_std: f64::INFINITY,
+            covariance: 0.0,
+        };
+        // the pole keeps its linear value
+        let linear = || {
+            let zfall = Trend {
+                at_reference: lin.1,
+                ..fallback.clone()
+            };
+            (fallback.clone(), zfall, false, false)
+        };
+        if fp.len() < 2 {
+            trends.push(linear());
+            continue;
+        }
+        let default = if basis.is_rigid_damping(cand[m]) {
+            -1
+        } else {
+            EXPONENTS[0]
+        };
+        // points the weighted fit cannot use (equal amplitudes, a zero error): the pole
+        // keeps its linear value
+        let Some(ft) = best_trend(&fp, alpha, default, basis.is_rigid_damping(cand[m])) else {
+            trends.push(linear());
+            continue;
+        };
+        let zt = if basis.is_real(cand[m]) {
+            // a real pole's damping is 1 at every amplitude
+            Trend {
+                at_reference: 1.0,
+                at_reference_std: 0.0,
+                slope_std: 0.0,
+                ..fallback.clone()
+            }
+        } else {
+            best_trend(&zp, alpha, EXPONENTS[0], false).unwrap_or_else(|| Trend {
+                at_reference: lin.1,
+                ..fallback.clone()
+            })
+        };
+        let fm = moves(&fp.iter().map(|p| (p.1, p.2)).collect::<Vec<_>>(), a_mode);
+        // a real pole has no damping of its own (ζ = 1); a damping without a trend does
+        // not move
+        let zm = !basis.is_real(cand[m])
+            && zt.slope_std.is_finite()
+            && moves(&zp.iter().map(|p| (p.1, p.2)).collect::<Vec<_>>(), a_mode);
+        trends.push((ft, zt, fm, zm));
+    }
+    trends
+}
+
 #[cfg(test)]
 #[allow(clippy::unwrap_used)]
 mod tests {
