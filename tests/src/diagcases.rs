@@ -474,6 +474,9 @@ pub struct LevelCase {
     pub mode_hz: f64,
     /// The experiments (the model experiment first), named `level_<l>`.
     pub experiments: Vec<Experiment>,
+    /// The truth each experiment ran on, in their order (the modes' truth:
+    /// [`crate::modal_truth`]).
+    pub truths: Vec<Truth>,
 }
 
 /// Rms of the steady output of `e` in the band `[lo, hi]` Hz, Hann-windowed (the diagnosis
@@ -625,6 +628,7 @@ pub fn level_case_sized(
         list.push(1.0);
     }
     let mut experiments = Vec::new();
+    let mut truths = Vec::new();
     for (k, &l) in list.iter().enumerate() {
         let mut stk = Stage {
             truth: st.truth.clone(),
@@ -647,6 +651,7 @@ pub fn level_case_sized(
             return None;
         }
         experiments.push(e);
+        truths.push(stk.truth);
     }
     Some(LevelCase {
         effect,
@@ -654,6 +659,7 @@ pub fn level_case_sized(
         levels: list,
         mode_hz: m0.freq_hz,
         experiments,
+        truths,
     })
 }
 
@@ -709,6 +715,7 @@ pub fn level_rate_case(
         recording: rec,
         levels: vec![1.0, high, high],
         mode_hz: m0.freq_hz,
+        truths: vec![st.truth.clone(); experiments.len()],
         experiments,
     })
 }
@@ -793,6 +800,7 @@ fn stepped_case(
         levels: levels.to_vec(),
         mode_hz: m0.freq_hz,
         experiments: vec![e],
+        truths: vec![st.truth],
     })
 }
 

@@ -50,4 +50,5 @@ pub fn pid(bw_hz: f64, mass: f64, ts: f64) -> sd_model::StateSpace {
         .expect("a valid PID-like weight")
 }
 pub mod diagcases;
+pub mod modal_truth;
 pub mod stage;

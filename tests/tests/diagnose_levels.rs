@@ -7,14 +7,21 @@
 //! mode's band, the gain's metric) is at least [`VISIBLE`]: there the extension must gain at
 //! least 3, or predict the level within [`FLOOR_SLACK`] of the level's own fit in the model
 //! class (`HeldOut::floor`: a level whose own fit cannot reach a third of the linear model's
-//! statistic caps every prediction's gain). Seeds: development `0..20` (and `100..125`, `150..170`, `300..325`, `350..386`,
+//! statistic caps every prediction's gain).
+//!
+//! Every tracked mode's frequency at every level is judged against that mode's best linear
+//! approximation computed apart ([`sd_tests::modal_truth`]: the mode integrated alone under
+//! random-phase forces with the level's spectrum): within [`Z_TRACK`] of its standard errors
+//! on at least [`TRUTH_SHARE_DEFAULT`] of the points in the default run and
+//! [`TRUTH_SHARE_REPORTED`] in the reported ones, none beyond [`GROSS`], no track near no true
+//! mode. Seeds: development `0..20` (and `100..125`, `150..170`, `300..325`, `350..386`,
 //! `400..425`, `450..466`, `800..825`, `850..866`, `1100..1125`, `1150..1166`, `1200..1225`,
 //! `1250..1266`, `1300..1325`, `1350..1366`, `1400..1425`, `1450..1466`, `1500..1525`,
 //! `1550..1566`, `1600..1625`, `1650..1666`, `1700..1725`, `1750..1766`, `1800..1825`,
-//! `1850..1866`, `1900..1925`, `1950..1966`, `2200..2225`, `2250..2266`, reported by earlier
-//! versions; `2000..2150` for the linear and drifting stages' false alarms); the default run
-//! `50..53` (non-periodic `50..52`); to report next (not looked at yet) `2400..2425`
-//! (periodic) and `2450..2466` (non-periodic):
+//! `1850..1866`, `1900..1925`, `1950..1966`, `2200..2225`, `2250..2266`, `2400..2425`,
+//! `2450..2466`, reported by earlier versions; `2000..2150` for the linear and drifting
+//! stages' false alarms); the default run `50..53` (non-periodic `50..52`); to report next
+//! (not looked at yet) `2500..2525` (periodic) and `2550..2566` (non-periodic):
 //! `cargo test --release -p sd-tests --test diagnose_levels -- --ignored --nocapture`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 use sd_model::median;
@@ -24,6 +31,7 @@ use sd_tests::diagcases::{
     burst_case, level_case, level_rate_case, per_seed, rising_case, LevelCase, LevelEffect,
     Recording,
 };
+use sd_tests::modal_truth::TrackError;
 
 /// The linear model's held-out statistic from which a level's nonlinearity counts as visible.
 const VISIBLE: f64 = 5.0;
@@ -57,10 +65,10 @@ impl LevelGain {
         self.before >= VISIBLE && self.gain() < 3.0 && self.after > FLOOR_SLACK * self.floor
     }
 }
-const REPORT_SEEDS: std::ops::Range<u64> = 2400..2425;
+const REPORT_SEEDS: std::ops::Range<u64> = 2500..2525;
 const CI_SEEDS: std::ops::Range<u64> = 50..53;
 /// Reported seeds of the non-periodic forms (separate noise records, one rising record).
-const REPORT_SEEDS_NOISE: std::ops::Range<u64> = 2450..2466;
+const REPORT_SEEDS_NOISE: std::ops::Range<u64> = 2550..2566;
 /// The default run's non-periodic subset.
 const CI_SEEDS_NOISE: std::ops::Range<u64> = 50..52;
 
@@ -97,6 +105,10 @@ struct Outcome {
     /// A record the diagnosis cut: one piece per level, every piece excited (no free decay
     /// or pause as an experiment); `true` for separate records.
     pieces_right: bool,
+    /// Every tracked point against the true mode's BLA ([`sd_tests::modal_truth`]).
+    track_errors: Vec<TrackError>,
+    /// Tracks near no true mode (their frequencies, Hz).
+    spurious: Vec<f64>,
 }
 
 impl Outcome {
@@ -256,6 +268,21 @@ fn run(seed: u64, effect: LevelEffect, levels: &[f64], form: Form) -> Option<Out
             }
         }
     }
+    let (track_errors, spurious) = sd_tests::modal_truth::track_errors(&d, &case);
+    if std::env::var_os("LEVEL_EVIDENCE").is_some() {
+        for e in &track_errors {
+            println!(
+                "    truth {:.1} Hz{} {}: f z {:+.2} ({:+.2e}) ζ z {:+.2} ({:+.3})",
+                e.mode_hz,
+                if e.nonlinear { " (cubic)" } else { "" },
+                e.experiment,
+                e.z_freq,
+                e.rel_freq,
+                e.z_damping,
+                e.rel_damping
+            );
+        }
+    }
     let (mut kind, mut damping, mut drift_check, mut corner) = (None, None, None, None);
     let mut track_kind = None;
     for c in &d.causes {
@@ -305,6 +332,8 @@ fn run(seed: u64, effect: LevelEffect, levels: &[f64], form: Form) -> Option<Out
         pieces_right: matches!(form, Form::Separate(_))
             || (d.pieces.len() == levels.len() && d.pieces.iter().all(|p| p.excited_s >= 1.0)),
         case,
+        track_errors,
+        spurious,
     };
     println!(
         "seed {seed} {effect:?} {levels:?} {form_label:.9}: {} kind {:?} (tracks {:?}) damping {:?} corner {:?} gain {:?} levels {:?} \
@@ -516,8 +545,109 @@ fn summarize(out: &[Outcome]) -> (usize, usize) {
         at_floor.len()
     );
     let weak = inside.iter().filter(|l| l.weak()).count();
+    truth_lines(out);
     (wrong, weak)
 }
+
+/// z beyond which a tracked point is outside its stated uncertainty (two-sided 99 %).
+const Z_TRACK: f64 = 2.576;
+
+/// Prints the tracked modes against the truth ([`sd_tests::modal_truth`]): per class (linear
+/// modes, cubic modes) the share of points within [`Z_TRACK`] standard errors and the median
+/// relative errors; returns the share of every point's frequency within it.
+fn truth_lines(out: &[Outcome]) -> f64 {
+    let all: Vec<&TrackError> = out.iter().flat_map(|o| o.track_errors.iter()).collect();
+    for (label, nonlinear) in [("linear modes", false), ("cubic modes", true)] {
+        let pts: Vec<&&TrackError> = all.iter().filter(|e| e.nonlinear == nonlinear).collect();
+        if pts.is_empty() {
+            continue;
+        }
+        let within =
+            |g: fn(&TrackError) -> f64| pts.iter().filter(|e| g(e).abs() <= Z_TRACK).count();
+        let rel =
+            |g: fn(&TrackError) -> f64| median(&pts.iter().map(|e| g(e).abs()).collect::<Vec<_>>());
+        println!(
+            "tracked {label} against their BLA truth: {} points; frequency within {Z_TRACK} σ \
+             in {} ({:.1} %), median |error| {:.2e}; damping within in {} ({:.1} %), median \
+             |error| {:.3}",
+            pts.len(),
+            within(|e| e.z_freq),
+            100.0 * within(|e| e.z_freq) as f64 / pts.len() as f64,
+            rel(|e| e.rel_freq),
+            within(|e| e.z_damping),
+            100.0 * within(|e| e.z_damping) as f64 / pts.len() as f64,
+            rel(|e| e.rel_damping),
+        );
+    }
+    let c = TruthCheck::of(out);
+    println!(
+        "tracked frequencies within {Z_TRACK} σ of the truth: {} of {} ({:.1} %); beyond \
+         {GROSS} σ: {}; tracks near no true mode: {}",
+        c.within,
+        c.points,
+        100.0 * c.share(),
+        c.gross,
+        c.spurious
+    );
+    c.share()
+}
+
+/// z beyond which a tracked point is a gross miss (a wrong resonance, not an underestimated
+/// standard error).
+const GROSS: f64 = 10.0;
+
+/// Every tracked frequency of a run against the truth.
+struct TruthCheck {
+    points: usize,
+    /// Within [`Z_TRACK`] standard errors.
+    within: usize,
+    /// Beyond [`GROSS`] standard errors.
+    gross: usize,
+    /// Tracks near no true mode.
+    spurious: usize,
+}
+
+impl TruthCheck {
+    fn of(out: &[Outcome]) -> Self {
+        let z: Vec<f64> = out
+            .iter()
+            .flat_map(|o| o.track_errors.iter().map(|e| e.z_freq.abs()))
+            .collect();
+        TruthCheck {
+            points: z.len(),
+            within: z.iter().filter(|z| **z <= Z_TRACK).count(),
+            gross: z.iter().filter(|z| **z > GROSS).count(),
+            spurious: out.iter().map(|o| o.spurious.len()).sum(),
+        }
+    }
+
+    fn share(&self) -> f64 {
+        self.within as f64 / self.points.max(1) as f64
+    }
+
+    /// At least `share` of the points within [`Z_TRACK`], no gross miss, no spurious track.
+    fn assert(&self, share: f64, what: &str) {
+        assert!(self.points > 0, "{what}: no tracked point");
+        assert!(
+            self.share() >= share && self.gross == 0 && self.spurious == 0,
+            "{what}: tracked frequencies within {Z_TRACK} σ of the truth {} of {} (at least \
+             {:.0} % required), {} beyond {GROSS} σ, {} tracks near no true mode",
+            self.within,
+            self.points,
+            100.0 * share,
+            self.gross,
+            self.spurious
+        );
+    }
+}
+
+/// Share of tracked frequencies within [`Z_TRACK`] standard errors of the truth the default
+/// subsets require: 40–80 points each; were the intervals to cover only 95 % (the issue's
+/// requirement) a share below 85 % would come by chance with probability about 1 % (binomial,
+/// 42 points).
+const TRUTH_SHARE_DEFAULT: f64 = 0.85;
+/// What the reported runs require (issue #39: within the stated uncertainty on ≥ 95 %).
+const TRUTH_SHARE_REPORTED: f64 = 0.95;
 
 /// The default run's subset: every case right, every visible level gains ≥ 3.
 #[test]
@@ -527,6 +657,7 @@ fn levels_default_subset() {
     assert!(out.len() >= 12, "only {} cases ran", out.len());
     assert_eq!(wrong, 0, "wrong kinds or causes");
     assert_eq!(weak, 0, "visible levels with a gain below 3");
+    TruthCheck::of(&out).assert(TRUTH_SHARE_DEFAULT, "periodic");
 }
 
 /// The default run's non-periodic subset: separate noise records per level (LPM) and one
@@ -539,15 +670,17 @@ fn levels_default_subset_nonperiodic() {
         assert!(out.len() >= 6, "only {} cases ran", out.len());
         assert_eq!(wrong, 0, "{form:?}: wrong kinds or causes");
         assert_eq!(weak, 0, "{form:?}: visible levels with a gain below 3");
+        TruthCheck::of(&out).assert(TRUTH_SHARE_DEFAULT, &format!("{form:?}"));
     }
 }
 
-/// The reported seeds of the non-periodic forms (`2250..2266`); `LEVEL_FORMS=burst` (or
+/// The reported seeds of the non-periodic forms ([`REPORT_SEEDS_NOISE`]); `LEVEL_FORMS=burst` (or
 /// `noise`, `rising`, comma-separated) runs only those forms.
 #[test]
 #[ignore]
 fn levels_reported_nonperiodic() {
     let mut wrong = 0;
+    let mut checks = Vec::new();
     let only = std::env::var("LEVEL_FORMS").ok();
     let wanted = |name: &str| {
         only.as_deref()
@@ -566,8 +699,12 @@ fn levels_reported_nonperiodic() {
         let (w, weak) = summarize(&out);
         wrong += w;
         assert_eq!(weak, 0, "{form:?}: visible levels with a gain below 3");
+        checks.push((format!("{form:?}"), TruthCheck::of(&out)));
     }
     assert_eq!(wrong, 0, "wrong kinds or causes");
+    for (form, c) in &checks {
+        c.assert(TRUTH_SHARE_REPORTED, form);
+    }
 }
 
 /// Speed: a four-level and a seven-level diagnosis of 70 000 samples per level (14 s at 5 kHz;
@@ -623,6 +760,7 @@ fn levels_reported() {
     let (wrong, weak) = summarize(&out);
     assert_eq!(wrong, 0, "wrong kinds or causes");
     assert_eq!(weak, 0, "visible levels with a gain below 3");
+    TruthCheck::of(&out).assert(TRUTH_SHARE_REPORTED, "periodic");
 }
 
 /// Development seeds: `LEVEL_SEEDS=0..20 cargo test --release -p sd-tests --test
