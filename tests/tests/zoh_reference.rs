@@ -87,3 +87,41 @@ fn stage60_matches_the_reference_realisation() {
     let norm = sd_model::linalg::expm::norm1(s.a()) * 2e-4;
     assert!(norm > 2e5 && norm < 4e5, "‖A h‖₁ = {norm}");
 }
+
+/// Stiff and lightly damped systems (`test_data/zoh_vs_scipy.json`, `tools/gen_zoh_vs_scipy.py`:
+/// a 60-digit mpmath reference, scipy's `cont2discrete` error on the same case recorded by the
+/// generator): the exact ZOH at or below scipy's error (or within `10·n·ε` of the reference,
+/// where scipy's is smaller than that).
+///
+/// Ignored: it fails today on the two cases whose exponential is ill-conditioned (the
+/// generator's condition estimate 4e7 and 5e7): `light16_sim_h0.001` (A_d 6.4e-6 against
+/// scipy's 5.8e-6) and `stiff_mixed_n8` (2.2e-6 against 1.8e-6) — the same algorithm
+/// (Al-Mohy–Higham 2009) as scipy's, whose rounding lands on either side; on the other six it
+/// is at or below (issue #40 item 7 stays open: the squaring phase in double-double is the
+/// planned remedy). `cargo test --release -p sd-tests --test zoh_reference -- --ignored
+/// --nocapture`.
+#[test]
+#[ignore]
+fn zoh_at_or_below_scipys_error() {
+    let data = read_json("zoh_vs_scipy.json");
+    let mut worse = Vec::new();
+    for c in data["cases"].as_array().unwrap() {
+        let name = c["name"].as_str().unwrap();
+        let (a, b) = (mat(&c["A"]), mat(&c["B"]));
+        let (ad, bd) = zoh(&a, &b, c["h"].as_f64().unwrap());
+        let (ea, eb) = (rel_err(&ad, &mat(&c["Ad"])), rel_err(&bd, &mat(&c["Bd"])));
+        let (sa, sb) = (
+            c["scipy_err_A"].as_f64().unwrap(),
+            c["scipy_err_B"].as_f64().unwrap(),
+        );
+        println!(
+            "{name:>20}: n = {:2}, rel err A_d {ea:.2e} (scipy {sa:.2e}), B_d {eb:.2e} (scipy {sb:.2e})",
+            a.nrows()
+        );
+        let floor = 10.0 * a.nrows() as f64 * f64::EPSILON;
+        if ea > sa.max(floor) || eb > sb.max(floor) {
+            worse.push(name.to_string());
+        }
+    }
+    assert!(worse.is_empty(), "above scipy's error: {worse:?}");
+}
