@@ -405,6 +405,102 @@ fn force_spectrum(
     Some((i, welch_spectrum(&x[range.clone()], &e.u[range], seg)))
 }
 
+/// z beyond which a tracked point is outside its stated uncertainty (two-sided 99 %).
+pub const Z_TRACK: f64 = 2.576;
+
+/// z beyond which a tracked point is a gross miss (a wrong resonance, not an underestimated
+/// standard error).
+pub const GROSS: f64 = 10.0;
+
+/// Every tracked frequency of a run against the truth.
+#[derive(Debug, Clone)]
+pub struct TruthCheck {
+    /// The points.
+    pub errors: Vec<TrackError>,
+    /// Within [`Z_TRACK`] standard errors.
+    pub within: usize,
+    /// Beyond [`GROSS`] standard errors.
+    pub gross: usize,
+    /// Tracks near no true mode.
+    pub spurious: usize,
+}
+
+impl TruthCheck {
+    /// The check of `errors` with `spurious` tracks near no true mode.
+    pub fn of(errors: &[TrackError], spurious: usize) -> Self {
+        let z: Vec<f64> = errors.iter().map(|e| e.z_freq.abs()).collect();
+        TruthCheck {
+            errors: errors.to_vec(),
+            within: z.iter().filter(|z| **z <= Z_TRACK).count(),
+            gross: z.iter().filter(|z| **z > GROSS).count(),
+            spurious,
+        }
+    }
+
+    /// Share of the points within [`Z_TRACK`].
+    pub fn share(&self) -> f64 {
+        self.within as f64 / self.errors.len().max(1) as f64
+    }
+
+    /// Prints per class (linear modes, cubic modes) the share of points within [`Z_TRACK`]
+    /// standard errors and the median relative errors, then the whole.
+    pub fn print(&self) {
+        for (label, nonlinear) in [("linear modes", false), ("cubic modes", true)] {
+            let pts: Vec<&TrackError> = self
+                .errors
+                .iter()
+                .filter(|e| e.nonlinear == nonlinear)
+                .collect();
+            if pts.is_empty() {
+                continue;
+            }
+            let within =
+                |g: fn(&TrackError) -> f64| pts.iter().filter(|e| g(e).abs() <= Z_TRACK).count();
+            let rel = |g: fn(&TrackError) -> f64| {
+                sd_model::median(&pts.iter().map(|e| g(e).abs()).collect::<Vec<_>>())
+            };
+            let pct = |k: usize| 100.0 * k as f64 / pts.len() as f64;
+            println!(
+                "tracked {label} against their BLA truth: {} points; frequency within {Z_TRACK} \
+                 σ in {} ({:.1} %), median |error| {:.2e}; damping within in {} ({:.1} %), \
+                 median |error| {:.3}",
+                pts.len(),
+                within(|e| e.z_freq),
+                pct(within(|e| e.z_freq)),
+                rel(|e| e.rel_freq),
+                within(|e| e.z_damping),
+                pct(within(|e| e.z_damping)),
+                rel(|e| e.rel_damping),
+            );
+        }
+        println!(
+            "tracked frequencies within {Z_TRACK} σ of the truth: {} of {} ({:.1} %); beyond \
+             {GROSS} σ: {}; tracks near no true mode: {}",
+            self.within,
+            self.errors.len(),
+            100.0 * self.share(),
+            self.gross,
+            self.spurious
+        );
+    }
+
+    /// Panics unless at least `share` of the points are within [`Z_TRACK`], none beyond
+    /// [`GROSS`] and no track is near no true mode.
+    pub fn assert(&self, share: f64, what: &str) {
+        assert!(!self.errors.is_empty(), "{what}: no tracked point");
+        assert!(
+            self.share() >= share && self.gross == 0 && self.spurious == 0,
+            "{what}: tracked frequencies within {Z_TRACK} σ of the truth {} of {} (at least \
+             {:.0} % required), {} beyond {GROSS} σ, {} tracks near no true mode",
+            self.within,
+            self.errors.len(),
+            100.0 * share,
+            self.gross,
+            self.spurious
+        );
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

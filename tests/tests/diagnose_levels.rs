@@ -11,9 +11,10 @@
 //!
 //! Every tracked mode's frequency at every level is judged against that mode's best linear
 //! approximation computed apart ([`sd_tests::modal_truth`]: the mode integrated alone under
-//! random-phase forces with the level's spectrum): within [`Z_TRACK`] of its standard errors
+//! random-phase forces with the level's spectrum): within
+//! [`Z_TRACK`](sd_tests::modal_truth::Z_TRACK) of its standard errors
 //! on at least [`TRUTH_SHARE_DEFAULT`] of the points in the default run and
-//! [`TRUTH_SHARE_REPORTED`] in the reported ones, none beyond [`GROSS`], no track near no true
+//! [`TRUTH_SHARE_REPORTED`] in the reported ones, none beyond [`GROSS`](sd_tests::modal_truth::GROSS), no track near no true
 //! mode. Seeds: development `0..20` (and `100..125`, `150..170`, `300..325`, `350..386`,
 //! `400..425`, `450..466`, `800..825`, `850..866`, `1100..1125`, `1150..1166`, `1200..1225`,
 //! `1250..1266`, `1300..1325`, `1350..1366`, `1400..1425`, `1450..1466`, `1500..1525`,
@@ -25,13 +26,13 @@
 //! `cargo test --release -p sd-tests --test diagnose_levels -- --ignored --nocapture`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 use sd_model::median;
+use sd_tests::modal_truth::{TrackError, TruthCheck};
 
 use sd_diagnose::{Cause, CornerTrend, DampingTrend, DriftCheck, FreqTrend};
 use sd_tests::diagcases::{
     burst_case, level_case, level_rate_case, per_seed, rising_case, LevelCase, LevelEffect,
     Recording,
 };
-use sd_tests::modal_truth::TrackError;
 
 /// The linear model's held-out statistic from which a level's nonlinearity counts as visible.
 const VISIBLE: f64 = 5.0;
@@ -545,104 +546,21 @@ fn summarize(out: &[Outcome]) -> (usize, usize) {
         at_floor.len()
     );
     let weak = inside.iter().filter(|l| l.weak()).count();
-    truth_lines(out);
+    truth_check(out).print();
     (wrong, weak)
 }
 
-/// z beyond which a tracked point is outside its stated uncertainty (two-sided 99 %).
-const Z_TRACK: f64 = 2.576;
-
-/// Prints the tracked modes against the truth ([`sd_tests::modal_truth`]): per class (linear
-/// modes, cubic modes) the share of points within [`Z_TRACK`] standard errors and the median
-/// relative errors; returns the share of every point's frequency within it.
-fn truth_lines(out: &[Outcome]) -> f64 {
-    let all: Vec<&TrackError> = out.iter().flat_map(|o| o.track_errors.iter()).collect();
-    for (label, nonlinear) in [("linear modes", false), ("cubic modes", true)] {
-        let pts: Vec<&&TrackError> = all.iter().filter(|e| e.nonlinear == nonlinear).collect();
-        if pts.is_empty() {
-            continue;
-        }
-        let within =
-            |g: fn(&TrackError) -> f64| pts.iter().filter(|e| g(e).abs() <= Z_TRACK).count();
-        let rel =
-            |g: fn(&TrackError) -> f64| median(&pts.iter().map(|e| g(e).abs()).collect::<Vec<_>>());
-        println!(
-            "tracked {label} against their BLA truth: {} points; frequency within {Z_TRACK} σ \
-             in {} ({:.1} %), median |error| {:.2e}; damping within in {} ({:.1} %), median \
-             |error| {:.3}",
-            pts.len(),
-            within(|e| e.z_freq),
-            100.0 * within(|e| e.z_freq) as f64 / pts.len() as f64,
-            rel(|e| e.rel_freq),
-            within(|e| e.z_damping),
-            100.0 * within(|e| e.z_damping) as f64 / pts.len() as f64,
-            rel(|e| e.rel_damping),
-        );
-    }
-    let c = TruthCheck::of(out);
-    println!(
-        "tracked frequencies within {Z_TRACK} σ of the truth: {} of {} ({:.1} %); beyond \
-         {GROSS} σ: {}; tracks near no true mode: {}",
-        c.within,
-        c.points,
-        100.0 * c.share(),
-        c.gross,
-        c.spurious
-    );
-    c.share()
+/// Every tracked point of `out` against the truth, its per-class lines printed.
+fn truth_check(out: &[Outcome]) -> TruthCheck {
+    let errors: Vec<TrackError> = out
+        .iter()
+        .flat_map(|o| o.track_errors.iter().cloned())
+        .collect();
+    TruthCheck::of(&errors, out.iter().map(|o| o.spurious.len()).sum())
 }
 
-/// z beyond which a tracked point is a gross miss (a wrong resonance, not an underestimated
-/// standard error).
-const GROSS: f64 = 10.0;
-
-/// Every tracked frequency of a run against the truth.
-struct TruthCheck {
-    points: usize,
-    /// Within [`Z_TRACK`] standard errors.
-    within: usize,
-    /// Beyond [`GROSS`] standard errors.
-    gross: usize,
-    /// Tracks near no true mode.
-    spurious: usize,
-}
-
-impl TruthCheck {
-    fn of(out: &[Outcome]) -> Self {
-        let z: Vec<f64> = out
-            .iter()
-            .flat_map(|o| o.track_errors.iter().map(|e| e.z_freq.abs()))
-            .collect();
-        TruthCheck {
-            points: z.len(),
-            within: z.iter().filter(|z| **z <= Z_TRACK).count(),
-            gross: z.iter().filter(|z| **z > GROSS).count(),
-            spurious: out.iter().map(|o| o.spurious.len()).sum(),
-        }
-    }
-
-    fn share(&self) -> f64 {
-        self.within as f64 / self.points.max(1) as f64
-    }
-
-    /// At least `share` of the points within [`Z_TRACK`], no gross miss, no spurious track.
-    fn assert(&self, share: f64, what: &str) {
-        assert!(self.points > 0, "{what}: no tracked point");
-        assert!(
-            self.share() >= share && self.gross == 0 && self.spurious == 0,
-            "{what}: tracked frequencies within {Z_TRACK} σ of the truth {} of {} (at least \
-             {:.0} % required), {} beyond {GROSS} σ, {} tracks near no true mode",
-            self.within,
-            self.points,
-            100.0 * share,
-            self.gross,
-            self.spurious
-        );
-    }
-}
-
-/// Share of tracked frequencies within [`Z_TRACK`] standard errors of the truth the default
-/// subsets require: 40–80 points each; were the intervals to cover only 95 % (the issue's
+/// Share of tracked frequencies within [`Z_TRACK`](sd_tests::modal_truth::Z_TRACK) standard
+/// errors of the truth the default subsets require: 40–80 points each; were the intervals to cover only 95 % (the issue's
 /// requirement) a share below 85 % would come by chance with probability about 1 % (binomial,
 /// 42 points).
 const TRUTH_SHARE_DEFAULT: f64 = 0.85;
@@ -657,7 +575,7 @@ fn levels_default_subset() {
     assert!(out.len() >= 12, "only {} cases ran", out.len());
     assert_eq!(wrong, 0, "wrong kinds or causes");
     assert_eq!(weak, 0, "visible levels with a gain below 3");
-    TruthCheck::of(&out).assert(TRUTH_SHARE_DEFAULT, "periodic");
+    truth_check(&out).assert(TRUTH_SHARE_DEFAULT, "periodic");
 }
 
 /// The default run's non-periodic subset: separate noise records per level (LPM) and one
@@ -670,7 +588,7 @@ fn levels_default_subset_nonperiodic() {
         assert!(out.len() >= 6, "only {} cases ran", out.len());
         assert_eq!(wrong, 0, "{form:?}: wrong kinds or causes");
         assert_eq!(weak, 0, "{form:?}: visible levels with a gain below 3");
-        TruthCheck::of(&out).assert(TRUTH_SHARE_DEFAULT, &format!("{form:?}"));
+        truth_check(&out).assert(TRUTH_SHARE_DEFAULT, &format!("{form:?}"));
     }
 }
 
@@ -699,7 +617,7 @@ fn levels_reported_nonperiodic() {
         let (w, weak) = summarize(&out);
         wrong += w;
         assert_eq!(weak, 0, "{form:?}: visible levels with a gain below 3");
-        checks.push((format!("{form:?}"), TruthCheck::of(&out)));
+        checks.push((format!("{form:?}"), truth_check(&out)));
     }
     assert_eq!(wrong, 0, "wrong kinds or causes");
     for (form, c) in &checks {
@@ -760,7 +678,7 @@ fn levels_reported() {
     let (wrong, weak) = summarize(&out);
     assert_eq!(wrong, 0, "wrong kinds or causes");
     assert_eq!(weak, 0, "visible levels with a gain below 3");
-    TruthCheck::of(&out).assert(TRUTH_SHARE_REPORTED, "periodic");
+    truth_check(&out).assert(TRUTH_SHARE_REPORTED, "periodic");
 }
 
 /// Development seeds: `LEVEL_SEEDS=0..20 cargo test --release -p sd-tests --test
