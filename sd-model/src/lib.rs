@@ -45,7 +45,7 @@ pub use connect::{append, feedback, parallel, series};
 pub use d2c::{d2c, d2c_near, d2c_with_aliases, BranchPick, ModeAliases};
 pub use error::{ModelError, Result};
 pub use frd::Frd;
-pub use freqresp::{grid, mark_poles, EvalPath, FreqRespEvaluator};
+pub use freqresp::{grid, EvalPath, FreqRespEvaluator};
 pub use json::{
     frd_from_json_str, frd_json_chunks, frd_to_json_string, model_from_json_str,
     model_to_json_string, read_model, write_model,

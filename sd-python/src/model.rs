@@ -201,10 +201,8 @@ fn freqresp<'py>(
     };
     let (ny, nu, nf) = (s.ny(), s.nu(), f.len());
     let out = py.detach(|| {
-        // the library's own (parallel) evaluation, then one copy into numpy's layout; an
-        // entry at a pole within rounding is infinite, not rounding noise
-        let mut g = ev.eval_many(f);
-        sd_model::mark_poles(&s, &mut g);
+        // the library's own (parallel) evaluation, then one copy into numpy's layout
+        let g = ev.eval_many(f);
         Array3::from_shape_fn((ny, nu, nf), |(i, j, k)| g[k][(i, j)])
     });
     Ok((out.into_pyarray(py), path))
