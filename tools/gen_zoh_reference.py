@@ -9,22 +9,10 @@ import json, math
 import numpy as np
 import mpmath as mp
 
+from mp_zoh import zoh_mp
+
 mp.mp.dps = 50
 rng = np.random.default_rng(20261121)
-
-
-def zoh_mp(A, B, h):
-    n, m = B.shape
-    M = mp.zeros(n + m, n + m)
-    for i in range(n):
-        for j in range(n):
-            M[i, j] = mp.mpf(float(A[i, j])) * mp.mpf(h)
-        for j in range(m):
-            M[i, n + j] = mp.mpf(float(B[i, j])) * mp.mpf(h)
-    E = mp.expm(M)
-    Ad = [[float(E[i, j]) for j in range(n)] for i in range(n)]
-    Bd = [[float(E[i, n + j]) for j in range(m)] for i in range(n)]
-    return Ad, Bd
 
 
 def similarity(Ablk, cond=10.0):
@@ -71,7 +59,7 @@ def stage60():
 cases = []
 def add(name, A, B, h):
     Ad, Bd = zoh_mp(A, B, h)
-    cases.append({"name": name, "h": h, "A": A.tolist(), "B": B.tolist(), "Ad": Ad, "Bd": Bd})
+    cases.append({"name": name, "h": h, "A": A.tolist(), "B": B.tolist(), "Ad": Ad.tolist(), "Bd": Bd.tolist()})
     print(name, A.shape, flush=True)
 
 for n in [3, 8, 20, 40, 60]:

@@ -11,22 +11,10 @@ import mpmath as mp
 import numpy as np
 import scipy.signal
 
+from mp_zoh import zoh_mp
+
 mp.mp.dps = 60
 rng = np.random.default_rng(20261127)
-
-
-def zoh_mp(A, B, h):
-    n, m = B.shape
-    M = mp.zeros(n + m, n + m)
-    for i in range(n):
-        for j in range(n):
-            M[i, j] = mp.mpf(float(A[i, j])) * mp.mpf(h)
-        for j in range(m):
-            M[i, n + j] = mp.mpf(float(B[i, j])) * mp.mpf(h)
-    E = mp.expm(M)
-    Ad = np.array([[float(E[i, j]) for j in range(n)] for i in range(n)])
-    Bd = np.array([[float(E[i, n + j]) for j in range(m)] for i in range(n)])
-    return Ad, Bd
 
 
 def condition(A, B, h, trials=3):

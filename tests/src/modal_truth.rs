@@ -1,23 +1,28 @@
 //! The truth a tracked mode is judged against: each flexible mode's best linear approximation
-//! (BLA) on the force an experiment actually applied, computed in another numerical form than
-//! the diagnosis's.
+//! (BLA) under the force spectrum an experiment applied, computed in another numerical form
+//! than the diagnosis's.
 //!
 //! The virtual stage is modal (`sd_testbed::Truth`): every mode `q̈ + 2ζω q̇ + ω²(q + κq³) =
 //! (r/m) F` is driven by the same force and none by another, so the output's BLA is the sum of
 //! the rigid body's and the modes' BLAs, and a mode's resonance in the output's BLA is the
-//! resonance of that mode's own BLA. Here each mode is integrated alone (classical RK4, 32
-//! steps per sample, the recorded input held over each sample as the stage's DAC holds it,
-//! from rest at the record's first sample), its BLA taken from the noise-free `q` and the
-//! recorded `u` — periodic records: the steady periods' averaged DFT at the excited lines;
-//! non-periodic pieces: Welch's `H₁` with Hann segments of one second (half overlapping) —
-//! divided by the hold's `e^{−jπf/fs}·sinc(f/fs)`, and the SDOF form
-//! `G = g/(ω_e² − ω² + 2jζ_eω_eω)` fitted to it by linear least squares on `1/G`
-//! (`p₀ − p₁ω² + j p₂ω`, weights `|G|²`, the lines where `|G|` is at least 30 % of its peak):
-//! `ω_e² = p₀/p₁`, `2ζ_eω_e = p₂/p₁`. The diagnosis instead estimates the whole output's FRF
-//! (LPM or periodic averages, with noise) and fits one pole pair with a background in a band
-//! by Levenberg–Marquardt. For a linear mode the result is the drawn `(f, ζ)` (checked below
-//! to 1e-4); for a cubic mode it is the frequency and damping the level's BLA has (Gaussian
-//! closure would give `ω_e² = ω²(1 + 3κσ_q²)`; the BLA needs no such closure).
+//! resonance of that mode's own BLA. The force's line amplitudes are taken from the record
+//! ([`periodic_spectrum`]: a periodic record's steady periods at the lines the excitation
+//! reaches; [`welch_spectrum`]: a non-periodic piece's excited samples, Welch with Hann
+//! segments of one second). Each mode is then integrated alone (classical RK4, 32 steps per
+//! sample, the force held over each sample as the stage's DAC holds it, from rest) under
+//! [`REALIZATIONS`] random-phase multisines with those amplitudes, one period of transient and
+//! one steady; `E[Q_k/U_k]` over the realizations (the BLA, not one realization's estimate,
+//! which shares that realization's distortion with the diagnosis's) is divided by the hold's
+//! `e^{−jπf/fs}·sinc(f/fs)` and the SDOF form `G = g/(ω_e² − ω² + 2jζ_eω_eω)` fitted to it by
+//! linear least squares on `1/G` (`p₀ − p₁ω² + j p₂ω`, weights `|G|²`, the lines within
+//! 0.7–1.5× the linear frequency carrying at least 10 % of the largest amplitude where `|G|` is
+//! at least 30 % of its peak): `ω_e² = p₀/p₁`, `2ζ_eω_e = p₂/p₁`; its standard error is each
+//! realization's own fit's spread over `√M`. The diagnosis instead estimates the whole
+//! output's FRF (LPM or periodic averages, with noise) and fits one pole pair with a
+//! background in a band by Levenberg–Marquardt. For a linear mode the result is the drawn
+//! `(f, ζ)` (checked below to 1e-5 and 1e-3; [`track_errors`] uses the drawn mode directly);
+//! for a cubic mode it is the frequency and damping the level's BLA has (Gaussian closure
+//! would give `ω_e² = ω²(1 + 3κσ_q²)`; the BLA needs no such closure).
 
 use num_complex::Complex64;
 use sd_testbed::ModeSpec;
@@ -158,6 +163,7 @@ fn realized_frfs(
     let n = spec.period;
     let mut rng = crate::gen::Rng::new(seed);
     let inverse = rustfft::FftPlanner::new().plan_fft_inverse(n);
+    let ones = vec![1.0; n];
     let mut out = Vec::with_capacity(realizations);
     for _ in 0..realizations {
         let mut buf = vec![Complex64::new(0.0, 0.0); n];
@@ -171,7 +177,6 @@ fn realized_frfs(
         let one: Vec<f64> = buf.iter().map(|v| v.re).collect();
         let u: Vec<f64> = one.iter().chain(&one).copied().collect();
         let q = simulate_mode(mode, mass, &u, fs);
-        let ones = vec![1.0; n];
         let (su, sq) = (spectrum(&u[n..], &ones), spectrum(&q[n..], &ones));
         out.push(
             spec.lines
