@@ -115,12 +115,14 @@ pub fn emit_parts(parts: &[&[u8]], out: Option<&str>) -> Result<(), CliError> {
         None => {
             use std::io::Write;
             let mut so = std::io::stdout().lock();
-            all.iter()
-                .try_for_each(|p| so.write_all(p))
-                .map_err(|e| CliError {
+            match all.iter().try_for_each(|p| so.write_all(p)) {
+                // the reader has gone (`sdctl … | head`): nothing more to say
+                Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+                r => r.map_err(|e| CliError {
                     code: 1,
                     message: format!("cannot write stdout: {e}"),
-                })
+                }),
+            }
         }
         Some(path) => sd_report::write_atomic_parts(Path::new(path), &all)
             .map_err(|e| CliError::input(e.to_string())),

@@ -20,6 +20,10 @@ fn main() -> ExitCode {
             .map(|s| s.to_string())
             .or_else(|| info.payload().downcast_ref::<String>().cloned())
             .unwrap_or_else(|| "unknown".into());
+        // `println!` to a reader that has gone (`sdctl … | head`) is no error of ours
+        if msg.starts_with("failed printing to stdout") && msg.contains("Broken pipe") {
+            std::process::exit(0);
+        }
         eprintln!("sdctl: internal error (please report): {msg}");
     }));
     let cli = match commands::Cli::try_parse() {

@@ -25,6 +25,9 @@ pub(crate) struct Estimate {
     pub(crate) dof: f64,
     /// Correlation inflation of neighbouring lines (1: independent).
     pub(crate) inflation: f64,
+    /// Correlation `ρ(d)` of the errors of lines `d` apart (empty: independent; an LPM
+    /// estimate of a whole record: [`sd_ident::lpm_excitation_correlation`]).
+    pub(crate) correlation: Vec<f64>,
     pub(crate) distortion: Option<DistortionReport>,
     /// Per excited line of a periodic odd multisine: its frequency (Hz), the local stochastic
     /// distortion variance, and the part of it not in the FRF's variance (below the
@@ -127,6 +130,7 @@ pub(crate) fn estimate(e: &Experiment, part: Part) -> Result<Estimate> {
         frd,
         dof,
         inflation: 1.0,
+        correlation: Vec::new(),
         distortion: est.distortion,
         local_distortion,
         bla,
@@ -286,6 +290,7 @@ fn estimate_lpm(e: &Experiment, part: Part) -> Result<Estimate> {
     };
     let opt = LpmOptions::default();
     let fs = e.spec.sample_rate_hz;
+    let excitation = e.r.as_deref().unwrap_or(&e.u);
     let frd = match &e.r {
         Some(r) => {
             let (frd, snr) =
@@ -305,6 +310,12 @@ fn estimate_lpm(e: &Experiment, part: Part) -> Result<Estimate> {
     Ok(Estimate {
         dof: 2.0 * resid as f64,
         inflation: lpm_inflation(half, opt.degree),
+        // the tracks' local fits use the whole record's
+        correlation: match part {
+            Part::Whole => sd_ident::lpm_excitation_correlation(&excitation[lo..hi], &opt)
+                .unwrap_or_else(|_| sd_ident::lpm_polynomial_correlation(half, opt.degree)),
+            _ => Vec::new(),
+        },
         distortion: None,
         local_distortion: Vec::new(),
         bla: match part {

@@ -205,6 +205,7 @@ fn entry(frd: &Frd, i: usize, j: usize, dof: f64) -> Result<Estimate> {
         frd: frd.entry(i, j)?,
         dof,
         inflation: 1.0,
+        correlation: Vec::new(),
         distortion: None,
         local_distortion: Vec::new(),
         bla: None,

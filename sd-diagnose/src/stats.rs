@@ -173,32 +173,12 @@ pub(crate) fn threshold(k: f64, alpha: f64) -> f64 {
 /// Correlation inflation `c = Σ_d ρ(d)²` of estimates from a local polynomial of degree `r`
 /// over `2n + 1` lines (module documentation).
 pub(crate) fn lpm_inflation(n: usize, degree: usize) -> f64 {
-    let w = 2 * n + 1;
-    let p = degree + 1;
-    if w <= p {
-        return 1.0;
-    }
-    // centre row of the hat matrix: e₀ᵀ (VᵀV)⁻¹ Vᵀ with V the Vandermonde matrix in r/n
-    let v = nalgebra::DMatrix::from_fn(w, p, |i, j| {
-        ((i as f64 - n as f64) / n as f64).powi(j as i32)
-    });
-    let Some(inv) = (v.transpose() * &v).try_inverse() else {
-        return 1.0;
-    };
-    let row = (inv * v.transpose()).row(0).into_owned();
-    let s2: f64 = row.iter().map(|x| x * x).sum();
-    let mut c = 0.0;
-    for d in -(w as i64 - 1)..(w as i64) {
-        let mut acc = 0.0;
-        for i in 0..w as i64 {
-            let j = i + d;
-            if j >= 0 && j < w as i64 {
-                acc += row[i as usize] * row[j as usize];
-            }
-        }
-        c += (acc / s2).powi(2);
-    }
-    c
+    let rho = sd_ident::lpm_polynomial_correlation(n, degree);
+    // Σ over d = −2n … 2n: ρ(0)² once, every other lag twice
+    rho.iter()
+        .enumerate()
+        .map(|(d, r)| if d == 0 { r * r } else { 2.0 * r * r })
+        .sum()
 }
 
 /// `Err` unless `alpha` is a false-alarm probability in (0, 0.5].

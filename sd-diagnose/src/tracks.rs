@@ -53,7 +53,9 @@
 
 use crate::{DampingTrend, FreqTrend, Result};
 use rayon::prelude::*;
-use sd_ident::{local_mode, physical_fit, LocalMode, ModeKind, StabilizationOptions};
+use sd_ident::{
+    local_mode_with, physical_fit, LineNoise, LocalMode, ModeKind, StabilizationOptions,
+};
 use sd_model::{chi2_quantile, normal_quantile, Frd};
 use serde::Serialize;
 
@@ -117,10 +119,10 @@ pub struct TrackLevel<'a> {
     pub level: f64,
     /// Its FRF with the total variance.
     pub frd: &'a Frd,
-    /// Correlation inflation of its neighbouring lines (1: independent, as a periodic
-    /// record's; an LPM estimate's `Σ_d ρ(d)²`): the local fit takes the lines as
-    /// independent, so its standard errors are widened by `√inflation`.
-    pub inflation: f64,
+    /// Correlation `ρ(d)` of the errors of lines `d` spacings apart (empty: independent, as
+    /// a periodic record's; an LPM estimate's from [`sd_ident::lpm_excitation_correlation`]):
+    /// the local fit's standard errors carry it ([`sd_ident::LineNoise`]).
+    pub correlation: &'a [f64],
 }
 
 /// Weighted mean, χ² of constancy, and the weighted slope against `x` with its z-score.
@@ -270,11 +272,20 @@ fn peak(frd: &Frd, f: f64, reach: f64, smooth: f64) -> Option<f64> {
 /// suite's development seeds, a level whose distortion buried its resonance gave a pole of
 /// ζ = 0.001 on one line, its frequency 3 % from the truth at 18 standard errors); `None`
 /// when no start gives a resolved fit.
-fn best_local(frd: &Frd, band: (f64, f64), centre: f64, from: (f64, f64)) -> Option<LocalMode> {
-    let spacing = median_spacing(frd, band)?;
+fn best_local(
+    lv: &TrackLevel<'_>,
+    band: (f64, f64),
+    centre: f64,
+    from: (f64, f64),
+) -> Option<LocalMode> {
+    let spacing = median_spacing(lv.frd, band)?;
+    let noise = LineNoise {
+        correlation: lv.correlation.to_vec(),
+        spacing_hz: spacing,
+    };
     [(centre, from.1), (centre, (3.0 * from.1).min(0.9)), from]
         .into_iter()
-        .filter_map(|start| local_mode(frd, band, start).ok())
+        .filter_map(|start| local_mode_with(lv.frd, band, start, &noise).ok())
         .filter(|m| 2.0 * m.damping * m.freq_hz >= spacing)
         .min_by(|a, b| a.cost_per_dof.total_cmp(&b.cost_per_dof))
 }
@@ -346,7 +357,7 @@ fn follow(
             if band_snr(lv.frd, band).is_none_or(|s| s < MIN_BAND_SNR) {
                 continue;
             }
-            let Some(fit) = best_local(lv.frd, band, centre, from) else {
+            let Some(fit) = best_local(lv, band, centre, from) else {
                 continue;
             };
             // a fit that does not determine its damping found no resonance in the band
@@ -355,14 +366,13 @@ fn follow(
                 continue;
             }
             from = (fit.freq_hz, fit.damping);
-            let widen = lv.inflation.max(1.0).sqrt();
             fitted[i] = Some(TrackPoint {
                 experiment: lv.name.to_string(),
                 relative_level: lv.level,
                 freq_hz: fit.freq_hz,
-                freq_std: fit.freq_std * widen,
+                freq_std: fit.freq_std,
                 damping: fit.damping,
-                damping_std: fit.damping_std * widen,
+                damping_std: fit.damping_std,
             });
         }
     }

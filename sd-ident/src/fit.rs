@@ -435,6 +435,33 @@ pub(crate) fn check_options(opt: &FitOptions) -> Result<()> {
     Ok(())
 }
 
+/// `Err` unless `lines` FRF lines determine the real parameters of a fit with `opt`: at most
+/// one parameter per line (half the `2·lines` real equations; [`fit`] itself only needs
+/// fewer parameters than equations, and [`select_order`] scans orders up to that). Beyond it Akaike's final prediction error
+/// factor `(1 + p/N)/(1 − p/N)` (`N = 2·lines`) exceeds 3 — the model's expected error on new
+/// data three times its fit error or more — and the fit's cost grows with the order for
+/// minutes (an order of 600 typed for 60). The message names the highest order allowed.
+///
+/// # Errors
+/// `InvalidArgument` naming the highest order the lines determine.
+pub fn check_order_determined(lines: usize, opt: &FitOptions) -> Result<()> {
+    let nparams = 2 * opt.order.saturating_sub(opt.rigid_body)
+        + opt.rigid_body
+        + usize::from(opt.feedthrough);
+    if nparams <= lines {
+        return Ok(());
+    }
+    // nparams = 2(order − rigid) + rigid + feedthrough ≤ lines
+    let spare = lines.saturating_sub(usize::from(opt.feedthrough) + opt.rigid_body);
+    let highest = opt.rigid_body + spare / 2;
+    Err(IdentError::InvalidArgument(format!(
+        "order {} has {nparams} real parameters; {lines} lines determine at most {lines} (one \
+         per line: beyond it the expected error on new data is over three times the fit \
+         error): give an order of at most {highest}, or measure more lines",
+        opt.order
+    )))
+}
+
 /// Fits a discrete-time model to a SISO FRD (module documentation).
 ///
 /// # Errors

@@ -47,8 +47,8 @@ pub use experiment::{
     ExtraColumns, ExtraSignals, Role,
 };
 pub use fit::{
-    final_prediction_error, fit, fit_with_progress, model_cost, select_order, FitOptions,
-    FitProgress, FitResult, FitWarning, ModalTerm, Weighting,
+    check_order_determined, final_prediction_error, fit, fit_with_progress, model_cost,
+    select_order, FitOptions, FitProgress, FitResult, FitWarning, ModalTerm, Weighting,
 };
 pub use fit_mimo::{
     fit_common_poles, fit_common_poles_with_progress, MimoFitOptions, MimoFitResult, MimoMode,
@@ -59,9 +59,10 @@ pub use frf::{
 };
 pub use frf_mimo::{frf_periodic_mimo, Channels, MimoFrfEstimate};
 pub use input_delay::{shift_inputs, DelayScan, InputDelay};
-pub use local_mode::{local_mode, LocalMode};
+pub use local_mode::{local_mode, local_mode_with, LineNoise, LocalMode};
 pub use lpm::{
-    lpm, lpm_closed_loop, lpm_closed_loop_mimo, lpm_closed_loop_snr, LpmEstimate, LpmOptions,
+    lpm, lpm_closed_loop, lpm_closed_loop_mimo, lpm_closed_loop_snr, lpm_excitation_correlation,
+    lpm_polynomial_correlation, LpmEstimate, LpmOptions,
 };
 pub use multisine::{
     crest_factor, design, orthogonal, write_csv, Lines, Multisine, MultisineSpec, Phases,

@@ -74,7 +74,7 @@ fn one_seed(seed: u64) -> (usize, usize, usize) {
             name,
             level,
             frd,
-            inflation: 1.0,
+            correlation: &[],
         })
         .collect();
     let tracks = track_modes(&frds[0], &levels, 0.01).unwrap();

@@ -50,6 +50,16 @@ impl Args {
         } = self;
         let sys = read_model(&model)?;
         finite_pos(ts, "--ts")?;
+        if ts > 1.0 {
+            // a period above a second is legal (slow processes) but mostly a rate typed as a
+            // period: say so, and go on
+            eprintln!(
+                "sdctl: warning: --ts {ts} is a sample period of {ts} s ({:.3e} Hz); for a rate \
+                 of {ts} Hz give --ts {:.6e}",
+                1.0 / ts,
+                1.0 / ts
+            );
+        }
         if prewarp_hz.is_some() && !matches!(method, Method::Tustin) {
             return Err(CliError::input(
                 "--prewarp-hz only applies to --method tustin",

@@ -136,6 +136,8 @@ impl Args {
                  its poles (drop the option or fit the MIMO FRD)"
             )));
         }
+        // an order beyond what the lines determine (600 typed for 60) is refused at once
+        sd_ident::check_order_determined(data.len(), &opt).map_err(|e| from_ident(&frd, e))?;
         let r = sd_ident::fit_with_progress(&data, &opt, &mut |p| {
             eprintln!(
                 "[fit] {} iteration {:>3}: cost {:.6e}",

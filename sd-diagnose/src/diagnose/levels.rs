@@ -418,7 +418,7 @@ fn tracked(
             name: &lv.name,
             level: at[k].map_or(1.0, |i| data.vals[i].level),
             frd: &lv.est.frd,
-            inflation: lv.est.inflation,
+            correlation: &lv.est.correlation,
         })
         .collect();
     crate::tracks::track_modes(&first.frd, &tl, alpha).unwrap_or_default()

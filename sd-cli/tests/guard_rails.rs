@@ -1,0 +1,103 @@
+//! sdctl guard rails: a reader that goes away, a period that looks like a rate.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use std::io::Read;
+use std::process::{Command, Stdio};
+
+const DT: &str = r#"{"type":"ss","ts":0.001,"a":[[0.5]],"b":[[1]],"c":[[1]],"d":[[0]]}"#;
+
+fn model_file(name: &str) -> String {
+    let d = std::env::temp_dir().join(format!("sdctl-guard-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    let p = d.join("m.json");
+    std::fs::write(&p, DT).unwrap();
+    p.to_string_lossy().into_owned()
+}
+
+/// `sdctl freqresp … | head -c 100`: an output far larger than a pipe's buffer, the reader
+/// gone after 100 bytes; sdctl ends with status 0 and no error on stderr (only freqresp's
+/// usual line naming its evaluation path).
+#[test]
+fn a_reader_that_goes_away_is_no_error() {
+    let m = model_file("pipe");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_sdctl"))
+        .args(["freqresp", &m, "--grid", "1:499:200000"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut out = child.stdout.take().unwrap();
+    let mut first = [0u8; 100];
+    out.read_exact(&mut first).unwrap();
+    drop(out);
+    let o = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.lines().all(|l| l.starts_with("[freqresp]")),
+        "stderr: {err}"
+    );
+    assert_eq!(o.status.code(), Some(0));
+}
+
+/// `--ts 1000` (1 kHz meant) is a legal period of 1000 s, done, with a warning that names the
+/// period it probably meant; `--ts 0.001` has none.
+#[test]
+fn a_period_above_a_second_is_questioned() {
+    let d = std::env::temp_dir().join(format!("sdctl-guard-{}-ts", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    let ct = d.join("ct.json");
+    std::fs::write(
+        &ct,
+        r#"{"type":"ss","ts":null,"a":[[-1]],"b":[[1]],"c":[[1]],"d":[[0]]}"#,
+    )
+    .unwrap();
+    let ct = ct.to_string_lossy().into_owned();
+    let run = |ts: &str| {
+        Command::new(env!("CARGO_BIN_EXE_sdctl"))
+            .args(["c2d", &ct, "--ts", ts])
+            .output()
+            .unwrap()
+    };
+    let o = run("1000");
+    assert!(o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("warning") && err.contains("1.000000e-3"),
+        "{err}"
+    );
+    let o = run("0.001");
+    assert!(o.status.success());
+    assert!(
+        o.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
+/// `fit --order 600` on 200 lines: refused at once (exit 2, one line) naming the highest order
+/// the lines determine; order 60 fits.
+#[test]
+fn an_order_the_lines_cannot_determine_is_refused() {
+    let d = std::env::temp_dir().join(format!("sdctl-guard-{}-order", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    let m = model_file("order");
+    let frd = d.join("frd.json").to_string_lossy().into_owned();
+    let o = Command::new(env!("CARGO_BIN_EXE_sdctl"))
+        .args(["freqresp", &m, "--grid", "1:450:200", "-o", &frd])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let fit = |order: &str| {
+        Command::new(env!("CARGO_BIN_EXE_sdctl"))
+            .args(["fit", &frd, "--order", order])
+            .output()
+            .unwrap()
+    };
+    let o = fit("600");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(err.contains("at most 99"), "{err}");
+    let o = fit("2");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
