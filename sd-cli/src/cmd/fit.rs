@@ -145,10 +145,19 @@ impl Args {
             );
         })
         .map_err(|e| from_ident(&frd, e))?;
+        // with variance weights a line's expected term is 1 when the model is right
+        let noise_scaled = matches!(weighting, WeightingArg::Variance) && data.variance().is_some();
         eprintln!(
-            "[fit] order {}: cost {:.6e}, median relative error {:.3} %; largest line terms: {}",
+            "[fit] order {}: cost {:.6e} ({:.3} per line{}), median relative error {:.3} %; \
+             largest line terms: {}",
             r.model.n(),
             r.cost,
+            r.cost / data.len().max(1) as f64,
+            if noise_scaled {
+                ", 1 = the noise level"
+            } else {
+                ""
+            },
             100.0 * r.median_rel_error,
             largest_terms(data.freq_hz(), &r.line_cost, r.cost)
         );
