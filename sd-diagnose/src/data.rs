@@ -28,6 +28,9 @@ pub(crate) struct Estimate {
     /// Correlation `ρ(d)` of the errors of lines `d` apart (empty: independent; an LPM
     /// estimate of a whole record: [`sd_ident::lpm_excitation_correlation`]).
     pub(crate) correlation: Vec<f64>,
+    /// The DFT lines of a whole open-loop non-periodic record with their noise variance (the
+    /// tracks' local fits use them in place of the LPM estimate).
+    pub(crate) spectra: Option<std::sync::Arc<sd_ident::LineSpectra>>,
     pub(crate) distortion: Option<DistortionReport>,
     /// Per excited line of a periodic odd multisine: its frequency (Hz), the local stochastic
     /// distortion variance, and the part of it not in the FRF's variance (below the
@@ -131,6 +134,7 @@ pub(crate) fn estimate(e: &Experiment, part: Part) -> Result<Estimate> {
         dof,
         inflation: 1.0,
         correlation: Vec::new(),
+        spectra: None,
         distortion: est.distortion,
         local_distortion,
         bla,
@@ -291,16 +295,26 @@ fn estimate_lpm(e: &Experiment, part: Part) -> Result<Estimate> {
     let opt = LpmOptions::default();
     let fs = e.spec.sample_rate_hz;
     let excitation = e.r.as_deref().unwrap_or(&e.u);
-    let frd = match &e.r {
+    let (frd, spectra) = match &e.r {
         Some(r) => {
             let (frd, snr) =
                 sd_ident::lpm_closed_loop_snr(fs, &r[lo..hi], &e.u[lo..hi], &e.y[lo..hi], &opt)?;
-            sd_ident::trusted(&frd, &snr)?
+            (sd_ident::trusted(&frd, &snr)?, None)
         }
         None => {
             let x = nalgebra::DMatrix::from_column_slice(hi - lo, 1, &e.u[lo..hi]);
             let z = nalgebra::DMatrix::from_column_slice(hi - lo, 1, &e.y[lo..hi]);
-            sd_ident::lpm(fs, &x, &z, &opt)?.frd
+            let est = sd_ident::lpm(fs, &x, &z, &opt)?;
+            let spectra = match part {
+                Part::Whole => Some(std::sync::Arc::new(sd_ident::LineSpectra::new(
+                    fs,
+                    &e.u[lo..hi],
+                    &e.y[lo..hi],
+                    &est,
+                )?)),
+                _ => None,
+            };
+            (est.frd, spectra)
         }
     };
     // one excitation (the reference, or the input): q = 2(R + 1) local parameters
@@ -316,6 +330,7 @@ fn estimate_lpm(e: &Experiment, part: Part) -> Result<Estimate> {
                 .unwrap_or_else(|_| sd_ident::lpm_polynomial_correlation(half, opt.degree)),
             _ => Vec::new(),
         },
+        spectra,
         distortion: None,
         local_distortion: Vec::new(),
         bla: match part {
@@ -347,4 +362,60 @@ pub(crate) fn rate_factor(model: &Experiment, e: &Experiment) -> Result<usize> {
         )));
     }
     Ok(factor as usize)
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    /// A non-periodic record of `x_{k+1} = 0.9 x_k + u_k` under white noise, with the input as
+    /// reference (`closed`) or without one.
+    fn record(closed: bool) -> Experiment {
+        let mut rng = sd_ident::rng::SplitMix::new(3);
+        let (mut u, mut y, mut x) = (Vec::new(), Vec::new(), 0.0);
+        for _ in 0..4096 {
+            let uk = rng.normal();
+            y.push(x + 0.01 * rng.normal());
+            u.push(uk);
+            x = 0.9 * x + uk;
+        }
+        Experiment {
+            spec: sd_ident::ExperimentSpec {
+                name: "r".into(),
+                file: "r.csv".into(),
+                sample_rate_hz: 100.0,
+                period_samples: None,
+                skip_periods: 0,
+                reference: closed.then(|| "r".into()),
+                input: "u".into(),
+                output: "y".into(),
+                role: sd_ident::Role::Validation,
+                extra: Default::default(),
+            },
+            r: closed.then(|| u.clone()),
+            u,
+            y,
+            extra: Default::default(),
+        }
+    }
+
+    /// The whole open-loop record keeps its DFT lines for the tracks' local fits (one per LPM
+    /// line, the same frequencies) and the LPM lines' correlation; a part of it, and a
+    /// closed-loop record (whose input carries the loop's noise), keep no lines.
+    #[test]
+    fn an_open_loop_record_keeps_its_lines() {
+        let open = estimate(&record(false), Part::Whole).unwrap();
+        let spec = open.spectra.as_ref().unwrap();
+        assert_eq!(spec.freq_hz.as_slice(), open.frd.freq_hz());
+        assert!(spec.noise_var.iter().all(|v| *v > 0.0));
+        assert_eq!(open.correlation.len(), 9);
+        assert!(estimate(&record(false), Part::Training)
+            .unwrap()
+            .spectra
+            .is_none());
+        let closed = estimate(&record(true), Part::Whole).unwrap();
+        assert!(closed.spectra.is_none());
+        assert_eq!(closed.correlation.len(), 9);
+    }
 }

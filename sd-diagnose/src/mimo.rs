@@ -206,6 +206,7 @@ fn entry(frd: &Frd, i: usize, j: usize, dof: f64) -> Result<Estimate> {
         dof,
         inflation: 1.0,
         correlation: Vec::new(),
+        spectra: None,
         distortion: None,
         local_distortion: Vec::new(),
         bla: None,

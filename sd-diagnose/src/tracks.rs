@@ -54,7 +54,8 @@
 use crate::{DampingTrend, FreqTrend, Result};
 use rayon::prelude::*;
 use sd_ident::{
-    local_mode_with, physical_fit, LineNoise, LocalMode, ModeKind, StabilizationOptions,
+    local_mode_dft, local_mode_with, physical_fit, LineNoise, LocalMode, ModeKind,
+    StabilizationOptions,
 };
 use sd_model::{chi2_quantile, normal_quantile, Frd};
 use serde::Serialize;
@@ -123,6 +124,10 @@ pub struct TrackLevel<'a> {
     /// a periodic record's; an LPM estimate's from [`sd_ident::lpm_excitation_correlation`]):
     /// the local fit's standard errors carry it ([`sd_ident::LineNoise`]).
     pub correlation: &'a [f64],
+    /// The DFT lines of its record with their noise variance (an open-loop non-periodic
+    /// record): the local fits use them ([`sd_ident::local_mode_dft`]) — no LPM estimate,
+    /// with its correlated lines and its local quadratic, in between.
+    pub spectra: Option<&'a sd_ident::LineSpectra>,
 }
 
 /// Weighted mean, χ² of constancy, and the weighted slope against `x` with its z-score.
@@ -285,7 +290,10 @@ fn best_local(
     };
     [(centre, from.1), (centre, (3.0 * from.1).min(0.9)), from]
         .into_iter()
-        .filter_map(|start| local_mode_with(lv.frd, band, start, &noise).ok())
+        .filter_map(|start| match lv.spectra {
+            Some(spec) => local_mode_dft(spec, band, start).ok(),
+            None => local_mode_with(lv.frd, band, start, &noise).ok(),
+        })
         .filter(|m| 2.0 * m.damping * m.freq_hz >= spacing)
         .min_by(|a, b| a.cost_per_dof.total_cmp(&b.cost_per_dof))
 }

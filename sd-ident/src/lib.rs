@@ -28,6 +28,7 @@ pub mod fit_mimo;
 pub mod frf;
 pub mod frf_mimo;
 pub mod input_delay;
+pub mod local_dft;
 pub mod local_mode;
 pub mod lpm;
 pub mod multisine;
@@ -59,6 +60,7 @@ pub use frf::{
 };
 pub use frf_mimo::{frf_periodic_mimo, Channels, MimoFrfEstimate};
 pub use input_delay::{shift_inputs, DelayScan, InputDelay};
+pub use local_dft::{local_mode_dft, LineSpectra};
 pub use local_mode::{local_mode, local_mode_with, LineNoise, LocalMode};
 pub use lpm::{
     lpm, lpm_closed_loop, lpm_closed_loop_mimo, lpm_closed_loop_snr, lpm_excitation_correlation,

@@ -105,8 +105,25 @@ struct Band {
     centre: f64,
 }
 
-impl Band {
+/// A band's local modal problem: weighted real rows linear in all parameters but
+/// `(ω_n, ζ)` (module documentation).
+pub(crate) trait LocalProblem: Sync {
     /// The weighted real design matrix and right-hand side at `(ω_n, ζ)`.
+    fn system(&self, wn: f64, zeta: f64) -> (DMatrix<f64>, DVector<f64>);
+    /// The lines' frequencies (Hz), two rows (real, imaginary) each.
+    fn line_hz(&self) -> Vec<f64>;
+    /// Real linear parameters.
+    fn linear_params(&self) -> usize;
+    /// The projected residual at `(ω_n, ζ)`.
+    fn residual(&self, wn: f64, zeta: f64) -> Result<DVector<f64>> {
+        let (a, b) = self.system(wn, zeta);
+        let sol = sd_model::linalg::lstsq(&a, &b)
+            .map_err(|e| IdentError::Data(format!("local modal fit: {e}")))?;
+        Ok(&b - &a * &sol.x)
+    }
+}
+
+impl LocalProblem for Band {
     fn system(&self, wn: f64, zeta: f64) -> (DMatrix<f64>, DVector<f64>) {
         let l = self.w.len();
         let p = C::new(-zeta * wn, wn * (1.0 - zeta * zeta).max(0.0).sqrt());
@@ -141,12 +158,12 @@ impl Band {
         (a, b)
     }
 
-    /// The projected residual at `(ω_n, ζ)`.
-    fn residual(&self, wn: f64, zeta: f64) -> Result<DVector<f64>> {
-        let (a, b) = self.system(wn, zeta);
-        let sol = sd_model::linalg::lstsq(&a, &b)
-            .map_err(|e| IdentError::Data(format!("local modal fit: {e}")))?;
-        Ok(&b - &a * &sol.x)
+    fn line_hz(&self) -> Vec<f64> {
+        self.w.iter().map(|w| w / TAU).collect()
+    }
+
+    fn linear_params(&self) -> usize {
+        8
     }
 }
 
@@ -221,7 +238,19 @@ pub fn local_mode_with(
         )));
     }
     let data = band_of(frd, band)?;
-    let dof = (2 * data.w.len()).saturating_sub(10).max(1) as f64;
+    solve(&data, band, start, noise)
+}
+
+/// Levenberg–Marquardt on `(ln ω_n, ln ζ)` of a band's projected residual from `start`, and
+/// the sandwich covariance (module documentation).
+pub(crate) fn solve(
+    data: &dyn LocalProblem,
+    band: (f64, f64),
+    start: (f64, f64),
+    noise: &LineNoise,
+) -> Result<LocalMode> {
+    let lines = data.line_hz().len();
+    let dof = (2 * lines).saturating_sub(data.linear_params() + 2).max(1) as f64;
     // θ = (ln ω_n, ln ζ)
     let at = |th: &[f64; 2]| data.residual(th[0].exp(), th[1].exp());
     let mut th = [(TAU * start.0).ln(), start.1.ln()];
@@ -270,13 +299,13 @@ pub fn local_mode_with(
             band.0, band.1
         )));
     }
-    let cov = covariance(&data, (wn, zeta), &r, noise)? * (cost / dof).max(1.0);
+    let cov = covariance(data, (wn, zeta), &r, noise)? * (cost / dof).max(1.0);
     Ok(LocalMode {
         freq_hz: f,
         freq_std: cov[(0, 0)].max(0.0).sqrt() / TAU,
         damping: zeta,
         damping_std: cov[(1, 1)].max(0.0).sqrt(),
-        lines: data.w.len(),
+        lines,
         cost_per_dof: cost / dof,
     })
 }
@@ -284,7 +313,7 @@ pub fn local_mode_with(
 /// `(JᵀJ)⁻¹ (Jᵀ R J) (JᵀJ)⁻¹` at `θ = (ω_n, ζ)` with the projected Jacobian `J` (module
 /// documentation, "Standard errors"; `r` the residual there).
 fn covariance(
-    data: &Band,
+    data: &dyn LocalProblem,
     (wn, zeta): (f64, f64),
     r: &DVector<f64>,
     noise: &LineNoise,
@@ -305,12 +334,13 @@ fn covariance(
     })?;
     // Jᵀ R J: R couples lines within the correlation's reach, real with real, imaginary
     // with imaginary
-    let l = data.w.len();
+    let hz = data.line_hz();
+    let l = hz.len();
     let reach = noise.correlation.len().max(1);
     let mut meat = DMatrix::<f64>::zeros(2, 2);
     for k in 0..l {
         for m in k.saturating_sub(reach)..(k + reach + 1).min(l) {
-            let rho = noise.rho(data.w[k] / TAU, data.w[m] / TAU);
+            let rho = noise.rho(hz[k], hz[m]);
             if rho == 0.0 {
                 continue;
             }

@@ -57,9 +57,11 @@ pub struct LpmEstimate {
     /// `q/(q − 1)` (Pintelon & Schoukens, *System Identification*, 2nd ed., §7.2.2 for the
     /// LPM's noise estimate) — the level "within the LPM noise" means.
     pub dof: usize,
+    /// Half-width `n` of the local windows (`2n + 1` lines).
+    pub half_width: usize,
 }
 
-fn dft_columns(x: &DMatrix<f64>) -> Vec<Vec<C>> {
+pub(crate) fn dft_columns(x: &DMatrix<f64>) -> Vec<Vec<C>> {
     let n = x.nrows();
     let fft = FftPlanner::<f64>::new().plan_fft_forward(n);
     (0..x.ncols())
@@ -139,6 +141,7 @@ pub fn lpm(fs: f64, x: &DMatrix<f64>, z: &DMatrix<f64>, opt: &LpmOptions) -> Res
         noise_cov: noise,
         covariance: covs,
         dof: w - q,
+        half_width: hw,
     })
 }
 
@@ -411,6 +414,7 @@ pub fn lpm_closed_loop_mimo(
         noise_cov: est.noise_cov,
         covariance: cov,
         dof: est.dof,
+        half_width: est.half_width,
     })
 }
 

@@ -135,10 +135,14 @@ pub fn from_data(model: &StateSpace, frd: &Frd, form: Form, confidence: f64) -> 
     let ts = match (model.ts(), frd.time().ts()) {
         (Some(a), Some(b)) if (a - b).abs() <= 1e-9 * a => a,
         (a, b) => {
+            let said =
+                |t: Option<f64>| t.map_or("continuous time".to_string(), |t| format!("{t} s"));
             return Err(UncertaintyError::Input(format!(
-                "the model's sample time {a:?} s and the FRD's {b:?} s differ: bound a model at \
-                 the rate its data were measured at"
-            )))
+                "the model's sample time ({}) and the FRD's ({}) differ: bound a model at the \
+                 rate its data were measured at",
+                said(a),
+                said(b)
+            )));
         }
     };
     let var = frd.variance().ok_or_else(|| {

@@ -75,6 +75,7 @@ fn one_seed(seed: u64) -> (usize, usize, usize) {
             level,
             frd,
             correlation: &[],
+            spectra: None,
         })
         .collect();
     let tracks = track_modes(&frds[0], &levels, 0.01).unwrap();

@@ -46,6 +46,15 @@ fn bound_covers_the_truth_and_the_slow_measurement() {
         e.contains("1000.000000 Hz") && e.contains("5000.000000 Hz"),
         "{e}"
     );
+    // the 5 kHz model against the 1 kHz FRD: refused, the sample times given as numbers
+    // (never `Some(0.0002)`)
+    let e = from_data(&model, &slow_frd, Form::Additive, 0.95)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("(0.0002 s)") && e.contains("(0.001 s)") && !e.contains("Some("),
+        "{e}"
+    );
     let p_slow = sd_multirate::downsample(&p_fast, 5).unwrap();
     let cov_truth_slow = truth_coverage(&p_slow, &slow.bound);
     // conservatism: the bound over the truth's error (median), over all lines and over those

@@ -419,6 +419,7 @@ fn tracked(
             level: at[k].map_or(1.0, |i| data.vals[i].level),
             frd: &lv.est.frd,
             correlation: &lv.est.correlation,
+            spectra: lv.est.spectra.as_deref(),
         })
         .collect();
     crate::tracks::track_modes(&first.frd, &tl, alpha).unwrap_or_default()
