@@ -104,3 +104,25 @@ fn an_order_the_lines_cannot_determine_is_refused() {
     // the summary gives the cost per line (no variance here: relative weights, no noise level)
     assert!(err.contains(" per line)"), "{err}");
 }
+
+/// `testbed --print-default-config` prints the configuration the bare command runs, which
+/// parses back as a testbed configuration; it needs no `--out` and refuses `--config`.
+#[test]
+fn the_default_testbed_configuration_is_printed() {
+    let o = Command::new(env!("CARGO_BIN_EXE_sdctl"))
+        .args(["testbed", "--print-default-config"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    let cfg = sd_testbed::parse_config(&text).unwrap();
+    assert_eq!(cfg.identification.len(), 2);
+    let default = sd_testbed::parse_config(sd_testbed::DEFAULT_CONFIG).unwrap();
+    assert_eq!(format!("{cfg:?}"), format!("{default:?}"));
+    assert!(text.contains("rate_hz = 5000.0"), "{text}");
+    let o = Command::new(env!("CARGO_BIN_EXE_sdctl"))
+        .args(["testbed", "--print-default-config", "--config", "x.toml"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+}

@@ -11,14 +11,26 @@ pub(crate) struct Args {
     #[arg(long)]
     pub(crate) config: Option<String>,
     /// Output folder (created): experiments.toml, one CSV per experiment, truth.json.
-    #[arg(long)]
-    pub(crate) out: String,
+    #[arg(long, required_unless_present = "print_default_config")]
+    pub(crate) out: Option<String>,
+    /// Print the configuration used without --config (the virtual stage's defaults written
+    /// out, a starting point for your own) on stdout, and run nothing.
+    #[arg(long, conflicts_with_all = ["config", "out"])]
+    pub(crate) print_default_config: bool,
 }
 
 impl Args {
     /// Runs the command.
     pub(crate) fn run(self) -> Result<(), CliError> {
-        let Args { config, out } = self;
+        let Args {
+            config,
+            out,
+            print_default_config,
+        } = self;
+        if print_default_config {
+            return emit(sd_testbed::DEFAULT_CONFIG.trim(), None);
+        }
+        let out = out.unwrap_or_default();
         crate::io::check_out_dir(&out)?;
         let text = match &config {
             Some(path) => crate::io::read_text(path)?,
