@@ -1,5 +1,5 @@
 //! One mode's natural frequency and damping from the DFT lines of a non-periodic record in its
-//! band — the local modal fit of [`crate::local_mode`] without an FRF estimate in between.
+//! band — the local modal fit of [`crate::local_mode()`] without an FRF estimate in between.
 //!
 //! # Math
 //!
@@ -7,7 +7,7 @@
 //! `k`, `Y(k) = G(z_k)·X(k) + T(z_k) + V(k)` exactly: the transient (leakage) term `T` is a
 //! rational function with the system's poles (Pintelon & Schoukens, *System Identification*,
 //! 2nd ed., §6.3.2). In a band around one mode both `G` and `T` take the local form of
-//! [`crate::local_mode`], one pole pair plus an affine background:
+//! [`crate::local_mode()`], one pole pair plus an affine background:
 //!
 //! ```text
 //! Y(k) = [c₁/(z−λ) + c₂/(z−λ̄) + b₀ + b₁·δ_k]·X(k) + d₁/(z−λ) + d₂/(z−λ̄) + e₀ + e₁·δ_k + V(k)
@@ -17,12 +17,11 @@
 //! (variable projection, Levenberg–Marquardt on `(ln ω_n, ln ζ)`), each line's rows weighted
 //! by `√(2/σ²_V(k))`. The noise DFT lines `V(k)` of a stationary noise with a smooth spectrum
 //! are independent to `O(1/N)` (Brillinger, *Time Series*, Thm 4.4.1), so — unlike an LPM
-//! estimate's, whose neighbouring lines share their windows and whose local quadratic bends
-//! a resonance narrower than its window — the lines need no correlation and carry no
-//! smoothing bias. `σ²_V(k)` is the LPM's noise variance at the line, averaged over the
+//! estimate's, whose neighbouring lines share their windows — the lines need no correlation
+//! model, and no local quadratic stands between the data and the mode. `σ²_V(k)` is the LPM's noise variance at the line, averaged over the
 //! `2·(2n + 1) + 1` lines around it (`n` the LPM half-width: about three disjoint windows,
 //! so the weights scatter little); the standard errors are those of
-//! [`crate::local_mode`]'s "Standard errors" with `R = I`.
+//! the [`crate::local_mode` module](mod@crate::local_mode)'s "Standard errors" with `R = I`.
 //!
 //! # Accuracy
 //!
