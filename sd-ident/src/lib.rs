@@ -35,6 +35,8 @@ pub mod multisine;
 pub mod quality;
 pub mod rng;
 pub mod stabilization;
+#[cfg(test)]
+mod testsim;
 pub mod tol;
 
 pub use bla::{detection_gate, same_level, BandLevel, Bla, Distortion, Unmeasurable};

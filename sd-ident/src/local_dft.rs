@@ -213,19 +213,7 @@ mod tests {
     /// the LPM's line correlation).
     fn z_scores(seed: u64, fm: f64, zeta: f64) -> (f64, f64) {
         let (fs, n) = (1000.0, 1 << 14);
-        let wn = TAU * fm;
-        let p = C::new(-zeta * wn, wn * (1.0 - zeta * zeta).sqrt());
-        let lam = (p / fs).exp();
-        let c = C::new(0.0, -wn / 2.0) * (lam - 1.0) / p;
-        let mut rng = crate::rng::SplitMix::new(seed);
-        let mut x = C::new(0.0, 0.0);
-        let (mut u, mut y) = (Vec::with_capacity(n), Vec::with_capacity(n));
-        for _ in 0..n {
-            let uk = rng.normal();
-            y.push(2.0 * (c * x).re + 0.05 * rng.normal());
-            u.push(uk);
-            x = lam * x + uk;
-        }
+        let (u, y) = crate::testsim::mode_record(seed, fm, zeta, n);
         let opt = crate::LpmOptions::default();
         let est = crate::lpm(
             fs,

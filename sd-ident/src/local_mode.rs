@@ -430,19 +430,7 @@ mod tests {
     fn lpm_z(seed: u64) -> (f64, f64) {
         let (fs, n) = (1000.0, 1 << 14);
         let (fm, zeta) = (50.0, 0.02);
-        let wn = TAU * fm;
-        let p = C::new(-zeta * wn, wn * (1.0 - zeta * zeta).sqrt());
-        let lam = (p / fs).exp();
-        let c = C::new(0.0, -wn / 2.0) * (lam - 1.0) / p;
-        let mut rng = crate::rng::SplitMix::new(seed);
-        let mut x = C::new(0.0, 0.0);
-        let (mut u, mut y) = (Vec::with_capacity(n), Vec::with_capacity(n));
-        for _ in 0..n {
-            let uk = rng.normal();
-            y.push(2.0 * (c * x).re + 0.05 * rng.normal());
-            u.push(uk);
-            x = lam * x + uk;
-        }
+        let (u, y) = crate::testsim::mode_record(seed, fm, zeta, n);
         let xm = DMatrix::from_column_slice(n, 1, &u);
         let zm = DMatrix::from_column_slice(n, 1, &y);
         let opt = crate::LpmOptions::default();

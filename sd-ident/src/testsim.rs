@@ -1,0 +1,25 @@
+//! Test records shared by the unit tests of the local modal fits.
+
+use num_complex::Complex64 as C;
+use std::f64::consts::TAU;
+
+/// `n` samples at 1 kHz of one ZOH-sampled mode (`fm` Hz, damping `zeta`, residue giving unit
+/// static gain scale `ω_n/2`) simulated in the time domain from rest under white noise `u`,
+/// with white output noise of rms 0.05: `(u, y)`, seeded.
+pub(crate) fn mode_record(seed: u64, fm: f64, zeta: f64, n: usize) -> (Vec<f64>, Vec<f64>) {
+    let fs = 1000.0;
+    let wn = TAU * fm;
+    let p = C::new(-zeta * wn, wn * (1.0 - zeta * zeta).sqrt());
+    let lam = (p / fs).exp();
+    let c = C::new(0.0, -wn / 2.0) * (lam - 1.0) / p;
+    let mut rng = crate::rng::SplitMix::new(seed);
+    let mut x = C::new(0.0, 0.0);
+    let (mut u, mut y) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    for _ in 0..n {
+        let uk = rng.normal();
+        y.push(2.0 * (c * x).re + 0.05 * rng.normal());
+        u.push(uk);
+        x = lam * x + uk;
+    }
+    (u, y)
+}
