@@ -15,9 +15,10 @@
 //!    between neighbouring levels), narrowed to 45 % of the distance to the neighbouring
 //!    pairs; `ζ, f` are the neighbouring level's fit (ζ at least the model experiment's), so a
 //!    mode whose damping rises with the level keeps four of its bandwidths in the band.
-//! 3. **Local fit per level** ([`sd_ident::local_mode()`]: one pole pair plus an affine
-//!    background, weighted by the level's total variance; its standard errors widened by
-//!    `√c` for an LPM estimate's line correlation `c`), from the model experiment
+//! 3. **Local fit per level** (one pole pair plus an affine background: on the FRF weighted
+//!    by the level's total variance, [`sd_ident::local_mode_with()`], its standard errors
+//!    carrying an LPM estimate's line correlation; on an open-loop non-periodic record's own
+//!    DFT lines, [`sd_ident::local_mode_dft()`]), from the model experiment
 //!    outwards in level: each level's band centred on its peak of `|G|²` averaged over the
 //!    half-power half-width `ζf` (a broad resonance's centre, not the largest of the lines the
 //!    distortion scatters over it), sought within reach of the frequency fitted at the level
