@@ -46,6 +46,21 @@ pub fn frf_of_experiment(exp: &Experiment, req: &FrfRequest) -> Result<(Frd, Vec
     Ok((e.frd, e.warnings))
 }
 
+/// `e` (no trusted line of a periodic estimate) with the period the excitation repeats with,
+/// when it is not the manifest's `period_samples = p`: a wrong period spreads the excitation
+/// over every bin.
+fn with_likely_period(e: IdentError, exp: &Experiment, p: usize) -> IdentError {
+    let x = exp.r.as_deref().unwrap_or(&exp.u);
+    match (e, crate::likely_period(x)) {
+        (IdentError::Data(m), Some(q)) if q != p => IdentError::Data(format!(
+            "{m}; the excitation of `{}` repeats every {q} samples, not every {p}: set \
+             period_samples = {q}",
+            exp.spec.name
+        )),
+        (e, _) => e,
+    }
+}
+
 /// The FRF, warnings and BLA of a SISO experiment (module documentation).
 ///
 /// # Errors
@@ -86,7 +101,9 @@ pub fn estimate_experiment(exp: &Experiment, req: &FrfRequest) -> Result<Experim
                     Some(b) => Some(b.select(|i| ok[i])?),
                     None => None,
                 };
-                (trusted(&frd, &est.input_snr)?, warnings, bla)
+                let frd =
+                    trusted(&frd, &est.input_snr).map_err(|e| with_likely_period(e, exp, p))?;
+                (frd, warnings, bla)
             }
         }
         None => {

@@ -72,7 +72,7 @@ pub use multisine::{
     crest_factor, design, orthogonal, write_csv, Lines, Multisine, MultisineSpec, Phases,
 };
 pub use quality::{
-    feedback_only, input_unexplained_by_output, snr_warnings, trusted, DataWarning,
+    feedback_only, input_unexplained_by_output, likely_period, snr_warnings, trusted, DataWarning,
     FEEDBACK_ONLY_RESIDUAL, NO_EXCITATION_SNR,
 };
 pub use stabilization::{

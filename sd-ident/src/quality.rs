@@ -219,6 +219,37 @@ pub fn trusted(frd: &Frd, snr: &[f64]) -> Result<Frd> {
     Ok(frd.select(|i| snr.get(i).is_none_or(|s| *s >= MIN_INPUT_SNR))?)
 }
 
+/// Least normalised autocorrelation at which [`likely_period`] takes a lag for a period.
+pub const PERIOD_CORRELATION: f64 = 0.95;
+
+/// The period (samples) a periodic excitation `x` repeats with: the least lag `τ ≥ 2`, with at
+/// least two repeats in the record, at which the unbiased normalised autocorrelation of the
+/// mean-free signal `Σ_t x_t x_{t+τ} / Σ x² · N/(N − τ)` reaches [`PERIOD_CORRELATION`]
+/// (computed by FFT, `O(N log N)`); `None` for a record that does not repeat. A transient in
+/// the first period lowers the correlation only by its share of the record.
+pub fn likely_period(x: &[f64]) -> Option<usize> {
+    let n = x.len();
+    if n < 8 || x.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
+    let mean = x.iter().sum::<f64>() / n as f64;
+    let m = (2 * n).next_power_of_two();
+    let mut buf: Vec<num_complex::Complex64> = (0..m)
+        .map(|t| num_complex::Complex64::new(if t < n { x[t] - mean } else { 0.0 }, 0.0))
+        .collect();
+    let mut planner = rustfft::FftPlanner::<f64>::new();
+    planner.plan_fft_forward(m).process(&mut buf);
+    buf.iter_mut()
+        .for_each(|v| *v = num_complex::Complex64::new(v.norm_sqr(), 0.0));
+    planner.plan_fft_inverse(m).process(&mut buf);
+    let energy = buf[0].re;
+    if energy <= 0.0 {
+        return None;
+    }
+    (2..=n / 2)
+        .find(|&tau| buf[tau].re / energy * n as f64 / (n - tau) as f64 >= PERIOD_CORRELATION)
+}
+
 /// The data-quality warnings of an estimate from its per-line input SNR: no excitation (median
 /// SNR below [`NO_EXCITATION_SNR`], checked when `excitation_check`), and lines below
 /// [`MIN_INPUT_SNR`] (`excluded`: whether they are left out of what the caller writes).
@@ -321,5 +352,68 @@ mod tests {
             None
         );
         assert!(input_unexplained_by_output(&u, &y[..10]).is_err());
+    }
+}
+
+#[cfg(test)]
+mod period_tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    /// Eight periods of 1000 samples: lines 1..100 with seeded random phases.
+    fn periodic() -> Vec<f64> {
+        let mut rng = crate::rng::SplitMix::new(5);
+        let phases: Vec<f64> = (0..100)
+            .map(|_| rng.uniform() * std::f64::consts::TAU)
+            .collect();
+        (0..8000)
+            .map(|t| {
+                (1..=100)
+                    .map(|k| {
+                        (std::f64::consts::TAU * k as f64 * t as f64 / 1000.0 + phases[k - 1]).cos()
+                    })
+                    .sum()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_period_of_a_multisine_and_none_for_noise() {
+        assert_eq!(likely_period(&periodic()), Some(1000));
+        let mut rng = crate::rng::SplitMix::new(6);
+        let noise: Vec<f64> = (0..8000).map(|_| rng.normal()).collect();
+        assert_eq!(likely_period(&noise), None);
+        assert_eq!(likely_period(&[1.0; 4]), None);
+    }
+
+    /// `period_samples = 700` for a record that repeats every 1000: the refusal names 1000.
+    #[test]
+    fn a_wrong_period_is_named() {
+        let u = periodic();
+        let y: Vec<f64> = (0..u.len())
+            .map(|t| if t > 0 { 0.5 * u[t - 1] } else { 0.0 })
+            .collect();
+        let exp = crate::Experiment {
+            spec: crate::ExperimentSpec {
+                name: "ms".into(),
+                file: "ms.csv".into(),
+                sample_rate_hz: 1000.0,
+                period_samples: Some(700),
+                skip_periods: 1,
+                reference: None,
+                input: "u".into(),
+                output: "y".into(),
+                role: crate::Role::Model,
+                extra: Default::default(),
+            },
+            r: None,
+            u,
+            y,
+            extra: Default::default(),
+        };
+        let e = crate::estimate_experiment(&exp, &crate::FrfRequest::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("repeats every 1000 samples"), "{e}");
     }
 }
