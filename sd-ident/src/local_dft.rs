@@ -29,7 +29,9 @@
 //! 99 % interval on at least 57 of 60 records and the error's mean over them within three
 //! of its standard errors of zero.
 
-use crate::local_mode::{solve, LineNoise, LocalMode, LocalProblem, MIN_LINES};
+use crate::local_mode::{
+    local_basis, put_line, solve, LineNoise, LocalMode, LocalProblem, MIN_LINES,
+};
 use crate::lpm::{dft_columns, LpmEstimate};
 use crate::{IdentError, Result};
 use nalgebra::{DMatrix, DVector};
@@ -119,26 +121,9 @@ impl LocalProblem for DftBand {
         let mut b = DVector::zeros(2 * l);
         for k in 0..l {
             let z = C::new(0.0, self.w[k] * self.ts).exp();
-            let local = [
-                1.0 / (z - lam),
-                1.0 / (z - lam_c),
-                C::new(1.0, 0.0),
-                C::new((self.w[k] - self.centre) / self.centre, 0.0),
-            ];
-            let s = self.weight[k];
-            for (j, phi) in local
-                .iter()
-                .map(|v| v * self.x[k])
-                .chain(local.iter().copied())
-                .enumerate()
-            {
-                a[(2 * k, 2 * j)] = s * phi.re;
-                a[(2 * k, 2 * j + 1)] = -s * phi.im;
-                a[(2 * k + 1, 2 * j)] = s * phi.im;
-                a[(2 * k + 1, 2 * j + 1)] = s * phi.re;
-            }
-            b[2 * k] = s * self.y[k].re;
-            b[2 * k + 1] = s * self.y[k].im;
+            let local = local_basis(z, (lam, lam_c), (self.w[k] - self.centre) / self.centre);
+            let phis = local.iter().map(|v| v * self.x[k]).chain(local);
+            put_line((&mut a, &mut b), k, self.weight[k], phis, self.y[k]);
         }
         (a, b)
     }
@@ -164,12 +149,6 @@ pub fn local_mode_dft(
     band: (f64, f64),
     start: (f64, f64),
 ) -> Result<LocalMode> {
-    if !(start.0 > 0.0 && start.1 > 0.0 && start.1 < 1.0) {
-        return Err(IdentError::InvalidArgument(format!(
-            "a local modal fit starts from 0 < ζ < 1 and f_n > 0 (got {} Hz, ζ {})",
-            start.0, start.1
-        )));
-    }
     let (mut w, mut x, mut y, mut weight) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for (k, &f) in spec.freq_hz.iter().enumerate() {
         let v = spec.noise_var[k];

@@ -105,6 +105,37 @@ struct Band {
     centre: f64,
 }
 
+/// The local form's complex basis at `z`: the pole pair `(λ, λ̄)` and the affine background
+/// in `δ = (ω − ω_c)/ω_c` (module documentation).
+pub(crate) fn local_basis(z: C, (lam, lam_c): (C, C), delta: f64) -> [C; 4] {
+    [
+        1.0 / (z - lam),
+        1.0 / (z - lam_c),
+        C::new(1.0, 0.0),
+        C::new(delta, 0.0),
+    ]
+}
+
+/// Line `k`'s two real rows of a complex linear model `target ≈ Σ_j θ_j φ_j` with complex
+/// `θ_j = a_j + ib_j`, weighted by `s`: real row `[φr, −φi]`, imaginary row `[φi, φr]` per
+/// `θ_j`.
+pub(crate) fn put_line(
+    (a, b): (&mut DMatrix<f64>, &mut DVector<f64>),
+    k: usize,
+    s: f64,
+    phis: impl Iterator<Item = C>,
+    target: C,
+) {
+    for (j, phi) in phis.enumerate() {
+        a[(2 * k, 2 * j)] = s * phi.re;
+        a[(2 * k, 2 * j + 1)] = -s * phi.im;
+        a[(2 * k + 1, 2 * j)] = s * phi.im;
+        a[(2 * k + 1, 2 * j + 1)] = s * phi.re;
+    }
+    b[2 * k] = s * target.re;
+    b[2 * k + 1] = s * target.im;
+}
+
 /// A band's local modal problem: weighted real rows linear in all parameters but
 /// `(ω_n, ζ)` (module documentation).
 pub(crate) trait LocalProblem: Sync {
@@ -138,22 +169,14 @@ impl LocalProblem for Band {
                 Some(t) => C::new(0.0, self.w[k] * t).exp(),
                 None => C::new(0.0, self.w[k]),
             };
-            let basis = [
-                1.0 / (z - lam),
-                1.0 / (z - lam_c),
-                C::new(1.0, 0.0),
-                C::new((self.w[k] - self.centre) / self.centre, 0.0),
-            ];
-            let s = self.weight[k];
-            for (j, phi) in basis.iter().enumerate() {
-                // (a + ib)·φ: real row [φr, −φi], imaginary row [φi, φr]
-                a[(2 * k, 2 * j)] = s * phi.re;
-                a[(2 * k, 2 * j + 1)] = -s * phi.im;
-                a[(2 * k + 1, 2 * j)] = s * phi.im;
-                a[(2 * k + 1, 2 * j + 1)] = s * phi.re;
-            }
-            b[2 * k] = s * self.g[k].re;
-            b[2 * k + 1] = s * self.g[k].im;
+            let basis = local_basis(z, (lam, lam_c), (self.w[k] - self.centre) / self.centre);
+            put_line(
+                (&mut a, &mut b),
+                k,
+                self.weight[k],
+                basis.into_iter(),
+                self.g[k],
+            );
         }
         (a, b)
     }
@@ -231,12 +254,6 @@ pub fn local_mode_with(
     start: (f64, f64),
     noise: &LineNoise,
 ) -> Result<LocalMode> {
-    if !(start.0 > 0.0 && start.1 > 0.0 && start.1 < 1.0) {
-        return Err(IdentError::InvalidArgument(format!(
-            "a local modal fit starts from 0 < ζ < 1 and f_n > 0 (got {} Hz, ζ {})",
-            start.0, start.1
-        )));
-    }
     let data = band_of(frd, band)?;
     solve(&data, band, start, noise)
 }
@@ -249,6 +266,12 @@ pub(crate) fn solve(
     start: (f64, f64),
     noise: &LineNoise,
 ) -> Result<LocalMode> {
+    if !(start.0 > 0.0 && start.1 > 0.0 && start.1 < 1.0) {
+        return Err(IdentError::InvalidArgument(format!(
+            "a local modal fit starts from 0 < ζ < 1 and f_n > 0 (got {} Hz, ζ {})",
+            start.0, start.1
+        )));
+    }
     let lines = data.line_hz().len();
     let dof = (2 * lines).saturating_sub(data.linear_params() + 2).max(1) as f64;
     // θ = (ln ω_n, ln ζ)
@@ -445,6 +468,10 @@ mod tests {
         let honest = local_mode_with(&est.frd, band, start, &noise).unwrap();
         assert_eq!(naive.freq_hz, honest.freq_hz);
         let z = |m: &LocalMode| (m.freq_hz - fm).abs() / m.freq_std;
+        eprintln!(
+            "seed {seed}: sandwich σ / independent-line σ = {:.3}",
+            honest.freq_std / naive.freq_std
+        );
         (z(&naive), z(&honest))
     }
 
@@ -468,7 +495,21 @@ mod tests {
         assert!(w1 <= 54, "within 1σ {w1}/60");
         // the naive errors (independent lines) are what the sandwich corrects: the record's
         // 60 draws put 52 within 2.576σ
-        eprintln!("within 2.576σ: naive {wn}/60, with the LPM's correlation {wh}/60");
+        // the fixed widening the sandwich replaced: √Σ_d ρ(d)² of the polynomial form
+        let rho = crate::lpm_polynomial_correlation(4, 2);
+        let c: f64 = rho
+            .iter()
+            .enumerate()
+            .map(|(d, r)| if d == 0 { r * r } else { 2.0 * r * r })
+            .sum();
+        eprintln!("old fixed widening √Σρ² = {:.3}", c.sqrt());
+        let rms = |z: &[f64]| (z.iter().map(|v| v * v).sum::<f64>() / z.len() as f64).sqrt();
+        eprintln!(
+            "within 2.576σ: naive {wn}/60, with the LPM's correlation {wh}/60; rms error/σ \
+             {:.2} → {:.2}",
+            rms(&naive),
+            rms(&honest)
+        );
     }
 
     #[test]
