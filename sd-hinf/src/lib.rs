@@ -18,8 +18,11 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub mod bilinear;
 mod board;
 pub mod error;
+pub mod hinfsyn;
+pub mod lft;
 #[cfg(feature = "lmi")]
 pub mod lmi;
 pub mod loopshape;
@@ -29,6 +32,8 @@ pub mod tol;
 pub mod weights;
 
 pub use error::{HinfError, Result};
+pub use hinfsyn::{hinfsyn, GammaOutcome, GammaStep, HinfOptions, HinfSynthesis};
+pub use lft::{lft_lower, Blocks, Partition};
 pub use loopshape::{gamma_min, loopshape, Loopshape, LoopshapeOptions, RiccatiReport};
 pub use riccati::{care, care_residual_of, dare, RiccatiSolution};
 

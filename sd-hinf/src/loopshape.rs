@@ -29,6 +29,7 @@
 //! **Sign conventions.** Everything returned is for **negative feedback**: `u = −K_s y` around
 //! `G_s`, `u = −K y` around P, with `K = W₁ K_s W₂`.
 
+pub use crate::bilinear::{bilinear_to_continuous, bilinear_to_discrete};
 use crate::error::{HinfError, Result};
 use crate::riccati::{care, care_residual_of, dare, RiccatiSolution};
 use nalgebra::DMatrix;
@@ -202,48 +203,6 @@ fn continuous_solutions(
     }
     let reports = vec![report("X (CARE)", &xc), report("Z (CARE)", &zc)];
     Ok((xc.x, zc.x, reports))
-}
-
-/// The bilinear map `z = (1 + s)/(1 − s)`: discrete `(A, B, C, D)` → continuous, with
-/// `M = (I + A)⁻¹`: `(M(A − I), √2·MB, √2·CM, D − CMB)`.
-pub fn bilinear_to_continuous(g: &StateSpace) -> Result<StateSpace> {
-    let n = g.n();
-    let ident = DMatrix::<f64>::identity(n, n);
-    let m = (&ident + g.a()).try_inverse().ok_or_else(|| {
-        HinfError::InvalidArgument(
-            "the shaped plant has a pole at z = −1 (the Nyquist frequency), which the bilinear \
-             map cannot carry; move it or remove it from the weights"
-                .into(),
-        )
-    })?;
-    let r2 = std::f64::consts::SQRT_2;
-    let mb = &m * g.b();
-    Ok(StateSpace::new(
-        &m * (g.a() - &ident),
-        &mb * r2,
-        g.c() * &m * r2,
-        g.d() - g.c() * &mb,
-        SampleTime::Continuous,
-    )?)
-}
-
-/// The inverse map `s = (z − 1)/(z + 1)`: continuous → discrete at period `ts`, with
-/// `N = (I − A)⁻¹`: `((I + A)N, √2·NB, √2·CN, D + CNB)`.
-pub fn bilinear_to_discrete(g: &StateSpace, ts: f64) -> Result<StateSpace> {
-    let n = g.n();
-    let ident = DMatrix::<f64>::identity(n, n);
-    let nm = (&ident - g.a()).try_inverse().ok_or_else(|| {
-        HinfError::Numerical("the controller has a pole at s = 1 in the bilinear domain".into())
-    })?;
-    let r2 = std::f64::consts::SQRT_2;
-    let nb = &nm * g.b();
-    Ok(StateSpace::new(
-        (&ident + g.a()) * &nm,
-        &nb * r2,
-        g.c() * &nm * r2,
-        g.d() + g.c() * &nb,
-        SampleTime::discrete(ts)?,
-    )?)
 }
 
 /// The central controller (positive feedback) of a continuous shaped plant at level γ from

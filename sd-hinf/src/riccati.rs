@@ -147,6 +147,29 @@ fn spd_solve(r: &DMatrix<f64>, m: &DMatrix<f64>) -> Option<DMatrix<f64>> {
     Some(ch.solve(m))
 }
 
+/// `R⁻¹M` for a symmetric R that is positive definite ([`spd_solve`]) or indefinite but
+/// invertible (the H∞ Riccati equations' `D₁•ᵀD₁• − diag(γ²I, 0)`), by the symmetric
+/// eigendecomposition `R = VΛVᵀ`; `None` when `min|λ| ≤ SPD_PIVOT·max|λ|`.
+fn sym_solve(r: &DMatrix<f64>, m: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+    if let Some(x) = spd_solve(r, m) {
+        return Some(x);
+    }
+    let eig = r.clone().symmetric_eigen();
+    let big = eig.eigenvalues.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let small = eig
+        .eigenvalues
+        .iter()
+        .fold(f64::INFINITY, |a, v| a.min(v.abs()));
+    if small.is_nan() || small <= tol::SPD_PIVOT * big {
+        return None;
+    }
+    let vt_m = eig.eigenvectors.transpose() * m;
+    let scaled = DMatrix::from_fn(vt_m.nrows(), vt_m.ncols(), |i, j| {
+        vt_m[(i, j)] / eig.eigenvalues[i]
+    });
+    Some(&eig.eigenvectors * scaled)
+}
+
 fn radius(m: &DMatrix<f64>) -> Result<f64> {
     Ok(eigenvalues(m)?.iter().map(|z| z.norm()).fold(0.0, f64::max))
 }
@@ -353,9 +376,8 @@ fn dare_initial(d: &Data) -> Result<(DMatrix<f64>, usize)> {
 
 fn care_residual(d: &Data, x: &DMatrix<f64>) -> Result<(DMatrix<f64>, f64, DMatrix<f64>)> {
     let t = x * &d.b + &d.s; // XB + S
-    let k = spd_solve(&d.r, &t.transpose()).ok_or_else(|| {
-        HinfError::InvalidArgument("R must be positive definite for the CARE".into())
-    })?;
+    let k = sym_solve(&d.r, &t.transpose())
+        .ok_or_else(|| HinfError::InvalidArgument("R must be invertible for the CARE".into()))?;
     let ax = d.a.transpose() * x;
     let tk = &t * &k;
     let res = symmetrize(&(&ax + ax.transpose() - &tk + &d.q));
@@ -369,7 +391,7 @@ fn care_residual(d: &Data, x: &DMatrix<f64>) -> Result<(DMatrix<f64>, f64, DMatr
 /// map carries over unchanged (loopshaping).
 ///
 /// # Errors
-/// As [`care`]: shapes, NaN, asymmetry, R not positive definite; `x` not n×n.
+/// As [`care`]: shapes, NaN, asymmetry, R singular; `x` not n×n.
 pub fn care_residual_of(
     a: &DMatrix<f64>,
     b: &DMatrix<f64>,
@@ -390,10 +412,12 @@ pub fn care_residual_of(
     Ok(care_residual(&d, x)?.1)
 }
 
-/// Stabilizing solution of the CARE (module documentation). R must be positive definite.
+/// Stabilizing solution of the CARE (module documentation). R must be symmetric and
+/// invertible; it may be indefinite (the H∞ Riccati equations), in which case the solution is
+/// the one whose graph is the Hamiltonian's stable invariant subspace (X need not be ≥ 0).
 ///
 /// # Errors
-/// As [`dare`]: shapes, NaN, asymmetry, R not positive definite, and
+/// As [`dare`]: shapes, NaN, asymmetry, R singular, and
 /// [`HinfError::NoStabilizingSolution`] saying why.
 pub fn care(
     a: &DMatrix<f64>,
@@ -416,11 +440,10 @@ pub fn care(
 
 fn care_initial(d: &Data) -> Result<DMatrix<f64>> {
     let n = d.a.nrows();
-    let rinv_st = spd_solve(&d.r, &d.s.transpose()).ok_or_else(|| {
-        HinfError::InvalidArgument("R must be positive definite for the CARE".into())
-    })?;
-    let rinv_bt = spd_solve(&d.r, &d.b.transpose())
-        .ok_or_else(|| HinfError::InvalidArgument("R must be positive definite".into()))?;
+    let rinv_st = sym_solve(&d.r, &d.s.transpose())
+        .ok_or_else(|| HinfError::InvalidArgument("R must be invertible for the CARE".into()))?;
+    let rinv_bt = sym_solve(&d.r, &d.b.transpose())
+        .ok_or_else(|| HinfError::InvalidArgument("R must be invertible for the CARE".into()))?;
     let a_s = &d.a - &d.b * &rinv_st;
     let q_s = symmetrize(&(&d.q - &d.s * &rinv_st));
     let g = symmetrize(&(&d.b * &rinv_bt));

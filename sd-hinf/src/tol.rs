@@ -32,3 +32,13 @@ pub const GAMMA_AGREE: f64 = 1e-6;
 /// Relative CARE residual up to which the DARE solutions are taken as the solutions of the
 /// bilinear continuous problem (they are the same matrices; above it the CAREs are solved).
 pub const BILINEAR_RESIDUAL: f64 = 1e-10;
+/// H∞ synthesis: D₁₂ (D₂₁) counts as rank deficient when its smallest singular value is below
+/// this times its largest (or than the plant's D when that is zero).
+pub const RANK: f64 = 1e-10;
+/// H∞ synthesis: X∞, Y∞ count as positive semidefinite down to this times their 2-norm.
+pub const PSD: f64 = 1e-9;
+/// H∞ synthesis: the achieved closed-loop norm may exceed γ by this factor (the norm's own
+/// relative accuracy is about 1e-10).
+pub const ACHIEVED: f64 = 1e-6;
+/// H∞ synthesis: the default relative tolerance of the γ iteration.
+pub const GAMMA_TOL: f64 = 1e-3;
