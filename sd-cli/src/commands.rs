@@ -43,6 +43,9 @@ enum Cmd {
     Connect(crate::cmd::connect::Args),
     /// McFarlane–Glover loopshaping: the controller K = W1·Ks·W2 for negative feedback u = −K y.
     Loopshape(crate::cmd::loopshape::Args),
+    /// H∞ synthesis on a generalized plant (γ-iteration, central controller u = K y, the
+    /// achieved closed-loop norm checked independently).
+    Hinfsyn(crate::cmd::hinfsyn::Args),
     /// Multisine excitations as CSV with their manifest; with --inputs N, orthogonal
     /// multisines (one experiment per input).
     Multisine(crate::cmd::multisine::Args),
@@ -123,6 +126,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Cmd::Reduce(a) => a.run(),
         Cmd::Connect(a) => a.run(),
         Cmd::Loopshape(a) => a.run(),
+        Cmd::Hinfsyn(a) => a.run(),
         Cmd::Frf(a) => a.run(),
         Cmd::Multisine(a) => a.run(),
         Cmd::Fit(a) => a.run(),

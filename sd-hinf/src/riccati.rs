@@ -729,10 +729,16 @@ fn diagnose(d: &Data, kind: Kind) -> Option<HinfError> {
         }
     }
     // PBH tests on the modes that need moving
+    let scale = d.a.norm() + d.b.norm() + d.q.norm();
+    if let Some(z) = unmovable_mode(&d.a, &d.b, kind == Kind::Discrete, scale) {
+        return Some(err(format!(
+            "(A, B) is not stabilizable: the mode at {:.6}{:+.6}i cannot be moved by the input",
+            z.re, z.im
+        )));
+    }
     let Ok(eigs) = eigenvalues(&d.a) else {
         return None;
     };
-    let scale = d.a.norm() + d.b.norm() + d.q.norm();
     for z in eigs {
         let unstable = match kind {
             Kind::Discrete => z.norm() >= 1.0 - tol::CIRCLE,
@@ -742,15 +748,6 @@ fn diagnose(d: &Data, kind: Kind) -> Option<HinfError> {
             continue;
         }
         let shifted = to_complex(&d.a) - DMatrix::<C>::identity(n, n) * z;
-        let mut ab = DMatrix::<C>::zeros(n, n + m);
-        ab.view_mut((0, 0), (n, n)).copy_from(&shifted);
-        ab.view_mut((0, n), (n, m)).copy_from(&to_complex(&d.b));
-        if smallest_sv(&ab) <= tol::PBH * scale {
-            return Some(err(format!(
-                "(A, B) is not stabilizable: the mode at {:.6}{:+.6}i cannot be moved by the input",
-                z.re, z.im
-            )));
-        }
         let mut aq = DMatrix::<C>::zeros(2 * n, n);
         aq.view_mut((0, 0), (n, n)).copy_from(&shifted);
         aq.view_mut((n, 0), (n, n)).copy_from(&to_complex(&d.q));
@@ -762,6 +759,33 @@ fn diagnose(d: &Data, kind: Kind) -> Option<HinfError> {
         }
     }
     None
+}
+
+/// The first mode of A on or outside the stability boundary (unit circle when `discrete`, else
+/// imaginary axis) that B cannot move: the PBH test `σ_min([A − λI  B]) ≤ PBH·scale`.
+pub(crate) fn unmovable_mode(
+    a: &DMatrix<f64>,
+    b: &DMatrix<f64>,
+    discrete: bool,
+    scale: f64,
+) -> Option<C> {
+    let (n, m) = (a.nrows(), b.ncols());
+    let eigs = eigenvalues(a).ok()?;
+    eigs.into_iter().find(|&z| {
+        let unstable = if discrete {
+            z.norm() >= 1.0 - tol::CIRCLE
+        } else {
+            z.re >= -tol::CIRCLE * z.norm().max(1.0)
+        };
+        if !unstable {
+            return false;
+        }
+        let mut ab = DMatrix::<C>::zeros(n, n + m);
+        ab.view_mut((0, 0), (n, n))
+            .copy_from(&(to_complex(a) - DMatrix::<C>::identity(n, n) * z));
+        ab.view_mut((0, n), (n, m)).copy_from(&to_complex(b));
+        smallest_sv(&ab) <= tol::PBH * scale
+    })
 }
 
 fn smallest_sv(m: &DMatrix<C>) -> f64 {

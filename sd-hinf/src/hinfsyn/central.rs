@@ -118,21 +118,25 @@ fn relative_min_eig(
     }
 }
 
-/// The two Riccati equations at γ (one on each core).
-fn riccati_pair(nz: &Normalized, g2: f64) -> (Result<RiccatiSolution>, Result<RiccatiSolution>) {
+/// The two Riccati equations at γ (one on each core), with w and z scaled by 1/γ so that R
+/// stays well conditioned for any γ: with `S = diag(I/γ, I)`, the X equation on
+/// `(A, BS, C₁ᵀC₁, SRS, C₁ᵀD₁•S)` has the same solution and the gain `S⁻¹·gain`
+/// (`SRS = (D₁•S)ᵀ(D₁•S) − diag(I, 0)`); dually for Y with `T = diag(I/γ, I)` on the outputs.
+/// The returned gains are the unscaled ones (`F = −gain_X`, `L = −gain_Yᵀ`).
+fn riccati_pair(nz: &Normalized, gamma: f64) -> (Result<RiccatiSolution>, Result<RiccatiSolution>) {
     let bl = &nz.bl;
     let (m1, p1) = (bl.b1.ncols(), bl.c1.nrows());
-    let b = hcat(&bl.b1, &bl.b2);
-    let c = vcat(&bl.c1, &bl.c2);
-    let d1 = hcat(&bl.d11, &bl.d12);
-    let dd1 = vcat(&bl.d11, &bl.d21);
+    let b = hcat(&(&bl.b1 / gamma), &bl.b2);
+    let c = vcat(&(&bl.c1 / gamma), &bl.c2);
+    let d1 = hcat(&(&bl.d11 / gamma), &bl.d12);
+    let dd1 = vcat(&(&bl.d11 / gamma), &bl.d21);
     let mut r = d1.transpose() * &d1;
     for i in 0..m1 {
-        r[(i, i)] -= g2;
+        r[(i, i)] -= 1.0;
     }
     let mut rt = &dd1 * dd1.transpose();
     for i in 0..p1 {
-        rt[(i, i)] -= g2;
+        rt[(i, i)] -= 1.0;
     }
     let qx = bl.c1.transpose() * &bl.c1;
     let sx = bl.c1.transpose() * &d1;
@@ -140,10 +144,19 @@ fn riccati_pair(nz: &Normalized, g2: f64) -> (Result<RiccatiSolution>, Result<Ri
     let sy = &bl.b1 * dd1.transpose();
     let at = bl.a.transpose();
     let ct = c.transpose();
-    rayon::join(
+    let unscale = |sol: Result<RiccatiSolution>, k: usize| {
+        sol.map(|mut s| {
+            for i in 0..k {
+                s.gain.row_mut(i).scale_mut(1.0 / gamma);
+            }
+            s
+        })
+    };
+    let (x, y) = rayon::join(
         || care(&bl.a, &b, &qx, &r, Some(&sx)),
         || care(&at, &ct, &qy, &rt, Some(&sy)),
-    )
+    );
+    (unscale(x, m1), unscale(y, p1))
 }
 
 /// The theorem's conditions at γ and, when they hold, the central controller whose loop must
@@ -157,7 +170,7 @@ pub(crate) fn at_gamma(
         return Ok(Err(GammaOutcome::BelowParrott { bound }));
     }
     let g2 = gamma * gamma;
-    let (x, y) = riccati_pair(nz, g2);
+    let (x, y) = riccati_pair(nz, gamma);
     let x = match x {
         Ok(x) => x,
         Err(e) => {

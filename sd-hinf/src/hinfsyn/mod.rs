@@ -158,6 +158,7 @@ pub struct HinfSynthesis {
 /// fails the independent check.
 pub fn hinfsyn(p: &StateSpace, part: Partition, opt: &HinfOptions) -> Result<HinfSynthesis> {
     check_options(opt)?;
+    stabilizable(p, part)?;
     let nz = normalize::normalize(p, part)?;
     let mut it = Iteration {
         nz: &nz,
@@ -179,6 +180,38 @@ pub fn hinfsyn(p: &StateSpace, part: Partition, opt: &HinfOptions) -> Result<Hin
         },
     };
     it.finish(p, part, gamma, level, opt, (gamma_min, gamma_infeasible))
+}
+
+/// Refuses a plant no controller stabilizes: a mode on or outside the stability boundary that
+/// the controls cannot move or the measurements do not see (PBH tests).
+fn stabilizable(p: &StateSpace, part: Partition) -> Result<()> {
+    let bl = part.split(p)?;
+    let discrete = p.time().is_discrete();
+    let scale = bl.a.norm() + bl.b2.norm() + bl.c2.norm();
+    let place = |z: num_complex::Complex64| {
+        format!(
+            "the mode at {} = {:.6}{:+.6}i",
+            if discrete { "z" } else { "s" },
+            z.re,
+            z.im
+        )
+    };
+    if let Some(z) = crate::riccati::unmovable_mode(&bl.a, &bl.b2, discrete, scale) {
+        return Err(HinfError::InvalidArgument(format!(
+            "no controller stabilizes this plant: {} is unstable and the controls cannot move it ((A, B₂) is not stabilizable); check the partition (ncon = {}) or the plant",
+            place(z),
+            part.ncon
+        )));
+    }
+    let at = bl.a.transpose();
+    if let Some(z) = crate::riccati::unmovable_mode(&at, &bl.c2.transpose(), discrete, scale) {
+        return Err(HinfError::InvalidArgument(format!(
+            "no controller stabilizes this plant: {} is unstable and the measurements do not see it ((C₂, A) is not detectable); check the partition (nmeas = {}) or the plant",
+            place(z),
+            part.nmeas
+        )));
+    }
+    Ok(())
 }
 
 fn check_options(opt: &HinfOptions) -> Result<()> {

@@ -1,0 +1,92 @@
+//! `sdctl hinfsyn`: the JSON a user gets, and the bad inputs it refuses with exit 2 and one line.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use std::process::{Command, Output};
+
+/// `x⁺ = 1.1x + w₁ + u`, `z = [x; u]`, `y = x + w₂` at 1 kHz: an unstable plant, the control
+/// penalized, the measurement noisy.
+const PLANT: &str = r#"{"type":"ss","ts":0.001,"a":[[1.1]],"b":[[1,0,1]],
+  "c":[[1],[0],[1]],"d":[[0,0,0],[0,0,1],[0,1,0]]}"#;
+/// Continuous, the control not penalized at all (D₁₂ = 0).
+const NO_D12: &str = r#"{"type":"ss","ts":null,"a":[[-1]],"b":[[1,0,1]],
+  "c":[[1],[0],[1]],"d":[[0,0,0],[0,0,0],[0,1,0]]}"#;
+/// A second unstable state that neither the control nor the measurement reaches.
+const UNSTABILIZABLE: &str = r#"{"type":"ss","ts":0.001,"a":[[1.1,0],[0,1.5]],
+  "b":[[1,0,1],[1,0,0]],"c":[[1,1],[0,0],[1,0]],"d":[[0,0,0],[0,0,1],[0,1,0]]}"#;
+
+fn file(name: &str, text: &str) -> String {
+    let d = std::env::temp_dir().join(format!("sdctl-hinfsyn-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    let p = d.join(name);
+    std::fs::write(&p, text).unwrap();
+    p.to_string_lossy().into_owned()
+}
+
+fn sdctl(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_sdctl"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn one_line_error(o: &Output, code: i32, must: &str) {
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(code), "stderr: {err}");
+    assert_eq!(err.trim().lines().count(), 1, "stderr: {err}");
+    assert!(err.contains(must), "stderr: {err}");
+}
+
+/// The JSON: γ, γ_min, the achieved norm within γ(1 + 1e-6), a discrete controller at the
+/// plant's rate, and the γ iteration's record.
+#[test]
+fn the_json_has_gamma_the_achieved_norm_and_the_controller() {
+    let p = file("p.json", PLANT);
+    let o = sdctl(&["hinfsyn", &p, "--nmeas", "1", "--ncon", "1", "--json"]);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let (g, gmin, ach) = (
+        v["gamma"].as_f64().unwrap(),
+        v["gamma_min"].as_f64().unwrap(),
+        v["achieved_norm"].as_f64().unwrap(),
+    );
+    assert_eq!(g, gmin);
+    assert!(v["gamma_infeasible"].as_f64().unwrap() < gmin);
+    assert!(ach <= g * (1.0 + 1e-6) && ach > 0.5 * g, "{ach} vs {g}");
+    assert_eq!(v["closed_loop_stable"], serde_json::json!(true));
+    assert_eq!(v["controller"]["ts"].as_f64(), Some(0.001));
+    assert!(!v["steps"].as_array().unwrap().is_empty());
+    // a level above γ_min is honoured
+    let above = format!("{}", 2.0 * gmin);
+    let o = sdctl(&[
+        "hinfsyn", &p, "--nmeas", "1", "--ncon", "1", "--gamma", &above, "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["gamma"].as_f64().unwrap(), 2.0 * gmin);
+    assert!(v["achieved_norm"].as_f64().unwrap() <= 2.0 * gmin * (1.0 + 1e-6));
+}
+
+/// γ below γ_min, a partition that leaves no exogenous channel, a D₁₂ of rank 0 and a plant no
+/// controller stabilizes: exit 2, one line naming the problem.
+#[test]
+fn bad_problems_are_refused_with_the_reason() {
+    let p = file("p2.json", PLANT);
+    let o = sdctl(&[
+        "hinfsyn", &p, "--nmeas", "1", "--ncon", "1", "--gamma", "0.01",
+    ]);
+    one_line_error(&o, 2, "below γ_min");
+    let o = sdctl(&["hinfsyn", &p, "--nmeas", "3", "--ncon", "1"]);
+    one_line_error(&o, 2, "nmeas = 3");
+    let o = sdctl(&["hinfsyn", &p, "--nmeas", "1", "--ncon", "1", "--tol", "2"]);
+    one_line_error(&o, 2, "tolerance");
+    let q = file("nod12.json", NO_D12);
+    let o = sdctl(&["hinfsyn", &q, "--nmeas", "1", "--ncon", "1"]);
+    one_line_error(&o, 2, "D₁₂ has rank 0");
+    let u = file("unstab.json", UNSTABILIZABLE);
+    let o = sdctl(&["hinfsyn", &u, "--nmeas", "1", "--ncon", "1"]);
+    one_line_error(&o, 2, "stabilizable");
+}
