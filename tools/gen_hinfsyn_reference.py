@@ -11,6 +11,12 @@ gamma (1 + 1e-6)". The grid check is independent of the Riccati formulas. Also r
 nothing is checked (bisection on INFO = 0 alone): where it is below gamma_opt, the routine hands
 out controllers whose loops are unstable or miss the bound.
 
+The first case is SLICOT's documented SB10DD example (SLICOT-Reference, examples/SB10DD.dat
+and SB10DD.res, BSD-3-Clause) with the controller the documentation prints for gamma = 111.294
+(four decimals), so that the test can evaluate that published controller's loop itself (recorded beside it:
+that loop's largest pole modulus and grid norm, and the grid norm of the full-precision
+controller slycot returns at the same gamma).
+
 Plants: n states (2-8), m1 exogenous inputs, p1 performance outputs, ncon, nmeas (1-2), entries
 standard normal, A scaled to spectral radius 0.5-1.3 (discrete) or shifted to abscissa -1..+0.5
 (continuous) so that some plants are open-loop unstable; D11, D22 random (D22 = 0 for every
@@ -135,7 +141,49 @@ def plant(i, discrete):
     return a, b, c, d, ncon, nmeas
 
 
+DOC_A = [[-0.7, 0.0, 0.3, 0.0, -0.5, -0.1], [-0.6, 0.2, -0.4, -0.3, 0.0, 0.0],
+         [-0.5, 0.7, -0.1, 0.0, 0.0, -0.8], [-0.7, 0.0, 0.0, -0.5, -1.0, 0.0],
+         [0.0, 0.3, 0.6, -0.9, 0.1, -0.4], [0.5, -0.8, 0.0, 0.0, 0.2, -0.9]]
+DOC_B = [[-1.0, -2.0, -2.0, 1.0, 0.0], [1.0, 0.0, 1.0, -2.0, 1.0], [-3.0, -4.0, 0.0, 2.0, -2.0],
+         [1.0, -2.0, 1.0, 0.0, -1.0], [0.0, 1.0, -2.0, 0.0, 3.0], [1.0, 0.0, 3.0, -1.0, -2.0]]
+DOC_C = [[1.0, -1.0, 2.0, -2.0, 0.0, -3.0], [-3.0, 0.0, 1.0, -1.0, 1.0, 0.0],
+         [0.0, 2.0, 0.0, -4.0, 0.0, -2.0], [1.0, -3.0, 0.0, 0.0, 3.0, 1.0],
+         [0.0, 1.0, -2.0, 1.0, 0.0, -2.0]]
+DOC_D = [[1.0, -1.0, -2.0, 0.0, 0.0], [0.0, 1.0, 0.0, 1.0, 0.0], [2.0, -1.0, -3.0, 0.0, 1.0],
+         [0.0, 1.0, 0.0, 1.0, -1.0], [0.0, 0.0, 1.0, 2.0, 1.0]]
+DOC_K = {
+    "type": "ss", "ts": TS,
+    "a": [[-18.0030, 52.0376, 26.0831, -0.4271, -40.9022, 18.0857],
+          [18.8203, -57.6244, -29.0938, 0.5870, 45.3309, -19.8644],
+          [-26.5994, 77.9693, 39.0368, -1.4020, -60.1129, 26.6910],
+          [-21.4163, 62.1719, 30.7507, -0.9201, -48.6221, 21.8351],
+          [-0.8911, 4.2787, 2.3286, -0.2424, -3.0376, 1.2169],
+          [-5.3286, 16.1955, 8.4824, -0.2489, -12.2348, 5.1590]],
+    "b": [[16.9788, 14.1648], [-18.9215, -15.6726], [25.2046, 21.2848], [20.1122, 16.8322],
+          [1.4104, 1.2040], [5.3181, 4.5149]],
+    "c": [[-9.1941, 27.5165, 13.7364, -0.3639, -21.5983, 9.6025],
+          [3.6490, -10.6194, -5.2772, 0.2432, 8.1108, -3.6293]],
+    "d": [[9.0317, 7.5348], [-3.4006, -2.8219]],
+}
+
 cases = []
+doc = tuple(np.array(m) for m in (DOC_A, DOC_B, DOC_C, DOC_D)) + (2, 2)
+cases.append({
+    "name": "SLICOT SB10DD documented example (6 states, ncon 2, nmeas 2)",
+    "plant": {"type": "ss", "ts": TS, "a": DOC_A, "b": DOC_B, "c": DOC_C, "d": DOC_D},
+    "ncon": 2, "nmeas": 2, "routine": "SB10DD",
+    "gamma_opt": bisect(lambda g: checked(doc, g, True)),
+    "slicot_accepts_down_to": bisect(lambda g: solve(doc, g, True) is not None),
+    "published": {"gamma": 111.294, "controller": DOC_K},
+})
+# the printed (four-decimal) controller's loop, and the full-precision one slycot returns
+printed = [np.array(DOC_K[x]) for x in "abcd"]
+cl = lft(*doc[:4], 2, 2, *printed)
+cases[-1]["published"]["printed_loop_max_pole"] = float(np.max(np.abs(np.linalg.eigvals(cl[0]))))
+cases[-1]["published"]["printed_loop_norm"] = float(hinf_grid(*cl, True))
+full = solve(doc, 111.294, True)
+cases[-1]["published"]["slycot_loop_norm"] = float(hinf_grid(*lft(*doc[:4], 2, 2, *full), True))
+print(cases[-1]["name"], cases[-1]["gamma_opt"], cases[-1]["slicot_accepts_down_to"], flush=True)
 for i in range(16):
     discrete = i % 2 == 0
     p = plant(i, discrete)
