@@ -150,3 +150,38 @@ pub fn lft_lower(p: &StateSpace, k: &StateSpace, part: Partition) -> Result<Stat
     let d = &bl.d11 + &bl.d12 * &uw;
     Ok(StateSpace::new(a, b, c, d, p.time())?)
 }
+
+/// Undoes a loop shift: the controller `K̃` designed for `ỹ = y − D₂₂u` (the plant with its
+/// D₂₂ removed) becomes `K = K̃(I + D₂₂K̃)⁻¹` for the plant itself (Safonov, Limebeer & Chiang,
+/// *Int. J. Control* 50, 1989). In state space, with `M = (I + D_K D₂₂)⁻¹`:
+/// `(A_K − B_K D₂₂ M C_K, B_K(I − D₂₂ M D_K), M C_K, M D_K)`.
+///
+/// # Errors
+/// [`HinfError::Numerical`] when `I + D_K D₂₂` is singular (the shifted loop is ill-posed).
+pub fn undo_loop_shift(k: &StateSpace, d22: &DMatrix<f64>) -> Result<StateSpace> {
+    let m2 = k.ny();
+    if d22.shape() != (k.nu(), m2) {
+        return Err(ModelError::dim(
+            "D₂₂ (nmeas x ncon)",
+            format!("{}x{}", k.nu(), m2),
+            format!("{}x{}", d22.nrows(), d22.ncols()),
+        )
+        .into());
+    }
+    let m = (DMatrix::<f64>::identity(m2, m2) + k.d() * d22)
+        .try_inverse()
+        .ok_or_else(|| {
+            HinfError::Numerical(
+                "I + D_K·D₂₂ is singular: the loop shift back to the plant's D₂₂ is ill-posed"
+                    .into(),
+            )
+        })?;
+    let bd = k.b() * d22 * &m;
+    Ok(StateSpace::new(
+        k.a() - &bd * k.c(),
+        k.b() - &bd * k.d(),
+        &m * k.c(),
+        &m * k.d(),
+        k.time(),
+    )?)
+}

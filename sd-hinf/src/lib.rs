@@ -21,6 +21,7 @@
 pub mod bilinear;
 mod board;
 pub mod error;
+pub mod h2;
 pub mod hinfsyn;
 pub mod lft;
 #[cfg(feature = "lmi")]
@@ -32,8 +33,9 @@ pub mod tol;
 pub mod weights;
 
 pub use error::{HinfError, Result};
+pub use h2::{dlqe, dlqr, h2syn, H2Synthesis, Kalman, Lqr};
 pub use hinfsyn::{hinfsyn, GammaOutcome, GammaStep, HinfOptions, HinfSynthesis};
-pub use lft::{lft_lower, Blocks, Partition};
+pub use lft::{lft_lower, undo_loop_shift, Blocks, Partition};
 pub use loopshape::{gamma_min, loopshape, Loopshape, LoopshapeOptions, RiccatiReport};
 pub use riccati::{care, care_residual_of, dare, RiccatiSolution};
 

@@ -14,7 +14,7 @@
 
 use crate::bilinear::{bilinear_to_continuous, bilinear_to_discrete};
 use crate::error::{HinfError, Result};
-use crate::lft::{Blocks, Partition};
+use crate::lft::{undo_loop_shift, Blocks, Partition};
 use crate::tol;
 use nalgebra::DMatrix;
 use sd_model::{SampleTime, StateSpace};
@@ -232,24 +232,9 @@ impl Normalized {
             &self.r12 * kt.c(),
             &self.r12 * kt.d() * &self.r21,
         );
-        let m2 = dk.nrows();
-        // K = K̃(I + D₂₂K̃)⁻¹ in state space, M = (I + D_K D₂₂)⁻¹
-        let m = (DMatrix::<f64>::identity(m2, m2) + &dk * &self.d22)
-            .try_inverse()
-            .ok_or_else(|| {
-                HinfError::Numerical(
-                    "I + D_K·D₂₂ is singular: the loop shift back to the plant's D₂₂ is \
-                     ill-posed at this γ; try a larger γ"
-                        .into(),
-                )
-            })?;
-        let bd = &bk * &self.d22 * &m;
-        let k = StateSpace::new(
-            &ak - &bd * &ck,
-            &bk - &bd * &dk,
-            &m * &ck,
-            &m * &dk,
-            SampleTime::Continuous,
+        let k = undo_loop_shift(
+            &StateSpace::new(ak, bk, ck, dk, SampleTime::Continuous)?,
+            &self.d22,
         )?;
         match self.time.ts() {
             Some(ts) => bilinear_to_discrete(&k, ts),
