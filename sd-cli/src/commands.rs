@@ -46,6 +46,9 @@ enum Cmd {
     /// H∞ synthesis on a generalized plant (γ-iteration, central controller u = K y, the
     /// achieved closed-loop norm checked independently).
     Hinfsyn(crate::cmd::hinfsyn::Args),
+    /// H2 synthesis on a generalized plant (u = K y; the achieved norm by the closed loop's
+    /// Gramian).
+    H2syn(crate::cmd::h2syn::Args),
     /// Multisine excitations as CSV with their manifest; with --inputs N, orthogonal
     /// multisines (one experiment per input).
     Multisine(crate::cmd::multisine::Args),
@@ -127,6 +130,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Cmd::Connect(a) => a.run(),
         Cmd::Loopshape(a) => a.run(),
         Cmd::Hinfsyn(a) => a.run(),
+        Cmd::H2syn(a) => a.run(),
         Cmd::Frf(a) => a.run(),
         Cmd::Multisine(a) => a.run(),
         Cmd::Fit(a) => a.run(),

@@ -1,4 +1,4 @@
-//! `sdctl hinfsyn`: the JSON a user gets, and the bad inputs it refuses with exit 2 and one line.
+//! `sdctl hinfsyn` and `sdctl h2syn`: the JSON a user gets, and the bad inputs it refuses with exit 2 and one line.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::process::{Command, Output};
@@ -89,4 +89,24 @@ fn bad_problems_are_refused_with_the_reason() {
     let u = file("unstab.json", UNSTABILIZABLE);
     let o = sdctl(&["hinfsyn", &u, "--nmeas", "1", "--ncon", "1"]);
     one_line_error(&o, 2, "stabilizable");
+}
+
+/// `sdctl h2syn`: a finite achieved norm, a stable loop, the controller at the plant's rate; a
+/// partition without exogenous channels refused.
+#[test]
+fn h2syn_json_and_a_bad_partition() {
+    let p = file("p3.json", PLANT);
+    let o = sdctl(&["h2syn", &p, "--nmeas", "1", "--ncon", "1", "--json"]);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(v["achieved_norm"].as_f64().unwrap().is_finite());
+    assert_eq!(v["closed_loop_stable"], serde_json::json!(true));
+    assert_eq!(v["controller"]["ts"].as_f64(), Some(0.001));
+    let o = sdctl(&["h2syn", &p, "--nmeas", "1", "--ncon", "3"]);
+    one_line_error(&o, 2, "ncon = 3");
 }

@@ -11,6 +11,7 @@ pub(crate) mod fit;
 pub(crate) mod fit_stabilization;
 pub(crate) mod freqresp;
 pub(crate) mod frf;
+pub(crate) mod h2syn;
 pub(crate) mod hinfsyn;
 pub(crate) mod intersample;
 pub(crate) mod loopshape;
