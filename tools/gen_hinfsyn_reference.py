@@ -166,42 +166,47 @@ DOC_K = {
     "d": [[9.0317, 7.5348], [-3.4006, -2.8219]],
 }
 
-cases = []
-doc = tuple(np.array(m) for m in (DOC_A, DOC_B, DOC_C, DOC_D)) + (2, 2)
-cases.append({
-    "name": "SLICOT SB10DD documented example (6 states, ncon 2, nmeas 2)",
-    "plant": {"type": "ss", "ts": TS, "a": DOC_A, "b": DOC_B, "c": DOC_C, "d": DOC_D},
-    "ncon": 2, "nmeas": 2, "routine": "SB10DD",
-    "gamma_opt": bisect(lambda g: checked(doc, g, True)),
-    "slicot_accepts_down_to": bisect(lambda g: solve(doc, g, True) is not None),
-    "published": {"gamma": 111.294, "controller": DOC_K},
-})
-# the printed (four-decimal) controller's loop, and the full-precision one slycot returns
-printed = [np.array(DOC_K[x]) for x in "abcd"]
-cl = lft(*doc[:4], 2, 2, *printed)
-cases[-1]["published"]["printed_loop_max_pole"] = float(np.max(np.abs(np.linalg.eigvals(cl[0]))))
-cases[-1]["published"]["printed_loop_norm"] = float(hinf_grid(*cl, True))
-full = solve(doc, 111.294, True)
-cases[-1]["published"]["slycot_loop_norm"] = float(hinf_grid(*lft(*doc[:4], 2, 2, *full), True))
-print(cases[-1]["name"], cases[-1]["gamma_opt"], cases[-1]["slicot_accepts_down_to"], flush=True)
-for i in range(16):
-    discrete = i % 2 == 0
-    p = plant(i, discrete)
-    a, b, c, d, ncon, nmeas = p
-    g_opt = bisect(lambda g: checked(p, g, discrete))
-    g_acc = bisect(lambda g: solve(p, g, discrete) is not None)
+def main():
+    cases = []
+    doc = tuple(np.array(m) for m in (DOC_A, DOC_B, DOC_C, DOC_D)) + (2, 2)
     cases.append({
-        "name": f"random {'discrete' if discrete else 'continuous'} plant {i}: "
-                f"{a.shape[0]} states, ncon {ncon}, nmeas {nmeas}",
-        "plant": {"type": "ss", "ts": TS if discrete else None, "a": a.tolist(),
-                  "b": b.tolist(), "c": c.tolist(), "d": d.tolist()},
-        "ncon": ncon, "nmeas": nmeas,
-        "routine": "SB10DD" if discrete else "SB10FD",
-        "gamma_opt": g_opt,
-        "slicot_accepts_down_to": g_acc,
+        "name": "SLICOT SB10DD documented example (6 states, ncon 2, nmeas 2)",
+        "plant": {"type": "ss", "ts": TS, "a": DOC_A, "b": DOC_B, "c": DOC_C, "d": DOC_D},
+        "ncon": 2, "nmeas": 2, "routine": "SB10DD",
+        "gamma_opt": bisect(lambda g: checked(doc, g, True)),
+        "slicot_accepts_down_to": bisect(lambda g: solve(doc, g, True) is not None),
+        "published": {"gamma": 111.294, "controller": DOC_K},
     })
-    print(cases[-1]["name"], g_opt, g_acc, flush=True)
+    # the printed (four-decimal) controller's loop, and the full-precision one slycot returns
+    printed = [np.array(DOC_K[x]) for x in "abcd"]
+    cl = lft(*doc[:4], 2, 2, *printed)
+    cases[-1]["published"]["printed_loop_max_pole"] = float(np.max(np.abs(np.linalg.eigvals(cl[0]))))
+    cases[-1]["published"]["printed_loop_norm"] = float(hinf_grid(*cl, True))
+    full = solve(doc, 111.294, True)
+    cases[-1]["published"]["slycot_loop_norm"] = float(hinf_grid(*lft(*doc[:4], 2, 2, *full), True))
+    print(cases[-1]["name"], cases[-1]["gamma_opt"], cases[-1]["slicot_accepts_down_to"], flush=True)
+    for i in range(16):
+        discrete = i % 2 == 0
+        p = plant(i, discrete)
+        a, b, c, d, ncon, nmeas = p
+        g_opt = bisect(lambda g: checked(p, g, discrete))
+        g_acc = bisect(lambda g: solve(p, g, discrete) is not None)
+        cases.append({
+            "name": f"random {'discrete' if discrete else 'continuous'} plant {i}: "
+                    f"{a.shape[0]} states, ncon {ncon}, nmeas {nmeas}",
+            "plant": {"type": "ss", "ts": TS if discrete else None, "a": a.tolist(),
+                      "b": b.tolist(), "c": c.tolist(), "d": d.tolist()},
+            "ncon": ncon, "nmeas": nmeas,
+            "routine": "SB10DD" if discrete else "SB10FD",
+            "gamma_opt": g_opt,
+            "slicot_accepts_down_to": g_acc,
+        })
+        print(cases[-1]["name"], g_opt, g_acc, flush=True)
 
-with open("test_data/hinfsyn_slicot.json", "w") as f:
-    json.dump({"generator": "tools/gen_hinfsyn_reference.py", "slycot": slycot.__version__,
-               "cases": cases}, f, indent=1)
+    with open("test_data/hinfsyn_slicot.json", "w") as f:
+        json.dump({"generator": "tools/gen_hinfsyn_reference.py", "slycot": slycot.__version__,
+                   "cases": cases}, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()

@@ -27,6 +27,7 @@ pub mod lft;
 #[cfg(feature = "lmi")]
 pub mod lmi;
 pub mod loopshape;
+pub mod mixsyn;
 pub mod riccati;
 mod sda;
 pub mod tol;
@@ -37,6 +38,7 @@ pub use h2::{dlqe, dlqr, h2syn, H2Synthesis, Kalman, Lqr};
 pub use hinfsyn::{hinfsyn, GammaOutcome, GammaStep, HinfOptions, HinfSynthesis};
 pub use lft::{lft_lower, undo_loop_shift, Blocks, Partition};
 pub use loopshape::{gamma_min, loopshape, Loopshape, LoopshapeOptions, RiccatiReport};
+pub use mixsyn::{augw, mixsyn, MixsynWeights};
 pub use riccati::{care, care_residual_of, dare, RiccatiSolution};
 
 /// The crate README's example, compiled and run as a doctest.

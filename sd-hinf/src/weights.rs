@@ -13,6 +13,10 @@
 //! - [`notch`]: `(s² + 2ζ_z ω s + ω²)/(s² + 2ζ_p ω s + ω²)`, unit gain far from ω, depth
 //!   `ζ_z/ζ_p` at ω.
 //! - [`lowpass`]: `ω²/(s² + 2ζ ω s + ω²)`.
+//! - [`makeweight`] (MATLAB's `makeweight`): first order `W(s) = (h·s + d·ω₀)/(s + ω₀)` with
+//!   `W(0) = d`, `W(∞) = h` and `|W(jω_c)| = g`, which gives
+//!   `ω₀ = ω_c·√((g² − h²)/(d² − g²))`; order n is the n-th power of the first-order weight of
+//!   the n-th roots `(d^{1/n}, g^{1/n}, h^{1/n})`. Discrete: prewarped at ω_c.
 
 use crate::error::{HinfError, Result};
 use num_complex::Complex64 as C;
@@ -196,6 +200,46 @@ pub fn lowpass(freq_hz: f64, zeta: f64, ts: Option<f64>) -> Result<StateSpace> {
     discretize(s, ts, freq_hz)
 }
 
+/// MATLAB-like `makeweight` (module documentation): low-frequency gain `dc`, gain `mag` at
+/// `freq_hz`, high-frequency gain `hf`, of order 1 or 2; continuous if `ts` is `None`.
+///
+/// # Errors
+/// Non-positive or non-finite gains or frequency, `mag` not strictly between `dc` and `hf`,
+/// an order other than 1 or 2, a frequency at or above Nyquist.
+pub fn makeweight(
+    dc: f64,
+    freq_hz: f64,
+    mag: f64,
+    hf: f64,
+    order: usize,
+    ts: Option<f64>,
+) -> Result<StateSpace> {
+    positive(dc, "low-frequency gain")?;
+    positive(hf, "high-frequency gain")?;
+    positive(mag, "gain at the given frequency")?;
+    positive(freq_hz, "frequency")?;
+    if !((dc < mag && mag < hf) || (dc > mag && mag > hf)) {
+        return Err(HinfError::InvalidArgument(format!(
+            "the gain {mag} at {freq_hz} Hz must lie strictly between the low-frequency gain              {dc} and the high-frequency gain {hf}"
+        )));
+    }
+    if !(1..=2).contains(&order) {
+        return Err(HinfError::InvalidArgument(format!(
+            "makeweight order {order}: 1 or 2 are supported"
+        )));
+    }
+    let k = 1.0 / order as f64;
+    let (d, g, h) = (dc.powf(k), mag.powf(k), hf.powf(k));
+    let w0 = 2.0 * PI * freq_hz * ((g * g - h * h) / (d * d - g * g)).sqrt();
+    let first = section(vec![h, d * w0], vec![1.0, w0])?;
+    let w = if order == 1 {
+        first
+    } else {
+        series(&first, &first)?
+    };
+    discretize(w, ts, freq_hz)
+}
+
 #[cfg(test)]
 #[allow(clippy::unwrap_used, clippy::expect_used)]
 mod tests {
@@ -228,6 +272,28 @@ mod tests {
         )
         .is_err());
         assert!(pid(-1.0, 20.0, None, &PidOptions::default()).is_err());
+    }
+
+    /// `makeweight`: the three gains, continuous and discrete (prewarped at the frequency),
+    /// first and second order; refused when the middle gain is not between the others.
+    #[test]
+    fn makeweight_has_its_three_gains() {
+        for ts in [None, Some(1e-3)] {
+            for order in [1, 2] {
+                let w = makeweight(1000.0, 65.0, 1.0, 0.5, order, ts).unwrap();
+                assert!((mag(&w, 65.0) - 1.0).abs() < 1e-9, "{ts:?} {order}");
+                assert!(
+                    (mag(&w, 1e-4) / 1000.0 - 1.0).abs() < 1e-3,
+                    "{ts:?} {order}"
+                );
+                let top = if ts.is_some() { 499.999 } else { 1e7 };
+                assert!((mag(&w, top) / 0.5 - 1.0).abs() < 1e-2, "{ts:?} {order}");
+                assert_eq!(w.n(), order);
+            }
+        }
+        assert!(makeweight(1.0, 10.0, 2.0, 0.5, 1, None).is_err());
+        assert!(makeweight(10.0, 600.0, 1.0, 0.1, 1, Some(1e-3)).is_err());
+        assert!(makeweight(10.0, 6.0, 1.0, 0.1, 3, None).is_err());
     }
 
     #[test]
