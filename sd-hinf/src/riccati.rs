@@ -762,7 +762,11 @@ fn diagnose(d: &Data, kind: Kind) -> Option<HinfError> {
 }
 
 /// The first mode of A on or outside the stability boundary (unit circle when `discrete`, else
-/// imaginary axis) that B cannot move: the PBH test `σ_min([A − λI  B]) ≤ PBH·scale`.
+/// imaginary axis) that B cannot move: the PBH test `σ_min([A − λI  B̃]) ≤ PBH·scale` with B
+/// rescaled to `B̃ = B·s/‖B‖`, `s = max(‖A‖, scale)` (the rank of `[A − λI  B]` does not depend
+/// on B's units; a position sensor in metres, C ~ 1e-9, must not look undetectable), after the
+/// states of `[A B]` are balanced by powers of two (nor on the state coordinates: a weight
+/// realized with entries of 1e3 must not raise the threshold for the plant's modes).
 pub(crate) fn unmovable_mode(
     a: &DMatrix<f64>,
     b: &DMatrix<f64>,
@@ -770,7 +774,16 @@ pub(crate) fn unmovable_mode(
     scale: f64,
 ) -> Option<C> {
     let (n, m) = (a.nrows(), b.ncols());
+    let mut padded = DMatrix::<f64>::zeros(n + m, n + m);
+    padded.view_mut((0, 0), (n, n)).copy_from(a);
+    padded.view_mut((0, n), (n, m)).copy_from(b);
+    let (bal, _) = sd_model::linalg::expm::balance_leading(&padded, n);
+    let a = &bal.view((0, 0), (n, n)).into_owned();
+    let b = &bal.view((0, n), (n, m)).into_owned();
     let eigs = eigenvalues(a).ok()?;
+    let s = a.norm().max(scale).max(f64::MIN_POSITIVE);
+    let bn = b.norm();
+    let bs = if bn > 0.0 { b * (s / bn) } else { b.clone() };
     eigs.into_iter().find(|&z| {
         let unstable = if discrete {
             z.norm() >= 1.0 - tol::CIRCLE
@@ -783,26 +796,27 @@ pub(crate) fn unmovable_mode(
         let mut ab = DMatrix::<C>::zeros(n, n + m);
         ab.view_mut((0, 0), (n, n))
             .copy_from(&(to_complex(a) - DMatrix::<C>::identity(n, n) * z));
-        ab.view_mut((0, n), (n, m)).copy_from(&to_complex(b));
-        smallest_sv(&ab) <= tol::PBH * scale
+        ab.view_mut((0, n), (n, m)).copy_from(&to_complex(&bs));
+        smallest_sv(&ab) <= tol::PBH * s
     })
 }
 
+/// σ_min of a tall or wide complex matrix by the SVD of the matrix itself (the Gram matrix
+/// `MᴴM` would square the condition and round every σ_min below √ε·σ_max to zero — a PBH test
+/// at a defective eigenvalue, computed √ε off, then sees a mode that cannot be moved); the Gram
+/// route only if the SVD does not converge.
 fn smallest_sv(m: &DMatrix<C>) -> f64 {
-    // σ_min of a tall or wide matrix through the smaller Gram matrix's SVD
+    let min_of = |s: &nalgebra::DVector<f64>| s.iter().cloned().fold(f64::INFINITY, f64::min);
+    if let Some(s) = nalgebra::linalg::SVD::try_new(m.clone(), false, false, f64::EPSILON, 1000) {
+        return min_of(&s.singular_values).max(0.0);
+    }
     let g = if m.nrows() >= m.ncols() {
         m.adjoint() * m
     } else {
         m * m.adjoint()
     };
     match nalgebra::linalg::SVD::try_new(g, false, false, f64::EPSILON, 1000) {
-        Some(s) => s
-            .singular_values
-            .iter()
-            .cloned()
-            .fold(f64::INFINITY, f64::min)
-            .max(0.0)
-            .sqrt(),
+        Some(s) => min_of(&s.singular_values).max(0.0).sqrt(),
         None => f64::INFINITY,
     }
 }
@@ -927,6 +941,12 @@ mod tests {
         // bad shapes and asymmetry
         assert!(dare(&a, &b, &m(2, 2, &[1.0, 2.0, 0.0, 1.0]), &r, None).is_err());
         assert!(care(&a, &b, &q, &m(2, 2, &[1.0, 0.0, 0.0, 1.0]), None).is_err());
-        assert!(care(&a, &b, &q, &m(1, 1, &[-1.0]), None).is_err());
+        // a singular R is refused (an indefinite one is allowed: the H∞ Riccati equations)
+        let stable = m(2, 2, &[-1.0, 0.0, 0.0, -2.0]);
+        let eye = m(2, 2, &[1.0, 0.0, 0.0, 1.0]);
+        let e = care(&stable, &b, &eye, &m(1, 1, &[0.0]), None)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("invertible"), "{e}");
     }
 }

@@ -35,7 +35,8 @@ pub const BILINEAR_RESIDUAL: f64 = 1e-10;
 /// H∞ synthesis: D₁₂ (D₂₁) counts as rank deficient when its smallest singular value is below
 /// this times its largest (or than the plant's D when that is zero).
 pub const RANK: f64 = 1e-10;
-/// H∞ synthesis: X∞, Y∞ count as positive semidefinite down to this times their 2-norm.
+/// H∞ synthesis: X∞, Y∞ count as positive semidefinite down to this (or 100·κ·ε, κ the
+/// Riccati condition estimate, if larger) times their scale.
 pub const PSD: f64 = 1e-9;
 /// H∞ synthesis: the achieved closed-loop norm may exceed γ by this factor (the norm's own
 /// relative accuracy is about 1e-10).

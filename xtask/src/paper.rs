@@ -358,6 +358,8 @@ fn peaks(est_s: &sd_ident::FrfEstimate, p_down: &StateSpace) -> Result<Peaks, St
 struct Controllers {
     c1: StateSpace,
     c2: StateSpace,
+    /// The mixed-sensitivity controller (`controller_mixsyn`).
+    mix: crate::mixsyn_design::Design,
     gamma_min: f64,
     gamma: f64,
     /// Controller 1's loopshaping weight and the 4-block norm its design achieved.
@@ -381,6 +383,7 @@ fn controllers(
     let c1 = design.controller.clone();
     let c2 =
         sd_hinf::weights::pid(PID_BANDWIDTH, 20.0, Some(ts), &Default::default()).map_err(s)?;
+    let mix = crate::mixsyn_design::design(p_design)?;
     // the true 1 kHz plant, with its averaging sensor
     let true_slow = sd_multirate::c2d_nonideal(
         &truth.linear_model().map_err(s)?,
@@ -391,7 +394,11 @@ fn controllers(
     let mut summary = Vec::new();
     let mut s_curves = Vec::new();
     let fs_grid = grid(1.0, 499.9, 4000, true).map_err(s)?;
-    for (name, k) in [("controller1", &c1), ("controller2", &c2)] {
+    for (name, k) in [
+        ("controller1", &c1),
+        ("controller2", &c2),
+        ("controller_mixsyn", &mix.controller),
+    ] {
         // as in the paper, with the model the controllers were designed on …
         let cl = ClosedLoop::new(p_design, k).map_err(s)?;
         let sum = cl.summary().map_err(s)?;
@@ -414,9 +421,19 @@ fn controllers(
                 .collect(),
         );
     }
+    if let Some((_, v)) = summary.iter_mut().find(|(n, _)| *n == "controller_mixsyn") {
+        v["gamma"] = json!(mix.gamma);
+        v["achieved_norm"] = json!(mix.achieved);
+        v["generalized_plant_states"] = json!(mix.plant_states);
+        v["synthesis_seconds"] = json!(mix.seconds);
+        let (w1, pk) = (crate::mixsyn_design::W1, crate::mixsyn_design::W1_PEAK);
+        v["weights"] = json!({"w1_makeweight": {"dc": w1.0, "freq_hz": w1.1, "hf": w1.2, "order": 2},
+            "w1_peak": {"freq_hz": pk.0, "zeta_zero": pk.1, "zeta_pole": pk.2}, "w2": crate::mixsyn_design::W2, "wd": crate::mixsyn_design::WD});
+    }
     Ok(Controllers {
         c1,
         c2,
+        mix,
         gamma_min: design.gamma_min,
         gamma: design.gamma,
         w1: w1.clone(),
@@ -425,6 +442,18 @@ fn controllers(
         s_curves,
         grid: fs_grid,
     })
+}
+
+/// The design model and the controllers as model JSON in `OUT/models/` (for `sdctl analyze`,
+/// `sdctl reduce --controller`, …).
+fn write_models(out: &str, models: &[(&str, &StateSpace)]) -> Result<(), String> {
+    let dir = format!("{out}/models");
+    std::fs::create_dir_all(&dir).map_err(s)?;
+    for (name, m) in models {
+        let text = sd_model::model_to_json_string(m).map_err(s)?;
+        std::fs::write(format!("{dir}/{name}.json"), text).map_err(s)?;
+    }
+    Ok(())
 }
 
 /// One standstill run: errors at 5 kHz (ideal samples of the position) and at the
@@ -490,7 +519,11 @@ fn standstills(
     let samples = if quick { 20_000 } else { 100_000 };
     let mut stand = Vec::new();
     let mut with_sensor = serde_json::Map::new();
-    for (name, k, seed) in [("controller1", &c.c1, 21u64), ("controller2", &c.c2, 22u64)] {
+    for (name, k, seed) in [
+        ("controller1", &c.c1, 21u64),
+        ("controller2", &c.c2, 22u64),
+        ("controller_mixsyn", &c.mix.controller, 23u64),
+    ] {
         stand.push(standstill(
             truth,
             (name, k, seed),
@@ -747,17 +780,20 @@ fn fig5(out: &str, c: &Controllers) -> Result<[&'static str; 3], String> {
         ]
     };
     let mag = two(&model_db(&c.c1, g)?, &model_db(&c.c2, g)?);
-    let sens = two(&c.s_curves[0], &c.s_curves[1]);
+    let mut sens = two(&c.s_curves[0], &c.s_curves[1]).to_vec();
+    if let Some(m) = c.s_curves.get(2) {
+        sens.push(("mixed sensitivity", m.clone(), GREEN));
+    }
     for (file, title, curves) in [
         (
             "fig5_controllers.svg",
             "Fig. 5a: Controller 1 (loopshaping) and Controller 2 (PID alone)",
-            &mag,
+            &mag[..],
         ),
         (
             "fig5_sensitivity.svg",
             "Fig. 5b: |S_d| with the design model",
-            &sens,
+            &sens[..],
         ),
     ] {
         let cs: Vec<Curve<'_>> = curves
@@ -1012,6 +1048,11 @@ fn what_it_shows(md: &mut String, r: &Results<'_>) {
     let v = |i: usize, k: &str| r.c.summary.get(i).map_or(f64::NAN, |(_, v)| num(v, k));
     let _ = write!(md, "Controller 2 (PID alone) has its |S| peak of {:.1} dB at {:.1} Hz; Controller 1, designed by loopshaping on the downsampled model, has |S(347 Hz)| = {:.1} dB against Controller 2's {:.1} dB. ",
         v(1, "sensitivity_peak_db"), v(1, "sensitivity_peak_hz"), v(0, "sensitivity_at_alias_db"), v(1, "sensitivity_at_alias_db"));
+    if let Some((_, m)) = r.c.summary.iter().find(|(n, _)| *n == "controller_mixsyn") {
+        let _ = write!(md, "The mixed-sensitivity controller (W₁ on S, W₂ on KS, an input force disturbance; γ = {:.4}, a {}-state generalized plant, synthesized in {:.2} s) crosses over at {:.1} Hz with |S| peaking at {:.1} dB at {:.1} Hz and |S(347 Hz)| = {:.1} dB; it is {} on the true 1 kHz plant. ",
+            num(m, "gamma"), num(m, "generalized_plant_states"), num(m, "synthesis_seconds"), num(m, "crossover_hz"), num(m, "sensitivity_peak_db"), num(m, "sensitivity_peak_hz"), num(m, "sensitivity_at_alias_db"),
+            if m["true_plant"]["stable"].as_bool().unwrap_or(false) { "stable" } else { "UNSTABLE" });
+    }
     if let [c1, c2, ..] = r.stand {
         let _ = write!(md, "At standstill (the controller sampling the position ideally, as in the paper's Fig. 6), Controller 2's error is dominated by {:.1} Hz at 1 kHz and {:.1} Hz between the samples (rms {:.2e} m at 5 kHz, against {:.2e} m with Controller 1). ",
             c2.ws.dominant_hz(), c2.wf.dominant_hz(), c2.wf.rms(), c1.wf.rms());
@@ -1101,6 +1142,15 @@ pub fn run(out: &str, quick: bool, averaging: f64) -> Result<(), String> {
         "controllers at 1 kHz: loopshaping (Controller 1) and the PID alone (Controller 2)",
     );
     let c = controllers(&truth, &fitted.p_design, averaging)?;
+    write_models(
+        out,
+        &[
+            ("design_model_1khz", &fitted.p_design),
+            ("controller1", &c.c1),
+            ("controller2", &c.c2),
+            ("controller_mixsyn", &c.mix.controller),
+        ],
+    )?;
     let truth_fast = sd_multirate::c2d_nonideal(
         &truth.linear_model().map_err(s)?,
         2e-4,
@@ -1113,7 +1163,11 @@ pub fn run(out: &str, quick: bool, averaging: f64) -> Result<(), String> {
         &id.est_s,
         (&fitted.p_fast, &fitted.p_down),
         &diag,
-        [("controller1", &c.c1), ("controller2", &c.c2)],
+        &[
+            ("controller1", &c.c1),
+            ("controller2", &c.c2),
+            ("controller_mixsyn", &c.mix.controller),
+        ],
         (&fitted.p_design, &c.w1, c.achieved),
     )?;
     p.say(
@@ -1199,6 +1253,18 @@ mod tests {
         assert!(c2["sensitivity_peak_db"].as_f64().expect("peak") >= 10.0);
         assert!((c2["sensitivity_peak_hz"].as_f64().expect("hz") - 347.0).abs() <= 10.0);
         assert!(c1["sensitivity_at_alias_db"].as_f64().expect("s347") <= 3.0);
+        // the mixed-sensitivity controller: every key Controller 1 has, a stable loop on the
+        // design model and on the true plant, its achieved norm within its γ
+        let mix = &report["controller_mixsyn"];
+        for key in c1.as_object().expect("object").keys() {
+            assert!(mix.get(key).is_some(), "controller_mixsyn lacks {key}");
+        }
+        assert!(mix["stable"].as_bool().expect("stable"), "{mix}");
+        assert!(
+            mix["achieved_norm"].as_f64().expect("achieved")
+                <= mix["gamma"].as_f64().expect("gamma") * (1.0 + 1e-6)
+        );
+        assert!(dir.join("models").join("controller_mixsyn.json").exists());
         let bw = c1["crossover_hz"].as_f64().expect("crossover");
         assert!((50.0..=80.0).contains(&bw), "crossover {bw}");
         let ss = &report["standstill"];

@@ -106,7 +106,7 @@ pub fn uncertainty(
     slow: &sd_ident::FrfEstimate,
     (p_fast, p_down): (&StateSpace, &StateSpace),
     diag: &sd_diagnose::Diagnosis,
-    controllers: [(&'static str, &StateSpace); 2],
+    controllers: &[(&'static str, &StateSpace)],
     (p_design, w1, achieved): (&StateSpace, &StateSpace, f64),
 ) -> Result<Uncertain, String> {
     let fast_frd = fast.trusted_frd().map_err(s)?;
@@ -163,7 +163,7 @@ pub fn uncertainty(
     let w_fast =
         sd_uncertainty::overbound(&b.with_form(Form::Multiplicative), WEIGHT_ORDER).map_err(s)?;
     let mut out = Vec::new();
-    for (name, k) in controllers {
+    for &(name, k) in controllers {
         let plain_r = robust(p_down, k, &plain)?;
         let ext_r = slow_extended
             .as_ref()

@@ -200,10 +200,12 @@ pub(crate) fn at_gamma(
         &bl.a.transpose(),
         &vcat(&bl.c1, &bl.c2).transpose(),
     );
-    if ex < -tol::PSD {
+    // semidefinite up to the solution's own accuracy (κ·ε relative, κ its condition estimate)
+    let psd = |sol: &RiccatiSolution| tol::PSD.max(100.0 * sol.condition * f64::EPSILON);
+    if ex < -psd(&x) {
         return Ok(Err(GammaOutcome::XIndefinite { min_eigenvalue: ex }));
     }
-    if ey < -tol::PSD {
+    if ey < -psd(&y) {
         return Ok(Err(GammaOutcome::YIndefinite { min_eigenvalue: ey }));
     }
     let rho = eigenvalues(&(&x.x * &y.x))?

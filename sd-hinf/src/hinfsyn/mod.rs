@@ -187,7 +187,7 @@ pub fn hinfsyn(p: &StateSpace, part: Partition, opt: &HinfOptions) -> Result<Hin
 fn stabilizable(p: &StateSpace, part: Partition) -> Result<()> {
     let bl = part.split(p)?;
     let discrete = p.time().is_discrete();
-    let scale = bl.a.norm() + bl.b2.norm() + bl.c2.norm();
+    let scale = bl.a.norm();
     let place = |z: num_complex::Complex64| {
         format!(
             "the mode at {} = {:.6}{:+.6}i",

@@ -106,13 +106,21 @@ fn ell(a: &DMatrix<f64>, m: usize) -> i32 {
 /// Diagonal balancing with powers of two (LAPACK xGEBAL, scaling only, no permutation).
 /// Returns `(D⁻¹ A D, d)`.
 pub fn balance_diag(a: &DMatrix<f64>) -> (DMatrix<f64>, Vec<f64>) {
+    balance_leading(a, a.nrows())
+}
+
+/// [`balance_diag`] with only the first `k` indices scaled (their row and column sums include
+/// all the others): for the state part of `[A B; C D]`, where the inputs and outputs keep their
+/// units (MATLAB's `ssbal`). Returns the balanced matrix and the k scalings (`x = D x̃`).
+pub fn balance_leading(a: &DMatrix<f64>, k: usize) -> (DMatrix<f64>, Vec<f64>) {
     let n = a.nrows();
+    let k = k.min(n);
     let mut m = a.clone();
-    let mut d = vec![1.0; n];
+    let mut d = vec![1.0; k];
     let radix: f64 = 2.0;
     for _sweep in 0..100 {
         let mut converged = true;
-        for i in 0..n {
+        for i in 0..k {
             let mut c = 0.0;
             let mut r = 0.0;
             for j in 0..n {
