@@ -512,7 +512,7 @@ impl ClosedLoop {
     }
 }
 
-fn sigma_max(g: &nalgebra::DMatrix<C>) -> f64 {
+pub(crate) fn sigma_max(g: &nalgebra::DMatrix<C>) -> f64 {
     if g.nrows() == 1 && g.ncols() == 1 {
         return g[(0, 0)].norm();
     }

@@ -16,6 +16,9 @@ pub enum AnalysisError {
     /// An argument that is not usable (message says which and why).
     #[error("{0}")]
     InvalidArgument(String),
+    /// A reduction that does not keep the loop (message says which order and why).
+    #[error("{0}")]
+    ReductionFailed(String),
 }
 
 impl AnalysisError {
@@ -24,6 +27,7 @@ impl AnalysisError {
         match self {
             AnalysisError::Model(m) => m.is_numerical(),
             AnalysisError::Multirate(m) => m.is_numerical(),
+            AnalysisError::ReductionFailed(_) => true,
             _ => false,
         }
     }

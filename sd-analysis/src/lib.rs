@@ -4,6 +4,8 @@
 //!   definitions), the gain crossover and the closed-loop −3 dB bandwidth, the `sdctl analyze` summary.
 //! - [`generalized_nyquist()`]: the generalised Nyquist criterion of a MIMO loop (encirclements
 //!   of `det(I + L)`, checked against the closed-loop eigenvalues), [`characteristic_loci()`].
+//! - [`reduce_controller()`]: controller reduction with the closed-loop weight, judged on the
+//!   loop (|ΔS|, |ΔT| below twice the crossover, margins before and after).
 //! - [`spectra`]: Welch and periodogram PSDs with windows, cumulative power spectrum, rms,
 //!   dominant frequency.
 //! - [`standstill()`]: disturbance simulation of a single-rate loop, and of a slow controller on a
@@ -16,6 +18,7 @@ pub mod error;
 pub mod intersample;
 pub mod mimo;
 pub mod nyquist;
+pub mod reduce_controller;
 pub mod spectra;
 pub mod standstill;
 pub mod tol;
@@ -25,6 +28,7 @@ pub use error::{AnalysisError, Result};
 pub use intersample::{intersample, rms_of_density, Intersample};
 pub use mimo::{mimo_margins, singular_values, ChannelMargins, MimoMargins, Side, SingularValues};
 pub use nyquist::{characteristic_loci, generalized_nyquist, Nyquist};
+pub use reduce_controller::{reduce_controller, ControllerReduction, ReductionMethod};
 pub use sd_multirate::MultirateSimulation;
 pub use spectra::{cps, periodogram, rms, welch, Spectrum, Window};
 pub use standstill::{standstill, standstill_multirate, Standstill};

@@ -263,10 +263,139 @@ impl StateSpace {
         })
     }
 
+    /// Frequency-weighted balanced truncation (Enns 1984) to `order` states: the stable part's
+    /// controllability Gramian is the leading block of that of `G_s·V` (input weight `V`), its
+    /// observability Gramian the leading block of that of `W·G_s` (output weight `W`), then the
+    /// square-root projection of [`Self::balanced_truncation`]. It makes `‖W(G − G_r)V‖∞` small
+    /// rather than `‖G − G_r‖∞`: with `V = (I + PK)⁻¹P` for a controller K in a loop with P,
+    /// the error the loop sees (Anderson & Liu, *IEEE TAC* 34, 1989). With one weight the
+    /// reduced stable part is stable (Enns); with both it is not guaranteed and is checked by
+    /// the caller. Unstable and marginal poles are kept exactly, as in balanced truncation. The
+    /// returned "Hankel" values are the weighted ones, `√λ(PQ)`; no a priori bound is given
+    /// (`error_bound` is NaN).
+    ///
+    /// # Errors
+    /// Order out of range, weights of the wrong size or sample time or not stable.
+    pub fn weighted_balanced_truncation(
+        &self,
+        order: usize,
+        input_weight: Option<&StateSpace>,
+        output_weight: Option<&StateSpace>,
+    ) -> Result<BalancedTruncation> {
+        if order > self.n() {
+            return Err(ModelError::InvalidArgument(format!(
+                "order {order} exceeds the model order {}",
+                self.n()
+            )));
+        }
+        let margin = match self.time() {
+            SampleTime::Continuous => 1e-9 * norm1(self.a()).max(1.0),
+            SampleTime::Discrete { .. } => 1e-9,
+        };
+        let (gu, gs) = self.stable_unstable_split(margin)?;
+        let nu_states = gu.n();
+        if order < nu_states {
+            return Err(ModelError::InvalidArgument(format!(
+                "order {order} is below the number of unstable/marginal states ({nu_states}), which are kept"
+            )));
+        }
+        let (gr, hsv) = if gs.n() == 0 {
+            (gs.clone(), Vec::new())
+        } else {
+            let p = weighted_gramian(&gs, input_weight, false)?;
+            let q = weighted_gramian(&gs, output_weight, true)?;
+            project(&gs, factors_of(&p, &q)?, order - nu_states)?
+        };
+        let model = if nu_states == 0 {
+            gr
+        } else {
+            crate::connect::parallel(&gu, &gr)?
+        };
+        Ok(BalancedTruncation {
+            model,
+            hankel_sv: hsv,
+            error_bound: f64::NAN,
+            n_unstable: nu_states,
+        })
+    }
+
     /// Hankel singular values of a stable model (descending).
     pub fn hankel_singular_values(&self) -> Result<Vec<f64>> {
         Ok(gramian_factors(self)?.2)
     }
+}
+
+/// The leading n×n block of the controllability Gramian of `G·V` (`observe = false`) or of the
+/// observability Gramian of `W·G` (`observe = true`); G's own Gramian without a weight.
+fn weighted_gramian(
+    g: &StateSpace,
+    weight: Option<&StateSpace>,
+    observe: bool,
+) -> Result<DMatrix<f64>> {
+    let kind = if g.time().is_continuous() {
+        LyapKind::Continuous
+    } else {
+        LyapKind::Discrete
+    };
+    let n = g.n();
+    let cascade = match weight {
+        None => g.clone(),
+        Some(w) => {
+            let what = if observe {
+                "output weight"
+            } else {
+                "input weight"
+            };
+            if w.poles()?.iter().any(|p| match kind {
+                LyapKind::Continuous => p.re >= 0.0,
+                LyapKind::Discrete => p.norm() >= 1.0,
+            }) {
+                return Err(ModelError::Unstable {
+                    operation: format!("the {what} of a weighted balanced truncation"),
+                    detail: "the weight must be stable".into(),
+                });
+            }
+            // G first: [x_G; x_W] with the weight after (W·G) or the weight first, G's
+            // states still leading (G·V: ẋ_G = A x_G + B C_V x_V + B D_V u)
+            if observe {
+                crate::connect::series(g, w)?
+            } else {
+                let s = crate::connect::series(w, g)?;
+                let nw = w.n();
+                let perm = |m: &DMatrix<f64>, rows: bool| {
+                    let mut out = m.clone();
+                    let total = if rows { m.nrows() } else { m.ncols() };
+                    let order: Vec<usize> = (nw..total).chain(0..nw).collect();
+                    for (new, &old) in order.iter().enumerate() {
+                        if rows {
+                            out.row_mut(new).copy_from(&m.row(old));
+                        } else {
+                            out.column_mut(new).copy_from(&m.column(old));
+                        }
+                    }
+                    out
+                };
+                StateSpace::new(
+                    perm(&perm(s.a(), true), false),
+                    perm(s.b(), true),
+                    perm(s.c(), false),
+                    s.d().clone(),
+                    s.time(),
+                )?
+            }
+        }
+    };
+    let full = if observe {
+        lyap(
+            &cascade.a().transpose(),
+            &(cascade.c().transpose() * cascade.c()),
+            kind,
+        )?
+    } else {
+        lyap(cascade.a(), &(cascade.b() * cascade.b().transpose()), kind)?
+    };
+    let block = full.view((0, 0), (n, n)).into_owned();
+    Ok((&block + block.transpose()) * 0.5)
 }
 
 fn psd_factor(p: &DMatrix<f64>) -> Result<DMatrix<f64>> {
@@ -313,8 +442,23 @@ fn gramian_factors(
     }
     let p = lyap(sys.a(), &(sys.b() * sys.b().transpose()), kind)?;
     let q = lyap(&sys.a().transpose(), &(sys.c().transpose() * sys.c()), kind)?;
-    let r = psd_factor(&p)?;
-    let l = psd_factor(&q)?;
+    factors_of(&p, &q)
+}
+
+/// (R, L, σ, U, V) of given Gramians.
+#[allow(clippy::type_complexity)]
+fn factors_of(
+    p: &DMatrix<f64>,
+    q: &DMatrix<f64>,
+) -> Result<(
+    DMatrix<f64>,
+    DMatrix<f64>,
+    Vec<f64>,
+    DMatrix<f64>,
+    DMatrix<f64>,
+)> {
+    let r = psd_factor(p)?;
+    let l = psd_factor(q)?;
     let (u, s, v) = svd(&(l.transpose() * &r))?;
     Ok((r, l, s, u, v))
 }
@@ -323,7 +467,22 @@ fn balanced_truncation_stable(sys: &StateSpace, order: usize) -> Result<(StateSp
     if sys.n() == 0 {
         return Ok((sys.clone(), Vec::new()));
     }
-    let (r, l, s, u, v) = gramian_factors(sys)?;
+    project(sys, gramian_factors(sys)?, order)
+}
+
+/// The square-root projection onto the `order` leading directions of the factors.
+#[allow(clippy::type_complexity)]
+fn project(
+    sys: &StateSpace,
+    (r, l, s, u, v): (
+        DMatrix<f64>,
+        DMatrix<f64>,
+        Vec<f64>,
+        DMatrix<f64>,
+        DMatrix<f64>,
+    ),
+    order: usize,
+) -> Result<(StateSpace, Vec<f64>)> {
     let k = order.min(s.iter().filter(|&&x| x > 0.0).count());
     let mut tl = u.columns(0, k).transpose() * l.transpose();
     let mut tr = &r * v.columns(0, k);

@@ -1,16 +1,32 @@
-//! `sdctl reduce`.
+//! `sdctl reduce`: balanced truncation of a model, or of a controller keeping its loop.
 
 use crate::commands::model_json;
-use crate::io::{emit, from_model, read_model, CliError};
+use crate::io::{emit, from_analysis, from_model, read_model, CliError};
+use sd_analysis::{reduce_controller, ReductionMethod, Summary};
+use serde_json::json;
 
 /// Arguments of `sdctl reduce`.
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
-    #[arg(help = crate::commands::MODEL_HELP)]
-    pub(crate) model: String,
+    #[arg(help = crate::commands::MODEL_HELP, required_unless_present = "controller")]
+    pub(crate) model: Option<String>,
     /// Number of states to keep.
     #[arg(long)]
     pub(crate) order: usize,
+    /// Reduce this controller (negative feedback u = −K y) keeping its loop with --plant:
+    /// balanced truncation weighted by the closed loop, judged by |ΔS|, |ΔT| and the margins.
+    #[arg(long, requires = "plant", conflicts_with = "model")]
+    pub(crate) controller: Option<String>,
+    /// The plant of the controller's loop (with --controller).
+    #[arg(long)]
+    pub(crate) plant: Option<String>,
+    /// With --controller: `weighted` (closed-loop weight, the default) or `plain`.
+    #[arg(long, default_value = "weighted")]
+    pub(crate) method: String,
+    /// With --controller: print the comparison as JSON (the reduced controller under
+    /// "controller") instead of the controller's model JSON with a summary on stderr.
+    #[arg(long)]
+    pub(crate) json: bool,
     #[arg(help = crate::commands::OUTPUT_HELP, short, long)]
     pub(crate) output: Option<String>,
 }
@@ -18,23 +34,28 @@ pub(crate) struct Args {
 impl Args {
     /// Runs the command.
     pub(crate) fn run(self) -> Result<(), CliError> {
-        let Args {
-            model,
-            order,
-            output,
-        } = self;
-        let sys = read_model(&model)?;
+        match (&self.controller, &self.plant, &self.model) {
+            (Some(k), Some(p), _) => self.controller_run(k, p),
+            (None, _, Some(m)) => self.model_run(m),
+            _ => Err(CliError::input(
+                "give a model, or --controller K.json with --plant P.json",
+            )),
+        }
+    }
+
+    fn model_run(&self, model: &str) -> Result<(), CliError> {
+        let sys = read_model(model)?;
         let r = sys
-            .balanced_truncation(order)
-            .map_err(|e| from_model(&model, e))?;
-        emit(&model_json(&r.model)?, output.as_deref())?;
+            .balanced_truncation(self.order)
+            .map_err(|e| from_model(model, e))?;
+        emit(&model_json(&r.model)?, self.output.as_deref())?;
         eprintln!(
-        "balanced truncation {} -> {} states ({} unstable/marginal kept); error bound ‖G−Gr‖∞ ≤ {:.6e}",
-        sys.n(),
-        r.model.n(),
-        r.n_unstable,
-        r.error_bound
-    );
+            "balanced truncation {} -> {} states ({} unstable/marginal kept); error bound ‖G−Gr‖∞ ≤ {:.6e}",
+            sys.n(),
+            r.model.n(),
+            r.n_unstable,
+            r.error_bound
+        );
         let hs: Vec<String> = r
             .hankel_sv
             .iter()
@@ -43,5 +64,58 @@ impl Args {
             .collect();
         eprintln!("Hankel singular values (stable part): {}", hs.join(" "));
         Ok(())
+    }
+
+    fn controller_run(&self, kpath: &str, ppath: &str) -> Result<(), CliError> {
+        let method = match self.method.as_str() {
+            "weighted" => ReductionMethod::ClosedLoopWeighted,
+            "plain" => ReductionMethod::Plain,
+            other => {
+                return Err(CliError::input(format!(
+                    "--method {other}: use `weighted` or `plain`"
+                )))
+            }
+        };
+        let (k, p) = (read_model(kpath)?, read_model(ppath)?);
+        let r =
+            reduce_controller(&p, &k, self.order, method).map_err(|e| from_analysis(kpath, e))?;
+        let kjson = model_json(&r.controller)?;
+        if self.json {
+            let loop_json = |s: &Summary| {
+                json!({"stable": s.stable, "closed_loop_radius": s.closed_loop_radius,
+                       "crossover_hz": s.crossover_hz, "bandwidth_hz": s.bandwidth_hz,
+                       "sensitivity_peak_db": s.sensitivity_peak_db, "sensitivity_peak_hz": s.sensitivity_peak_hz,
+                       "gain_margin_db": s.gain_margin_db, "phase_margin_deg": s.phase_margin_deg,
+                       "modulus_margin": s.modulus_margin})
+            };
+            let k: serde_json::Value = serde_json::from_str(&kjson)
+                .map_err(|e| CliError::numerical(format!("model JSON: {e}")))?;
+            let v = json!({
+                "method": r.method, "order_before": r.orders.0, "order_after": r.orders.1,
+                "hankel_sv": r.hankel_sv, "band_hz": r.band_hz,
+                "max_delta_s_db": r.max_delta_s_db, "max_delta_t_db": r.max_delta_t_db,
+                "before": loop_json(&r.before), "after": loop_json(&r.after), "controller": k,
+            });
+            emit(&v.to_string(), self.output.as_deref())
+        } else {
+            eprintln!(
+                "controller {} -> {} states ({:?}); loop stable; below {:.1} Hz |ΔS| ≤ {:.3} dB, \
+                 |ΔT| ≤ {:.3} dB; margins before/after: gain {:.2}/{:.2} dB, phase {:.1}/{:.1}°, \
+                 modulus {:.3}/{:.3}",
+                r.orders.0,
+                r.orders.1,
+                r.method,
+                r.band_hz,
+                r.max_delta_s_db,
+                r.max_delta_t_db,
+                r.before.gain_margin_db,
+                r.after.gain_margin_db,
+                r.before.phase_margin_deg,
+                r.after.phase_margin_deg,
+                r.before.modulus_margin,
+                r.after.modulus_margin
+            );
+            emit(&kjson, self.output.as_deref())
+        }
     }
 }

@@ -1,4 +1,4 @@
-//! `sdctl hinfsyn` and `sdctl h2syn`: the JSON a user gets, and the bad inputs it refuses with exit 2 and one line.
+//! `sdctl hinfsyn`, `sdctl h2syn` and `sdctl reduce --controller`: the JSON a user gets, and the bad inputs it refuses with exit 2 and one line.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::process::{Command, Output};
@@ -109,4 +109,75 @@ fn h2syn_json_and_a_bad_partition() {
     assert_eq!(v["controller"]["ts"].as_f64(), Some(0.001));
     let o = sdctl(&["h2syn", &p, "--nmeas", "1", "--ncon", "3"]);
     one_line_error(&o, 2, "ncon = 3");
+}
+
+/// `sdctl reduce --controller`: a loopshaping controller (6 states) of a damped double
+/// integrator reduced to 3 states keeps the loop within 0.1 dB (JSON: orders, the band, |ΔS|,
+/// |ΔT|, the loop before and after, the controller); to 1 state it loses the loop: exit 1, one
+/// line; to 0 states (below its integrator) it is refused: exit 2.
+#[test]
+fn reduce_controller_keeps_the_loop_or_says_it_cannot() {
+    let ct = file(
+        "mass.json",
+        r#"{"type":"ss","ts":null,"a":[[0,1],[0,-0.1]],"b":[[0],[1]],"c":[[1,0]],"d":[[0]]}"#,
+    );
+    let dir = std::path::Path::new(&ct).parent().unwrap().to_path_buf();
+    let path = |n: &str| dir.join(n).to_string_lossy().into_owned();
+    let (p, w, k) = (
+        path("mass_p.json"),
+        path("mass_w.json"),
+        path("mass_k.json"),
+    );
+    for args in [
+        vec!["c2d", &ct, "--ts", "0.001", "-o", &p],
+        vec![
+            "weight",
+            "pid",
+            "--bandwidth-hz",
+            "20",
+            "--mass",
+            "1",
+            "--ts",
+            "0.001",
+            "-o",
+            &w,
+        ],
+        vec!["loopshape", &p, "--w1", &w, "-o", &k],
+    ] {
+        let o = sdctl(&args);
+        assert_eq!(
+            o.status.code(),
+            Some(0),
+            "{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+    let o = sdctl(&[
+        "reduce",
+        "--controller",
+        &k,
+        "--plant",
+        &p,
+        "--order",
+        "3",
+        "--json",
+    ]);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["order_before"].as_u64(), Some(6));
+    assert_eq!(v["order_after"].as_u64(), Some(3));
+    assert!(v["max_delta_s_db"].as_f64().unwrap() <= 0.1, "{v}");
+    assert!(v["max_delta_t_db"].as_f64().unwrap() <= 0.1, "{v}");
+    assert_eq!(v["after"]["stable"], serde_json::json!(true));
+    assert_eq!(v["method"], serde_json::json!("closed_loop_weighted"));
+    assert_eq!(v["controller"]["a"].as_array().unwrap().len(), 3);
+    let o = sdctl(&["reduce", "--controller", &k, "--plant", &p, "--order", "1"]);
+    one_line_error(&o, 1, "does not stabilize the loop");
+    let o = sdctl(&["reduce", "--controller", &k, "--plant", &p, "--order", "0"]);
+    one_line_error(&o, 2, "unstable/marginal");
 }
