@@ -49,6 +49,9 @@ enum Cmd {
     /// H2 synthesis on a generalized plant (u = K y; the achieved norm by the closed loop's
     /// Gramian).
     H2syn(crate::cmd::h2syn::Args),
+    /// Mixed-sensitivity H∞ design [W1·S; W2·K·S; W3·T] (optionally with an input
+    /// disturbance): the controller for negative feedback u = K (r − y).
+    Mixsyn(crate::cmd::mixsyn::Args),
     /// Multisine excitations as CSV with their manifest; with --inputs N, orthogonal
     /// multisines (one experiment per input).
     Multisine(crate::cmd::multisine::Args),
@@ -131,6 +134,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Cmd::Loopshape(a) => a.run(),
         Cmd::Hinfsyn(a) => a.run(),
         Cmd::H2syn(a) => a.run(),
+        Cmd::Mixsyn(a) => a.run(),
         Cmd::Frf(a) => a.run(),
         Cmd::Multisine(a) => a.run(),
         Cmd::Fit(a) => a.run(),

@@ -1,4 +1,4 @@
-//! `sdctl hinfsyn`, `sdctl h2syn` and `sdctl reduce --controller`: the JSON a user gets, and the bad inputs it refuses with exit 2 and one line.
+//! `sdctl hinfsyn`, `sdctl h2syn`, `sdctl mixsyn` and `sdctl reduce --controller`: the JSON a user gets, and the bad inputs it refuses with exit 2 and one line.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::process::{Command, Output};
@@ -180,4 +180,72 @@ fn reduce_controller_keeps_the_loop_or_says_it_cannot() {
     one_line_error(&o, 1, "does not stabilize the loop");
     let o = sdctl(&["reduce", "--controller", &k, "--plant", &p, "--order", "0"]);
     one_line_error(&o, 2, "unstable/marginal");
+}
+
+/// `sdctl weight makeweight` and `sdctl mixsyn` on a damped double integrator at 1 kHz with an
+/// input disturbance: a stable loop, the achieved norm within γ, the controller at the plant's
+/// rate; no weight on S, KS or T is refused (exit 2).
+#[test]
+fn mixsyn_designs_a_stable_loop() {
+    let ct = file(
+        "mix_mass.json",
+        r#"{"type":"ss","ts":null,"a":[[0,1],[0,-0.1]],"b":[[0],[1]],"c":[[1,0]],"d":[[0]]}"#,
+    );
+    let dir = std::path::Path::new(&ct).parent().unwrap().to_path_buf();
+    let path = |n: &str| dir.join(n).to_string_lossy().into_owned();
+    let (p, w1) = (path("mix_p.json"), path("mix_w1.json"));
+    let w2 = file(
+        "mix_w2.json",
+        r#"{"type":"ss","ts":0.001,"a":[],"b":[],"c":[[]],"d":[[0.01]]}"#,
+    );
+    let wd = file(
+        "mix_wd.json",
+        r#"{"type":"ss","ts":0.001,"a":[],"b":[],"c":[[]],"d":[[1]]}"#,
+    );
+    for args in [
+        vec!["c2d", &ct, "--ts", "0.001", "-o", &p],
+        vec![
+            "weight",
+            "makeweight",
+            "--dc",
+            "1000",
+            "--freq-hz",
+            "5",
+            "--hf",
+            "0.5",
+            "--order",
+            "2",
+            "--ts",
+            "0.001",
+            "-o",
+            &w1,
+        ],
+    ] {
+        let o = sdctl(&args);
+        assert_eq!(
+            o.status.code(),
+            Some(0),
+            "{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+    let o = sdctl(&[
+        "mixsyn", &p, "--w1", &w1, "--w2", &w2, "--wd", &wd, "--json",
+    ]);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let g = v["gamma"].as_f64().unwrap();
+    assert!(
+        v["achieved_norm"].as_f64().unwrap() <= g * (1.0 + 1e-6),
+        "{v}"
+    );
+    assert_eq!(v["closed_loop_stable"], serde_json::json!(true));
+    assert_eq!(v["controller"]["ts"].as_f64(), Some(0.001));
+    let o = sdctl(&["mixsyn", &p, "--wd", &wd]);
+    one_line_error(&o, 2, "at least one of W1");
 }

@@ -650,6 +650,8 @@ pub fn run(quick: bool) -> Result<(), String> {
         w1_path,
     } = bench_dare_loopshape(&ctx)?;
     let (loopshape60, t_ls60, gamma_min60, p60_path) = bench_loopshape60(&ctx, &sdctl, &w1_path)?;
+    let slow60 = sd_multirate::downsample(&ctx.pd, 5).map_err(err)?;
+    let hinf60 = crate::bench_hinf::entry(&root, &ctx.dir, &slow60, ctx.reps)?;
     let (frf, t_frf, u_path, y_path) = bench_frf(&ctx)?;
     let fit = bench_fit(&ctx)?;
     eprintln!("[bench] an order-60 common-pole fit of the two-axis stage (2x2 x 2500 lines)...");
@@ -717,6 +719,7 @@ pub fn run(quick: bool) -> Result<(), String> {
         e.dare,
         e.loopshape,
         e.loopshape60,
+        hinf60,
         e.frf,
         e.fit,
         fit_mimo,

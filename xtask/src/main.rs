@@ -9,6 +9,7 @@
 //!   and the max RSS of whole processes (`physical`); written to `target/bench/results.json`.
 
 mod bench;
+mod bench_hinf;
 mod mixsyn_design;
 mod paper;
 mod physical;

@@ -15,6 +15,7 @@ pub(crate) mod h2syn;
 pub(crate) mod hinfsyn;
 pub(crate) mod intersample;
 pub(crate) mod loopshape;
+pub(crate) mod mixsyn;
 pub(crate) mod multisine;
 pub(crate) mod norm;
 pub(crate) mod predict;

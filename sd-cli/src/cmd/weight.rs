@@ -62,6 +62,30 @@ pub(crate) enum WeightKind {
         #[arg(help = crate::commands::OUTPUT_HELP, short, long)]
         output: Option<String>,
     },
+    /// MATLAB-like makeweight: gain DC at low frequency, MAG at FREQ_HZ, HF at high
+    /// frequency; order 1 or 2 (for S: DC small, HF > 1 is 1/|W|-style; the weight itself here).
+    Makeweight {
+        /// Low-frequency gain.
+        #[arg(long, allow_negative_numbers = true)]
+        dc: f64,
+        /// Frequency (Hz) where the gain is MAG.
+        #[arg(long, allow_negative_numbers = true)]
+        freq_hz: f64,
+        /// Gain at FREQ_HZ (strictly between DC and HF).
+        #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+        mag: f64,
+        /// High-frequency gain.
+        #[arg(long, allow_negative_numbers = true)]
+        hf: f64,
+        /// 1 or 2.
+        #[arg(long, default_value_t = 1)]
+        order: usize,
+        /// Sample period (s): a discrete weight (Tustin, prewarped at FREQ_HZ); absent: continuous.
+        #[arg(long, allow_negative_numbers = true)]
+        ts: Option<f64>,
+        #[arg(help = crate::commands::OUTPUT_HELP, short, long)]
+        output: Option<String>,
+    },
 }
 
 /// Arguments of `sdctl weight`.
@@ -110,6 +134,18 @@ impl Args {
                 ts,
                 output,
             } => (sd_hinf::weights::lowpass(freq_hz, zeta, ts), output),
+            WeightKind::Makeweight {
+                dc,
+                freq_hz,
+                mag,
+                hf,
+                order,
+                ts,
+                output,
+            } => (
+                sd_hinf::weights::makeweight(dc, freq_hz, mag, hf, order, ts),
+                output,
+            ),
         };
         let w = w.map_err(|e| from_hinf("weight", e))?;
         emit(&model_json(&w)?, output.as_deref())

@@ -1,0 +1,72 @@
+//! `cargo xtask bench`'s H∞ synthesis entry (#41 item 6): the γ-optimal mixed-sensitivity
+//! synthesis of the 60-state stage at 1 kHz with the paper's mixsyn weights, and SLICOT's
+//! SB10DD (through slycot, `tools/bench_sb10dd.py`) at the same γ on the same generalized plant.
+
+use crate::bench::{err, time_it, write_model};
+use sd_hinf::weights::{makeweight, notch};
+use sd_hinf::{augw, hinfsyn, HinfOptions, MixsynWeights};
+use sd_model::StateSpace;
+use serde_json::{json, Value};
+use std::path::Path;
+use std::process::Command;
+
+/// The entry; `slow60` is the 60-state stage at 1 kHz.
+pub(crate) fn entry(
+    root: &Path,
+    dir: &Path,
+    slow60: &StateSpace,
+    reps: usize,
+) -> Result<Value, String> {
+    eprintln!(
+        "[bench] H∞ synthesis of the 60-state stage's mixed-sensitivity plant (and SB10DD)..."
+    );
+    use crate::mixsyn_design::{W1, W1_PEAK, W2, WD};
+    let ts = slow60.ts();
+    let shape = makeweight(W1.0, W1.1, 1.0, W1.2, 2, ts).map_err(err)?;
+    let peak = notch(W1_PEAK.0, W1_PEAK.1, W1_PEAK.2, ts).map_err(err)?;
+    let w1 = sd_model::series(&shape, &peak).map_err(err)?;
+    let gain = |v: f64| StateSpace::gain(nalgebra::DMatrix::from_element(1, 1, v), slow60.time());
+    let (w2, wd) = (gain(W2).map_err(err)?, gain(WD).map_err(err)?);
+    let w = MixsynWeights {
+        w1: Some(&w1),
+        w2: Some(&w2),
+        w3: None,
+        wd: Some(&wd),
+    };
+    let (p, part) = augw(slow60, &w).map_err(err)?;
+    let (t, r) = time_it(reps, || hinfsyn(&p, part, &HinfOptions::default()));
+    let r = r.map_err(err)?;
+    let steps = r.steps.len();
+    let per_step = t / steps as f64;
+    let plant_path = dir.join("hinfsyn_stage60_plant.json");
+    write_model(&plant_path, &p)?;
+    let mut e = json!({"name": "hinfsyn_stage60_mixsyn",
+        "size": format!("generalized plant of {} states (the 60-state stage at 1 kHz, W1 with a 347 Hz peak, W2, Wd)", p.n()),
+        "ours_gamma_optimal_s": t, "ours_gamma_min": r.gamma_min, "ours_achieved": r.achieved_norm,
+        "ours_gamma_steps": steps, "ours_per_gamma_step_s": per_step,
+        "ours_closed_loop_stable": r.closed_loop_stable, "target_s": 0.5});
+    match peer(root, &plant_path, r.gamma, reps) {
+        Ok(py) => {
+            let t_peer = py["median_s"].as_f64().unwrap_or(f64::NAN);
+            e["peer"] = json!({"slycot_sb10dd_at_our_gamma": py});
+            e["ratio_sb10dd_over_our_gamma_step"] = json!(t_peer / per_step);
+        }
+        Err(msg) => e["peer"] = json!({"error": msg}),
+    }
+    Ok(e)
+}
+
+fn peer(root: &Path, plant: &Path, gamma: f64, reps: usize) -> Result<Value, String> {
+    let out = Command::new("python3")
+        .arg(root.join("tools/bench_sb10dd.py"))
+        .arg(plant)
+        .arg(format!("{gamma:.17e}"))
+        .arg(reps.to_string())
+        .output()
+        .map_err(err)?;
+    if !out.status.success() {
+        let msg = String::from_utf8_lossy(&out.stderr);
+        return Err(msg.lines().last().unwrap_or("python failed").to_string());
+    }
+    serde_json::from_slice(&out.stdout).map_err(err)
+}
