@@ -730,7 +730,7 @@ fn diagnose(d: &Data, kind: Kind) -> Option<HinfError> {
     }
     // PBH tests on the modes that need moving
     let scale = d.a.norm() + d.b.norm() + d.q.norm();
-    if let Some(z) = unmovable_mode(&d.a, &d.b, kind == Kind::Discrete, scale) {
+    if let Some(z) = unmovable_mode(&d.a, &d.b, kind == Kind::Discrete, scale, tol::PBH) {
         return Some(err(format!(
             "(A, B) is not stabilizable: the mode at {:.6}{:+.6}i cannot be moved by the input",
             z.re, z.im
@@ -762,7 +762,7 @@ fn diagnose(d: &Data, kind: Kind) -> Option<HinfError> {
 }
 
 /// The first mode of A on or outside the stability boundary (unit circle when `discrete`, else
-/// imaginary axis) that B cannot move: the PBH test `σ_min([A − λI  B̃]) ≤ PBH·scale` with B
+/// imaginary axis) that B cannot move: the PBH test `σ_min([A − λI  B̃]) ≤ rel_tol·scale` with B
 /// rescaled to `B̃ = B·s/‖B‖`, `s = max(‖A‖, scale)` (the rank of `[A − λI  B]` does not depend
 /// on B's units; a position sensor in metres, C ~ 1e-9, must not look undetectable), after the
 /// states of `[A B]` are balanced by powers of two (nor on the state coordinates: a weight
@@ -772,6 +772,7 @@ pub(crate) fn unmovable_mode(
     b: &DMatrix<f64>,
     discrete: bool,
     scale: f64,
+    rel_tol: f64,
 ) -> Option<C> {
     let (n, m) = (a.nrows(), b.ncols());
     let mut padded = DMatrix::<f64>::zeros(n + m, n + m);
@@ -797,7 +798,7 @@ pub(crate) fn unmovable_mode(
         ab.view_mut((0, 0), (n, n))
             .copy_from(&(to_complex(a) - DMatrix::<C>::identity(n, n) * z));
         ab.view_mut((0, n), (n, m)).copy_from(&to_complex(&bs));
-        smallest_sv(&ab) <= tol::PBH * s
+        smallest_sv(&ab) <= rel_tol * s
     })
 }
 

@@ -43,3 +43,7 @@ pub const PSD: f64 = 1e-9;
 pub const ACHIEVED: f64 = 1e-6;
 /// H∞ synthesis: the default relative tolerance of the γ iteration.
 pub const GAMMA_TOL: f64 = 1e-3;
+/// H∞ synthesis: the up-front refusal of an unstabilizable/undetectable plant needs the PBH
+/// smallest singular value below this times the balanced `‖A‖` (roundoff level: a rigid body
+/// measured in metres next to 1e4-sized weight states sits near 1e-10 and is detectable).
+pub const PBH_REFUSE: f64 = 1e-13;

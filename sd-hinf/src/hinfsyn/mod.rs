@@ -183,7 +183,9 @@ pub fn hinfsyn(p: &StateSpace, part: Partition, opt: &HinfOptions) -> Result<Hin
 }
 
 /// Refuses a plant no controller stabilizes: a mode on or outside the stability boundary that
-/// the controls cannot move or the measurements do not see (PBH tests).
+/// the controls cannot move or the measurements do not see (PBH tests at
+/// [`tol::PBH_REFUSE`], a rank deficiency at roundoff level; a mode that is only weakly
+/// reachable is left to the Riccati test, whose failure is reported per γ).
 fn stabilizable(p: &StateSpace, part: Partition) -> Result<()> {
     let bl = part.split(p)?;
     let discrete = p.time().is_discrete();
@@ -196,7 +198,8 @@ fn stabilizable(p: &StateSpace, part: Partition) -> Result<()> {
             z.im
         )
     };
-    if let Some(z) = crate::riccati::unmovable_mode(&bl.a, &bl.b2, discrete, scale) {
+    if let Some(z) = crate::riccati::unmovable_mode(&bl.a, &bl.b2, discrete, scale, tol::PBH_REFUSE)
+    {
         return Err(HinfError::InvalidArgument(format!(
             "no controller stabilizes this plant: {} is unstable and the controls cannot move it ((A, B₂) is not stabilizable); check the partition (ncon = {}) or the plant",
             place(z),
@@ -204,7 +207,9 @@ fn stabilizable(p: &StateSpace, part: Partition) -> Result<()> {
         )));
     }
     let at = bl.a.transpose();
-    if let Some(z) = crate::riccati::unmovable_mode(&at, &bl.c2.transpose(), discrete, scale) {
+    if let Some(z) =
+        crate::riccati::unmovable_mode(&at, &bl.c2.transpose(), discrete, scale, tol::PBH_REFUSE)
+    {
         return Err(HinfError::InvalidArgument(format!(
             "no controller stabilizes this plant: {} is unstable and the measurements do not see it ((C₂, A) is not detectable); check the partition (nmeas = {}) or the plant",
             place(z),
