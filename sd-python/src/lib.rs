@@ -16,6 +16,7 @@
 mod data;
 mod design;
 mod model;
+mod synthesis;
 
 use nalgebra::DMatrix;
 use numpy::ndarray::Array2;
@@ -129,6 +130,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("DEFAULT_TESTBED_CONFIG", sd_testbed::DEFAULT_CONFIG)?;
     model::register(m)?;
     design::register(m)?;
+    synthesis::register(m)?;
     data::register(m)?;
     Ok(())
 }

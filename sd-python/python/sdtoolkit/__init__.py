@@ -32,6 +32,10 @@ from ._native import NumericalError
 DEFAULT_TESTBED_CONFIG: str = _native.DEFAULT_TESTBED_CONFIG
 
 __all__ = [
+    "hinfsyn",
+    "h2syn",
+    "mixsyn",
+    "reduce_controller",
     "StateSpace",
     "Frd",
     "Result",
@@ -406,6 +410,51 @@ def loopshape(P, W1=None, W2=None, factor: float = 1.1, strictly_proper: bool = 
     for k in ("controller", "shaped_controller", "shaped_plant"):
         d[k] = _from_tuple(d[k])
     d["riccati"] = [{"equation": e, "residual": r, "condition": c} for e, r, c in d["riccati"]]
+    return Result(d)
+
+
+def _synthesis_result(d) -> Result:
+    out = json.loads(d.pop("report_json"))
+    for k, v in d.items():
+        out[k] = _from_tuple(v)
+    return Result(out)
+
+
+def hinfsyn(P, nmeas: int, ncon: int, gamma: Optional[float] = None, tol: float = 1e-3) -> Result:
+    """H∞ synthesis on the generalized plant ``P`` (the last ``nmeas`` outputs measured, the
+    last ``ncon`` inputs controlled; ``u = K y``), as ``sdctl hinfsyn --json``: ``controller``,
+    ``gamma``, ``gamma_min``, ``gamma_infeasible``, ``achieved_norm`` (the toolkit's own H∞ norm
+    of the loop), ``closed_loop_stable``, ``steps`` (every γ tried and its outcome), …
+    A γ below γ_min, a wrong partition or a rank-deficient D12/D21 raise ValueError."""
+    return _synthesis_result(_native.hinfsyn(_ss(P, "P")._tuple(), int(nmeas), int(ncon),
+                                             None if gamma is None else float(gamma), float(tol)))
+
+
+def h2syn(P, nmeas: int, ncon: int) -> Result:
+    """H2 synthesis on the generalized plant ``P`` (``u = K y``), as ``sdctl h2syn --json``:
+    ``controller``, ``achieved_norm`` (from the closed loop's Gramian), ``closed_loop_stable``."""
+    return _synthesis_result(_native.h2syn(_ss(P, "P")._tuple(), int(nmeas), int(ncon)))
+
+
+def mixsyn(G, W1=None, W2=None, W3=None, Wd=None, gamma: Optional[float] = None,
+           tol: float = 1e-3) -> Result:
+    """Mixed-sensitivity H∞ design ``[W1 S; W2 K S; W3 T]`` (``Wd``: an input disturbance,
+    adding the process sensitivity), as ``sdctl mixsyn --json``: ``controller`` (negative
+    feedback ``u = K (r − y)``), ``generalized_plant``, ``gamma``, ``gamma_min``,
+    ``achieved_norm``, …"""
+    ws = [None if w is None else _ss(w, n)._tuple() for w, n in ((W1, "W1"), (W2, "W2"), (W3, "W3"), (Wd, "Wd"))]
+    return _synthesis_result(_native.mixsyn(_ss(G, "G")._tuple(), *ws,
+                                            None if gamma is None else float(gamma), float(tol)))
+
+
+def reduce_controller(P, K, order: int, method: str = "weighted") -> Result:
+    """Reduce controller ``K`` (negative feedback around ``P``) to ``order`` states keeping the
+    loop, as ``sdctl reduce --controller --json``: ``controller``, ``order_before`` /
+    ``order_after``, ``hankel_sv``, ``band_hz``, ``max_delta_s_db``, ``max_delta_t_db``,
+    ``before`` / ``after`` (stability and margins). A reduced controller that loses the loop
+    raises NumericalError."""
+    d = _native.reduce_controller(_ss(P, "P")._tuple(), _ss(K, "K")._tuple(), int(order), str(method))
+    d["controller"] = _from_tuple(d["controller"])
     return Result(d)
 
 

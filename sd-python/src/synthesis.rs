@@ -1,0 +1,148 @@
+//! Synthesis and controller reduction: `hinfsyn`, `h2syn`, `mixsyn`, `reduce_controller`. Each
+//! returns the controller as a model tuple and the toolkit's JSON report as text (the Python
+//! side loads it), as `sdctl … --json` prints it.
+
+use crate::{json_text, py_err, sys_in, sys_out, value_err, SysIn};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+fn part(nmeas: usize, ncon: usize) -> sd_hinf::Partition {
+    sd_hinf::Partition { nmeas, ncon }
+}
+
+fn options(gamma: Option<f64>, tol: f64) -> sd_hinf::HinfOptions {
+    sd_hinf::HinfOptions {
+        gamma,
+        tolerance: tol,
+        ..Default::default()
+    }
+}
+
+/// H∞ synthesis on a generalized plant (`sd_hinf::hinfsyn`): `controller`, `report_json`.
+#[pyfunction]
+#[pyo3(signature = (plant, nmeas, ncon, gamma, tol))]
+fn hinfsyn<'py>(
+    py: Python<'py>,
+    plant: SysIn<'py>,
+    nmeas: usize,
+    ncon: usize,
+    gamma: Option<f64>,
+    tol: f64,
+) -> PyResult<Bound<'py, PyDict>> {
+    let p = sys_in(&plant)?;
+    let r = py
+        .detach(|| sd_hinf::hinfsyn(&p, part(nmeas, ncon), &options(gamma, tol)))
+        .map_err(py_err)?;
+    let out = PyDict::new(py);
+    out.set_item("controller", sys_out(py, &r.controller))?;
+    out.set_item("report_json", json_text(&r)?)?;
+    Ok(out)
+}
+
+/// H2 synthesis on a generalized plant (`sd_hinf::h2syn`): `controller`, `report_json`.
+#[pyfunction]
+fn h2syn<'py>(
+    py: Python<'py>,
+    plant: SysIn<'py>,
+    nmeas: usize,
+    ncon: usize,
+) -> PyResult<Bound<'py, PyDict>> {
+    let p = sys_in(&plant)?;
+    let r = py
+        .detach(|| sd_hinf::h2syn(&p, part(nmeas, ncon)))
+        .map_err(py_err)?;
+    let out = PyDict::new(py);
+    out.set_item("controller", sys_out(py, &r.controller))?;
+    out.set_item("report_json", json_text(&r)?)?;
+    Ok(out)
+}
+
+/// Mixed-sensitivity synthesis (`sd_hinf::mixsyn`): `controller` (negative feedback),
+/// `report_json`, `generalized_plant`.
+#[pyfunction]
+#[pyo3(signature = (plant, w1, w2, w3, wd, gamma, tol))]
+#[allow(clippy::too_many_arguments)]
+fn mixsyn<'py>(
+    py: Python<'py>,
+    plant: SysIn<'py>,
+    w1: Option<SysIn<'py>>,
+    w2: Option<SysIn<'py>>,
+    w3: Option<SysIn<'py>>,
+    wd: Option<SysIn<'py>>,
+    gamma: Option<f64>,
+    tol: f64,
+) -> PyResult<Bound<'py, PyDict>> {
+    let g = sys_in(&plant)?;
+    let conv = |w: &Option<SysIn<'py>>| w.as_ref().map(sys_in).transpose();
+    let (w1, w2, w3, wd) = (conv(&w1)?, conv(&w2)?, conv(&w3)?, conv(&wd)?);
+    let w = sd_hinf::MixsynWeights {
+        w1: w1.as_ref(),
+        w2: w2.as_ref(),
+        w3: w3.as_ref(),
+        wd: wd.as_ref(),
+    };
+    let (r, gp) = py
+        .detach(|| sd_hinf::mixsyn(&g, &w, &options(gamma, tol)))
+        .map_err(py_err)?;
+    let out = PyDict::new(py);
+    out.set_item("controller", sys_out(py, &r.controller))?;
+    out.set_item("generalized_plant", sys_out(py, &gp))?;
+    out.set_item("report_json", json_text(&r)?)?;
+    Ok(out)
+}
+
+/// Controller reduction keeping the loop (`sd_analysis::reduce_controller`): `controller`,
+/// the orders, `hankel_sv`, `band_hz`, `max_delta_s_db`, `max_delta_t_db`, and the loop's
+/// stability and margins `before` / `after` (dicts).
+#[pyfunction]
+fn reduce_controller<'py>(
+    py: Python<'py>,
+    plant: SysIn<'py>,
+    controller: SysIn<'py>,
+    order: usize,
+    method: &str,
+) -> PyResult<Bound<'py, PyDict>> {
+    let method = match method {
+        "weighted" => sd_analysis::ReductionMethod::ClosedLoopWeighted,
+        "plain" => sd_analysis::ReductionMethod::Plain,
+        other => {
+            return Err(value_err(format!(
+                "method {other:?}: use \"weighted\" or \"plain\""
+            )))
+        }
+    };
+    let (p, k) = (sys_in(&plant)?, sys_in(&controller)?);
+    let r = py
+        .detach(|| sd_analysis::reduce_controller(&p, &k, order, method))
+        .map_err(py_err)?;
+    let side = |s: &sd_analysis::Summary| -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        d.set_item("stable", s.stable)?;
+        d.set_item("closed_loop_radius", s.closed_loop_radius)?;
+        d.set_item("crossover_hz", s.crossover_hz)?;
+        d.set_item("sensitivity_peak_db", s.sensitivity_peak_db)?;
+        d.set_item("gain_margin_db", s.gain_margin_db)?;
+        d.set_item("phase_margin_deg", s.phase_margin_deg)?;
+        d.set_item("modulus_margin", s.modulus_margin)?;
+        Ok(d)
+    };
+    let out = PyDict::new(py);
+    out.set_item("controller", sys_out(py, &r.controller))?;
+    out.set_item("order_before", r.orders.0)?;
+    out.set_item("order_after", r.orders.1)?;
+    out.set_item("hankel_sv", r.hankel_sv.clone())?;
+    out.set_item("band_hz", r.band_hz)?;
+    out.set_item("max_delta_s_db", r.max_delta_s_db)?;
+    out.set_item("max_delta_t_db", r.max_delta_t_db)?;
+    out.set_item("before", side(&r.before)?)?;
+    out.set_item("after", side(&r.after)?)?;
+    Ok(out)
+}
+
+pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(hinfsyn, m)?)?;
+    m.add_function(wrap_pyfunction!(h2syn, m)?)?;
+    m.add_function(wrap_pyfunction!(mixsyn, m)?)?;
+    m.add_function(wrap_pyfunction!(reduce_controller, m)?)?;
+    Ok(())
+}
