@@ -76,10 +76,13 @@ impl StateSpace {
                 "the H2 norm of a continuous model with D ≠ 0 is infinite".into(),
             ));
         }
-        let p = lyap(self.a(), &(self.b() * self.b().transpose()), kind)?;
-        let mut m = self.c() * p * self.c().transpose();
+        // balanced states: the Gramian of a badly scaled realization (entries decades apart)
+        // has huge entries in directions C does not see, and C·P·Cᵀ then cancels to noise
+        let bal = self.balance_states()?;
+        let p = lyap(bal.a(), &(bal.b() * bal.b().transpose()), kind)?;
+        let mut m = bal.c() * p * bal.c().transpose();
         if kind == LyapKind::Discrete {
-            m += self.d() * self.d().transpose();
+            m += bal.d() * bal.d().transpose();
         }
         Ok(m.trace().max(0.0).sqrt())
     }

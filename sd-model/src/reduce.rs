@@ -319,6 +319,28 @@ impl StateSpace {
         })
     }
 
+    /// The same system with its states scaled by powers of two so that the rows of `[A B]` and
+    /// the columns of `[A; C]` are balanced ([`crate::linalg::expm::balance_leading`] on
+    /// `[A B; C 0]`, MATLAB's `ssbal`): exact (a diagonal similarity of powers of two), and what
+    /// a Gramian or Riccati solution needs when the physical units put the entries decades
+    /// apart (a position in metres, a force in newtons, a weight of 1e-7).
+    pub fn balance_states(&self) -> Result<StateSpace> {
+        let (n, m, p) = (self.n(), self.nu(), self.ny());
+        let size = n + m.max(p);
+        let mut big = DMatrix::<f64>::zeros(size, size);
+        big.view_mut((0, 0), (n, n)).copy_from(self.a());
+        big.view_mut((0, n), (n, m)).copy_from(self.b());
+        big.view_mut((n, 0), (p, n)).copy_from(self.c());
+        let (bal, _) = crate::linalg::expm::balance_leading(&big, n);
+        StateSpace::new(
+            bal.view((0, 0), (n, n)).into_owned(),
+            bal.view((0, n), (n, m)).into_owned(),
+            bal.view((n, 0), (p, n)).into_owned(),
+            self.d().clone(),
+            self.time(),
+        )
+    }
+
     /// Hankel singular values of a stable model (descending).
     pub fn hankel_singular_values(&self) -> Result<Vec<f64>> {
         Ok(gramian_factors(self)?.2)

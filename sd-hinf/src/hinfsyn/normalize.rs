@@ -11,14 +11,14 @@
 //!    `D₂₁ = U₁ΣV₁ᵀ`, `Θ₂₁ = [V₂ V₁]`, `R₂₁ = Σ⁻¹U₁ᵀ`: `R₂₁D₂₁Θ₂₁ = [0 I]`. `z̃ = Θ₁₂z`,
 //!    `w = Θ₂₁w̃` are orthogonal (norms unchanged); `u = R₁₂ũ`, `ỹ = R₂₁y`, so the
 //!    controller of the scaled problem `K̃` gives `K = R₁₂K̃R₂₁`.
-//! 4. **State balancing** (`balance`): powers-of-two state scaling of `[A B; C 0]`.
+//! 4. **State balancing** ([`sd_model::StateSpace::balance_states`]): powers-of-two state
+//!    scaling of `[A B; C 0]`.
 
 use crate::bilinear::{bilinear_to_continuous, bilinear_to_discrete};
 use crate::error::{HinfError, Result};
 use crate::lft::{undo_loop_shift, Blocks, Partition};
 use crate::tol;
 use nalgebra::DMatrix;
-use sd_model::linalg::expm::balance_leading;
 use sd_model::{SampleTime, StateSpace};
 
 /// The continuous scaled problem (`D₁₂ = [0; I]`, `D₂₁ = [0 I]`, `D₂₂ = 0`) and what maps its
@@ -169,7 +169,7 @@ pub(crate) fn normalize(p: &StateSpace, part: Partition) -> Result<Normalized> {
     d12.view_mut((p1 - m2, 0), (m2, m2)).fill_with_identity();
     let mut d21 = DMatrix::<f64>::zeros(p2, m1);
     d21.view_mut((0, m1 - p2), (p2, p2)).fill_with_identity();
-    let scaled = balance(Blocks {
+    let scaled = Blocks {
         a: bl.a.clone(),
         b1: &bl.b1 * &t21,
         b2: &bl.b2 * &r12,
@@ -179,8 +179,16 @@ pub(crate) fn normalize(p: &StateSpace, part: Partition) -> Result<Normalized> {
         d12,
         d21,
         d22: DMatrix::zeros(p2, m2),
-    });
-    let plant = assemble(&scaled)?;
+    };
+    // step 4: balanced states (`StateSpace::balance_states`): a plant in metres and newtons
+    // with a weight of 1e-7 on the force otherwise puts the Hamiltonian's entries 25 decades
+    // apart; the controller's transfer function does not depend on the plant's coordinates
+    let plant = assemble(&scaled)?.balance_states()?;
+    let scaled = Partition {
+        nmeas: p2,
+        ncon: m2,
+    }
+    .split(&plant)?;
     Ok(Normalized {
         bl: scaled,
         plant,
@@ -189,36 +197,6 @@ pub(crate) fn normalize(p: &StateSpace, part: Partition) -> Result<Normalized> {
         d22: bl.d22,
         time,
     })
-}
-
-/// Step 4: the states scaled by powers of two so that the rows of `[A B]` and the columns of
-/// `[A; C]` are balanced ([`balance_leading`] on `[A B; C 0]`): a plant in metres and newtons
-/// with a weight of 1e-7 on the force otherwise puts the Hamiltonian's entries 25 decades apart
-/// and its eigenvalues near the axis below the solver's resolution. The controller's transfer
-/// function does not depend on the plant's state coordinates, so nothing is undone.
-fn balance(bl: Blocks) -> Blocks {
-    let n = bl.a.nrows();
-    let (m1, m2) = (bl.b1.ncols(), bl.b2.ncols());
-    let (p1, p2) = (bl.c1.nrows(), bl.c2.nrows());
-    let (m, p) = (m1 + m2, p1 + p2);
-    let mut big = DMatrix::<f64>::zeros(n + p, n + m);
-    big.view_mut((0, 0), (n, n)).copy_from(&bl.a);
-    big.view_mut((0, n), (n, m1)).copy_from(&bl.b1);
-    big.view_mut((0, n + m1), (n, m2)).copy_from(&bl.b2);
-    big.view_mut((n, 0), (p1, n)).copy_from(&bl.c1);
-    big.view_mut((n + p1, 0), (p2, n)).copy_from(&bl.c2);
-    let size = n + m.max(p);
-    let mut sq = DMatrix::<f64>::zeros(size, size);
-    sq.view_mut((0, 0), big.shape()).copy_from(&big);
-    let (bal, _) = balance_leading(&sq, n);
-    Blocks {
-        a: bal.view((0, 0), (n, n)).into_owned(),
-        b1: bal.view((0, n), (n, m1)).into_owned(),
-        b2: bal.view((0, n + m1), (n, m2)).into_owned(),
-        c1: bal.view((n, 0), (p1, n)).into_owned(),
-        c2: bal.view((n + p1, 0), (p2, n)).into_owned(),
-        ..bl
-    }
 }
 
 /// The blocks as one state-space model (continuous).
