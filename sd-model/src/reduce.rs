@@ -231,35 +231,10 @@ impl StateSpace {
     /// DT `|z| ≥ 1 − 1e-9`) are kept exactly and only the stable part is reduced; `order` must be
     /// at least their number.
     pub fn balanced_truncation(&self, order: usize) -> Result<BalancedTruncation> {
-        if order > self.n() {
-            return Err(ModelError::InvalidArgument(format!(
-                "order {order} exceeds the model order {}",
-                self.n()
-            )));
-        }
-        let margin = match self.time() {
-            SampleTime::Continuous => 1e-9 * norm1(self.a()).max(1.0),
-            SampleTime::Discrete { .. } => 1e-9,
-        };
-        let (gu, gs) = self.stable_unstable_split(margin)?;
-        let nu_states = gu.n();
-        if order < nu_states {
-            return Err(ModelError::InvalidArgument(format!(
-                "order {order} is below the number of unstable/marginal states ({nu_states}), which are kept"
-            )));
-        }
-        let (gr, hsv) = balanced_truncation_stable(&gs, order - nu_states)?;
-        let bound = 2.0 * hsv.iter().skip(order - nu_states).sum::<f64>();
-        let model = if nu_states == 0 {
-            gr
-        } else {
-            crate::connect::parallel(&gu, &gr)?
-        };
-        Ok(BalancedTruncation {
-            model,
-            hankel_sv: hsv,
-            error_bound: bound,
-            n_unstable: nu_states,
+        self.truncate_stable_part(order, |gs, k| {
+            let (gr, hsv) = balanced_truncation_stable(gs, k)?;
+            let bound = 2.0 * hsv.iter().skip(k).sum::<f64>();
+            Ok((gr, hsv, bound))
         })
     }
 
@@ -282,40 +257,14 @@ impl StateSpace {
         input_weight: Option<&StateSpace>,
         output_weight: Option<&StateSpace>,
     ) -> Result<BalancedTruncation> {
-        if order > self.n() {
-            return Err(ModelError::InvalidArgument(format!(
-                "order {order} exceeds the model order {}",
-                self.n()
-            )));
-        }
-        let margin = match self.time() {
-            SampleTime::Continuous => 1e-9 * norm1(self.a()).max(1.0),
-            SampleTime::Discrete { .. } => 1e-9,
-        };
-        let (gu, gs) = self.stable_unstable_split(margin)?;
-        let nu_states = gu.n();
-        if order < nu_states {
-            return Err(ModelError::InvalidArgument(format!(
-                "order {order} is below the number of unstable/marginal states ({nu_states}), which are kept"
-            )));
-        }
-        let (gr, hsv) = if gs.n() == 0 {
-            (gs.clone(), Vec::new())
-        } else {
-            let p = weighted_gramian(&gs, input_weight, false)?;
-            let q = weighted_gramian(&gs, output_weight, true)?;
-            project(&gs, factors_of(&p, &q)?, order - nu_states)?
-        };
-        let model = if nu_states == 0 {
-            gr
-        } else {
-            crate::connect::parallel(&gu, &gr)?
-        };
-        Ok(BalancedTruncation {
-            model,
-            hankel_sv: hsv,
-            error_bound: f64::NAN,
-            n_unstable: nu_states,
+        self.truncate_stable_part(order, |gs, k| {
+            if gs.n() == 0 {
+                return Ok((gs.clone(), Vec::new(), f64::NAN));
+            }
+            let p = weighted_gramian(gs, input_weight, false)?;
+            let q = weighted_gramian(gs, output_weight, true)?;
+            let (gr, hsv) = project(gs, factors_of(&p, &q)?, k)?;
+            Ok((gr, hsv, f64::NAN))
         })
     }
 
@@ -339,6 +288,45 @@ impl StateSpace {
             self.d().clone(),
             self.time(),
         )
+    }
+
+    /// Keeps the unstable and marginal poles (CT `Re s ≥ −1e-9·ρ`, DT `|z| ≥ 1 − 1e-9`) exactly
+    /// and reduces the stable part by `reduce(stable part, states left)` →
+    /// `(reduced, Hankel values, error bound)`; checks `order` against both.
+    fn truncate_stable_part(
+        &self,
+        order: usize,
+        reduce: impl FnOnce(&StateSpace, usize) -> Result<(StateSpace, Vec<f64>, f64)>,
+    ) -> Result<BalancedTruncation> {
+        if order > self.n() {
+            return Err(ModelError::InvalidArgument(format!(
+                "order {order} exceeds the model order {}",
+                self.n()
+            )));
+        }
+        let margin = match self.time() {
+            SampleTime::Continuous => 1e-9 * norm1(self.a()).max(1.0),
+            SampleTime::Discrete { .. } => 1e-9,
+        };
+        let (gu, gs) = self.stable_unstable_split(margin)?;
+        let nu_states = gu.n();
+        if order < nu_states {
+            return Err(ModelError::InvalidArgument(format!(
+                "order {order} is below the number of unstable/marginal states ({nu_states}), which are kept"
+            )));
+        }
+        let (gr, hsv, bound) = reduce(&gs, order - nu_states)?;
+        let model = if nu_states == 0 {
+            gr
+        } else {
+            crate::connect::parallel(&gu, &gr)?
+        };
+        Ok(BalancedTruncation {
+            model,
+            hankel_sv: hsv,
+            error_bound: bound,
+            n_unstable: nu_states,
+        })
     }
 
     /// Hankel singular values of a stable model (descending).

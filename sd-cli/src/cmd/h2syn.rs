@@ -1,5 +1,6 @@
 //! `sdctl h2syn`.
 
+use super::hinfsyn::report_json;
 use crate::commands::model_json;
 use crate::io::{emit, from_hinf, read_model, CliError};
 use serde_json::json;
@@ -34,18 +35,12 @@ impl Args {
         let r = sd_hinf::h2syn(&p, part).map_err(|e| from_hinf(&self.plant, e))?;
         let controller = model_json(&r.controller)?;
         if self.json {
-            let mut v = serde_json::to_value(&r)
-                .map_err(|e| CliError::numerical(format!("result JSON: {e}")))?;
-            let k: serde_json::Value = serde_json::from_str(&controller)
-                .map_err(|e| CliError::numerical(format!("model JSON: {e}")))?;
-            if let Some(obj) = v.as_object_mut() {
-                obj.insert("controller".into(), k);
-                obj.insert(
-                    "convention".into(),
-                    json!("u = K y (positive feedback, the last ncon inputs from the last nmeas outputs)"),
-                );
-            }
-            emit(&v.to_string(), self.output.as_deref())
+            let v = report_json(
+                &r,
+                &controller,
+                vec![("convention", json!(super::hinfsyn::LFT_CONVENTION))],
+            )?;
+            emit(&v, self.output.as_deref())
         } else {
             eprintln!(
                 "achieved ‖F_l(P, K)‖₂ {:.6}, closed loop {}, controller order {}",

@@ -49,18 +49,8 @@ impl Args {
         let r = sd_hinf::hinfsyn(&p, part, &opt).map_err(|e| from_hinf(&self.plant, e))?;
         let controller = model_json(&r.controller)?;
         if self.json {
-            let mut v = serde_json::to_value(&r)
-                .map_err(|e| CliError::numerical(format!("result JSON: {e}")))?;
-            let k: serde_json::Value = serde_json::from_str(&controller)
-                .map_err(|e| CliError::numerical(format!("model JSON: {e}")))?;
-            if let Some(obj) = v.as_object_mut() {
-                obj.insert("controller".into(), k);
-                obj.insert(
-                    "convention".into(),
-                    json!("u = K y (positive feedback, the last ncon inputs from the last nmeas outputs)"),
-                );
-            }
-            emit(&v.to_string(), self.output.as_deref())
+            let v = report_json(&r, &controller, vec![("convention", json!(LFT_CONVENTION))])?;
+            emit(&v, self.output.as_deref())
         } else {
             eprintln!(
                 "γ_min {:.6} (infeasible at {:.6}), γ {:.6}, achieved ‖F_l(P, K)‖∞ {:.6} at {:.4} \
@@ -81,4 +71,28 @@ impl Args {
             emit(&controller, self.output.as_deref())
         }
     }
+}
+
+/// The controller convention of `hinfsyn` and `h2syn` (printed in their JSON).
+pub(crate) const LFT_CONVENTION: &str =
+    "u = K y (positive feedback, the last ncon inputs from the last nmeas outputs)";
+
+/// A synthesis report as JSON text: the result's own fields, the controller's model JSON under
+/// `controller`, and `extra` keys.
+pub(crate) fn report_json(
+    r: &impl serde::Serialize,
+    controller: &str,
+    extra: Vec<(&str, serde_json::Value)>,
+) -> Result<String, CliError> {
+    let mut v =
+        serde_json::to_value(r).map_err(|e| CliError::numerical(format!("result JSON: {e}")))?;
+    let k: serde_json::Value = serde_json::from_str(controller)
+        .map_err(|e| CliError::numerical(format!("model JSON: {e}")))?;
+    if let Some(obj) = v.as_object_mut() {
+        obj.insert("controller".into(), k);
+        for (key, val) in extra {
+            obj.insert(key.into(), val);
+        }
+    }
+    Ok(v.to_string())
 }

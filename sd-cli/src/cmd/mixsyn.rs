@@ -1,5 +1,6 @@
 //! `sdctl mixsyn`.
 
+use super::hinfsyn::report_json;
 use crate::commands::{finite_pos, model_json};
 use crate::io::{emit, from_hinf, read_model, CliError};
 use sd_model::StateSpace;
@@ -66,19 +67,15 @@ impl Args {
         let (r, p) = sd_hinf::mixsyn(&g, &w, &opt).map_err(|e| from_hinf(&self.plant, e))?;
         let controller = model_json(&r.controller)?;
         if self.json {
-            let mut v = serde_json::to_value(&r)
-                .map_err(|e| CliError::numerical(format!("result JSON: {e}")))?;
-            let k: serde_json::Value = serde_json::from_str(&controller)
-                .map_err(|e| CliError::numerical(format!("model JSON: {e}")))?;
-            if let Some(obj) = v.as_object_mut() {
-                obj.insert("controller".into(), k);
-                obj.insert("generalized_plant_states".into(), p.n().into());
-                obj.insert(
-                    "convention".into(),
-                    "u = K (r − y) (negative feedback)".into(),
-                );
-            }
-            emit(&v.to_string(), self.output.as_deref())
+            let v = report_json(
+                &r,
+                &controller,
+                vec![
+                    ("generalized_plant_states", p.n().into()),
+                    ("convention", "u = K (r − y) (negative feedback)".into()),
+                ],
+            )?;
+            emit(&v, self.output.as_deref())
         } else {
             eprintln!(
                 "γ_min {:.6}, γ {:.6}, achieved {:.6}, closed loop {}, controller order {} \
