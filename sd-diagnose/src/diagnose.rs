@@ -78,7 +78,7 @@ pub fn diagnose_with_progress(
         None => (experiments, Vec::new(), Vec::new()),
     };
     let mut data = Data::read(experiments, progress)?;
-    let (model, source, basis) = judged_model(&data, opt, progress)?;
+    let (model, origin, basis) = judged_model(&data, opt, progress)?;
     for v in &mut data.vals {
         v.model = if v.factor == 1 {
             model.clone()
@@ -86,7 +86,7 @@ pub fn diagnose_with_progress(
             downsample(&model, v.factor)?
         };
     }
-    let mut judged = judge_model(&data, opt, model, source, basis)?;
+    let mut judged = judge_model(&data, opt, model, origin, basis)?;
     let mut ch = checks(&data, &judged, opt.alpha)?;
     data.widen_levels(&level_tests(&data, &ch));
     own_fit(&data, &ch, &mut judged.info);

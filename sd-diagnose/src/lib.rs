@@ -763,6 +763,35 @@ pub struct ModelInfo {
     pub own_data: Option<Statistic>,
     /// What that misfit is.
     pub own_fit: Option<OwnFit>,
+    /// How a fitted model's order was chosen (`None` for a given model).
+    pub fitted: Option<OrderChoice>,
+}
+
+/// How the order of the diagnosis's own fit is judged.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OrderRule {
+    /// Fitted on the earlier periods (or first half of the record), judged on the later ones.
+    HeldOutPeriods,
+    /// Fitted on the even-indexed lines, judged on the odd-indexed ones (and the other way):
+    /// the rule when the periods cannot show a fit error, because what no linear model
+    /// describes (stochastic nonlinear distortion) repeats from period to period.
+    HeldOutLines,
+    /// Akaike's final prediction error on the whole estimate (no held-out part).
+    Fpe,
+}
+
+/// The order choice of the diagnosis's own fit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct OrderChoice {
+    /// How the orders were judged.
+    pub rule: OrderRule,
+    /// The chosen order (states, rigid body included).
+    pub order: usize,
+    /// The highest order the scan could reach (`DiagnoseOptions::max_order`).
+    pub max_order: usize,
+    /// Rigid-body poles (from the low-frequency slope).
+    pub rigid_body: usize,
 }
 
 /// The outcome.

@@ -64,6 +64,12 @@ pub(super) fn own_statistic(m: &StateSpace, fast: &Estimate, alpha: f64) -> Resu
     Ok(crate::model::own_statistic(m, fast, alpha)?.value)
 }
 
+/// Where the model comes from: "given" or how it was fitted, and a fit's order choice.
+pub(super) struct Origin {
+    pub(super) source: String,
+    pub(super) choice: Option<crate::OrderChoice>,
+}
+
 /// Stage 2: the model (given, or fitted and then its residues refitted on the continuous
 /// modal basis of its poles, kept when it fits its data as well: the basis drops poles
 /// without a continuous counterpart), its source, and that basis.
@@ -71,18 +77,18 @@ pub(super) fn judged_model(
     data: &Data<'_>,
     opt: &DiagnoseOptions,
     progress: &mut dyn FnMut(&str),
-) -> Result<(StateSpace, String, ModalBasis)> {
+) -> Result<(StateSpace, Origin, ModalBasis)> {
     let parts = if opt.model.is_none() {
         progress("FRFs of the model experiment's earlier and later periods");
         parts(data.model_exp, &data.fast)
     } else {
         None
     };
-    let (fitted, mut source) =
+    let (fitted, mut source, choice) =
         crate::model::model_for(&data.fast, parts.as_ref(), data.h, opt, progress)?;
     let basis = ModalBasis::from_model(&fitted)?;
     if opt.model.is_some() {
-        return Ok((fitted, source, basis));
+        return Ok((fitted, Origin { source, choice }, basis));
     }
     let phi = basis.responses(data.h, NonIdeal::ideal(), data.fast.frd.freq_hz())?;
     let res = Residues::fit(&data.fast.frd, &phi)?;
@@ -90,9 +96,9 @@ pub(super) fn judged_model(
     let own = |m: &StateSpace| own_statistic(m, &data.fast, opt.alpha);
     if own(&refit)? <= own(&fitted)? * 1.02 {
         source.push_str("; residues refitted on the continuous modal basis");
-        return Ok((refit, source, basis));
+        return Ok((refit, Origin { source, choice }, basis));
     }
-    Ok((fitted, source, basis))
+    Ok((fitted, Origin { source, choice }, basis))
 }
 
 /// The model with its modal form and prediction covariance: residues and poles, for a fitted
@@ -102,7 +108,7 @@ pub(super) fn judge_model<'a>(
     data: &'a Data<'_>,
     opt: &DiagnoseOptions,
     model: StateSpace,
-    source: String,
+    origin: Origin,
     basis: ModalBasis,
 ) -> Result<Judged<'a>> {
     let given = opt.model.is_some();
@@ -118,11 +124,12 @@ pub(super) fn judge_model<'a>(
     }
     Ok(Judged {
         info: ModelInfo {
-            source,
+            source: origin.source,
             order: model.n(),
             ts: model.ts(),
             own_data: None,
             own_fit: None,
+            fitted: origin.choice,
         },
         given,
         model,

@@ -129,6 +129,36 @@ pub(super) fn own_fit_sentence(md: &mut String, d: &Diagnosis) {
     }
 }
 
+/// What to do about a fitted model's excess on its own data: a scan stopped by `--max-order`
+/// may go higher; one stopped by its held-out data says that more poles do not help there.
+fn fit_error_advice(d: &Diagnosis) -> String {
+    match d.model_info.fitted {
+        Some(c) if c.order < c.max_order => {
+            let why = match c.rule {
+                sd_diagnose::OrderRule::HeldOutPeriods => {
+                    "higher orders predict the held-out periods no better"
+                }
+                sd_diagnose::OrderRule::HeldOutLines => {
+                    "higher orders predict the held-out interleaved lines no better"
+                }
+                sd_diagnose::OrderRule::Fpe => "higher orders have no lower prediction error",
+            };
+            format!(
+                "a fit error that more poles do not remove (order {} of up to {}: {why}), \
+                 so the model's structure \
+                 misses something linear fits cannot follow here; give a model of the \
+                 physics (`--model`) or compare `sdctl fit --stabilization` on this \
+                 experiment's FRF",
+                c.order, c.max_order
+            )
+        }
+        _ => format!(
+            "a fit error (raise `--max-order`, now order {}, or give a model)",
+            d.model.n()
+        ),
+    }
+}
+
 /// What the model's excess on its own experiment is: noise, distortion, the named cause acting
 /// at that rate too, a given model that does not describe its data, or a fit too coarse.
 pub(super) fn own_excess(d: &Diagnosis) -> String {
@@ -162,10 +192,9 @@ pub(super) fn own_excess(d: &Diagnosis) -> String {
                 model_distortion(d)
             ),
             _ => format!(
-                "above the noise and the distortion ({}): a fit error (raise `--max-order`, now \
-                 order {}, or give a model)",
+                "above the noise and the distortion ({}): {}",
                 model_distortion(d),
-                d.model.n()
+                fit_error_advice(d)
             ),
         },
     }
