@@ -97,8 +97,26 @@ pub struct DelayScan {
 /// # Errors
 /// A continuous-time FRD, or a delay list whose length is not the number of inputs.
 pub fn shift_inputs(frd: &Frd, delay: &[i32]) -> Result<Frd> {
+    one_per_input(delay, frd.shape().1)?;
+    let d: Vec<f64> = delay.iter().map(|&d| f64::from(d)).collect();
+    advance_inputs(frd, &d)
+}
+
+/// `G · diag(e^{jωδ_jT})`: input `j`'s column advanced by `δ_j` samples, a fraction allowed
+/// (the FRD of a model that maps `u_j(t − δ_j)` becomes that of the model alone; variances
+/// unchanged).
+///
+/// # Errors
+/// A continuous-time FRD, a delay list whose length is not the number of inputs, a delay that
+/// is not finite.
+pub fn advance_inputs(frd: &Frd, delay: &[f64]) -> Result<Frd> {
     let ts = crate::fit::discrete_ts(frd)?;
     one_per_input(delay, frd.shape().1)?;
+    if let Some(d) = delay.iter().find(|d| !d.is_finite()) {
+        return Err(IdentError::InvalidArgument(format!(
+            "an input delay of {d} samples: give a finite number"
+        )));
+    }
     let resp = frd
         .freq_hz()
         .iter()
@@ -106,7 +124,7 @@ pub fn shift_inputs(frd: &Frd, delay: &[i32]) -> Result<Frd> {
         .map(|(&f, g)| {
             let mut g = g.clone();
             for (j, &d) in delay.iter().enumerate() {
-                let w = C::from_polar(1.0, 2.0 * PI * f * ts * f64::from(d));
+                let w = C::from_polar(1.0, 2.0 * PI * f * ts * d);
                 g.column_mut(j).iter_mut().for_each(|v| *v *= w);
             }
             g
@@ -121,7 +139,7 @@ pub fn shift_inputs(frd: &Frd, delay: &[i32]) -> Result<Frd> {
 }
 
 /// A delay list must give one delay per input.
-fn one_per_input(delay: &[i32], nu: usize) -> Result<()> {
+fn one_per_input<T>(delay: &[T], nu: usize) -> Result<()> {
     if delay.len() == nu {
         return Ok(());
     }

@@ -61,7 +61,7 @@ pub use frf::{
     frf_periodic, DistortionReport, FrfEstimate, PeriodicOptions, MIN_INPUT_SNR, NL_NEIGHBOURS,
 };
 pub use frf_mimo::{frf_periodic_mimo, Channels, MimoFrfEstimate};
-pub use input_delay::{shift_inputs, DelayScan, InputDelay};
+pub use input_delay::{advance_inputs, shift_inputs, DelayScan, InputDelay};
 pub use local_dft::{local_mode_dft, LineSpectra};
 pub use local_mode::{local_mode, local_mode_with, LineNoise, LocalMode};
 pub use lpm::{

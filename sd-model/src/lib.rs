@@ -21,6 +21,7 @@ pub mod alias;
 pub mod c2d;
 pub mod connect;
 pub mod d2c;
+pub mod delay;
 pub mod error;
 pub mod frd;
 pub mod freqresp;
@@ -43,6 +44,7 @@ pub use alias::{alias, fold, folded_line, folding_frequencies, line_index, Alias
 pub use c2d::{c2d, Discretization};
 pub use connect::{append, feedback, parallel, series};
 pub use d2c::{d2c, d2c_near, d2c_with_aliases, BranchPick, ModeAliases};
+pub use delay::{input_delay, phase_error_deg, thiran, whole_input_delay};
 pub use error::{ModelError, Result};
 pub use frd::Frd;
 pub use freqresp::{grid, EvalPath, FreqRespEvaluator};

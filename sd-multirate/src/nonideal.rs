@@ -116,27 +116,7 @@ pub const MAX_HOLD_DELAY: f64 = 4.0;
 /// `sys` preceded by `m` whole periods of input delay (registers after the plant's state, so
 /// the first states stay the continuous state at the sample instants).
 fn with_input_delay(sys: StateSpace, m: usize) -> Result<StateSpace> {
-    if m == 0 {
-        return Ok(sys);
-    }
-    let (n, nu, ny) = (sys.n(), sys.nu(), sys.ny());
-    let nd = m * nu;
-    let mut a = DMatrix::<f64>::zeros(n + nd, n + nd);
-    let mut b = DMatrix::<f64>::zeros(n + nd, nu);
-    let mut c = DMatrix::<f64>::zeros(ny, n + nd);
-    a.view_mut((0, 0), (n, n)).copy_from(sys.a());
-    // register j (0-based) holds u_{k−1−j}; the plant sees the oldest, u_{k−m}
-    let last = n + (m - 1) * nu;
-    a.view_mut((0, last), (n, nu)).copy_from(sys.b());
-    for j in 1..m {
-        a.view_mut((n + j * nu, n + (j - 1) * nu), (nu, nu))
-            .fill_with_identity();
-    }
-    b.view_mut((n, 0), (nu, nu)).fill_with_identity();
-    c.view_mut((0, 0), (ny, n)).copy_from(sys.c());
-    c.view_mut((0, last), (ny, nu)).copy_from(sys.d());
-    let out = StateSpace::new(a, b, c, DMatrix::zeros(ny, nu), sys.time())?;
-    Ok(out.with_labels_of(&sys))
+    Ok(sd_model::whole_input_delay(&sys, m)?)
 }
 
 /// Exact discretisation of a continuous model at period `ts` with a delayed hold and/or an

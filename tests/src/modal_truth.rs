@@ -478,6 +478,19 @@ impl TruthCheck {
                 rel(|e| e.rel_damping),
             );
         }
+        if std::env::var_os("TRACK_MISSES").is_some() {
+            for e in self.errors.iter().filter(|e| e.z_freq.abs() > Z_TRACK) {
+                println!(
+                    "  miss: mode {:.1} Hz ({}) at {}: z {:+.2}, rel {:+.2e}, damping z {:+.2}",
+                    e.mode_hz,
+                    if e.nonlinear { "cubic" } else { "linear" },
+                    e.experiment,
+                    e.z_freq,
+                    e.rel_freq,
+                    e.z_damping
+                );
+            }
+        }
         println!(
             "tracked frequencies within {Z_TRACK} σ of the truth: {} of {} ({:.1} %); beyond \
              {GROSS} σ: {}; tracks near no true mode: {}",

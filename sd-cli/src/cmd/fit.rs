@@ -30,7 +30,8 @@ pub(crate) struct Args {
     /// The physical modal model of a SISO FRD: a stabilisation diagram over the orders up to
     /// --max-order, no pole pair narrower than the line spacing unless the data demand it,
     /// order and rigid body chosen by the held-out (odd-indexed) lines, an input delay up to
-    /// --max-delay samples. Writes DIR/model.json, DIR/modes.json (modes with frequency,
+    /// --max-delay samples (a fraction allowed). Writes DIR/model.json (with the delay),
+    /// DIR/modes.json (modes with frequency,
     /// damping, residue, share of the response and the orders they are stable over; every
     /// order's costs; the diagram) and DIR/stabilization.svg; the mode table on stderr.
     #[arg(long, requires = "out")]
@@ -38,7 +39,8 @@ pub(crate) struct Args {
     /// Highest order of the stabilisation diagram.
     #[arg(long, default_value_t = 24)]
     pub(crate) max_order: usize,
-    /// Largest whole-sample input delay the stabilisation fit tries (0: none).
+    /// Largest input delay (samples) the stabilisation fit searches, fractions included (0:
+    /// none).
     #[arg(long, default_value_t = 0)]
     pub(crate) max_delay: usize,
     /// Output folder of --stabilization.

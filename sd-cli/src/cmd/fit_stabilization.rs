@@ -20,8 +20,30 @@ pub(crate) fn run(
     for w in &r.fit.warnings {
         eprintln!("sdctl: warning: {name}: {w}");
     }
-    let model = model_json(&r.fit.model)?;
-    let modes = modes_json(&r)?;
+    let (delayed, phase_err) = r
+        .model_with_delay(data.freq_hz())
+        .map_err(|e| from_ident(name, e))?;
+    if r.delay_samples != 0.0 {
+        eprintln!(
+            "[fit] input delay {:.3} samples ({:.1} µs; the data tell apart no delay in \
+             [{:.3}, {:.3}]): model.json holds the model with it (whole samples exact{}); \
+             modes.json's modes are of the model without it",
+            r.delay_samples,
+            1e6 * r.delay_samples * data.time().ts().unwrap_or(0.0),
+            r.delay_interval.0,
+            r.delay_interval.1,
+            if phase_err > 0.0 {
+                format!(
+                    ", the fraction by Thiran's allpass: worst phase error {phase_err:.3}° over \
+                     the lines"
+                )
+            } else {
+                String::new()
+            }
+        );
+    }
+    let model = model_json(&delayed)?;
+    let modes = modes_json(&r, phase_err)?;
     write_folder(out, |dir| {
         let write = |file: &str, text: &str| {
             sd_report::write_atomic_parts(&dir.join(file), &[text.as_bytes(), b"\n"])
@@ -36,7 +58,7 @@ pub(crate) fn run(
 /// The mode table people read: one row per mode.
 fn mode_table(r: &PhysicalFit) -> String {
     let mut s = format!(
-        "[fit] physical model: order {} ({} rigid-body pole(s)), input delay {} samples, cost \
+        "[fit] physical model: order {} ({} rigid-body pole(s)), input delay {:.3} samples, cost \
          {:.2} per line (1 = the FRD's variance), line spacing {:.3} Hz\n\
          {:>10} {:>10} {:>9} {:>7} {:>7} {:>8} {:>10}  kind\n",
         r.order,
@@ -69,11 +91,13 @@ fn mode_table(r: &PhysicalFit) -> String {
 }
 
 /// `modes.json`: the choice, the modes, every order's costs and the diagram.
-fn modes_json(r: &PhysicalFit) -> Result<String, CliError> {
+fn modes_json(r: &PhysicalFit, delay_phase_error_deg: f64) -> Result<String, CliError> {
     let v = serde_json::json!({
         "order": r.order,
         "rigid_body": r.rigid_body,
         "delay_samples": r.delay_samples,
+        "delay_phase_error_deg": delay_phase_error_deg,
+        "delay_interval": [r.delay_interval.0, r.delay_interval.1],
         "cost_per_line": r.cost_per_line,
         "line_spacing_hz": r.line_spacing_hz,
         "heldout_factor": r.heldout_factor,

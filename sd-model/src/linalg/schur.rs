@@ -26,13 +26,13 @@ pub fn complex_schur(a: &DMatrix<C>) -> Result<(DMatrix<C>, DMatrix<C>)> {
     // nalgebra's deflation test `|t_{k+1,k}| ≤ tol·(|t_kk| + |t_{k+1,k+1}|)` with tol = ε can
     // stall on a matrix whose eigenvalues cluster at z = 1 (a rigid body); a looser test is
     // tried before giving up (the triangularity check below still bounds what is accepted).
-    let schur = [f64::EPSILON, 16.0 * f64::EPSILON, 256.0 * f64::EPSILON]
+    let (q, mut t) = match [f64::EPSILON, 16.0 * f64::EPSILON, 256.0 * f64::EPSILON]
         .iter()
         .find_map(|&tol| nalgebra::Schur::try_new(a.clone(), tol, 200 * n.max(10)))
-        .ok_or_else(|| ModelError::NotConverged {
-            what: "the QR iteration of the Schur decomposition".into(),
-        })?;
-    let (q, mut t) = schur.unpack();
+    {
+        Some(schur) => schur.unpack(),
+        None => shifted_schur(a)?,
+    };
     // nalgebra returns an upper-triangular T for complex input; clear rounding below the diagonal
     // and refuse anything that is not triangular.
     let scale = t
@@ -51,6 +51,31 @@ pub fn complex_schur(a: &DMatrix<C>) -> Result<(DMatrix<C>, DMatrix<C>)> {
         }
     }
     Ok((q, t))
+}
+
+/// The Schur form through `A + σI` (same Schur vectors, `T = T_σ − σI`) with `|σ| = ‖A‖_F`
+/// off the real axis: nalgebra's deflation test is relative to the diagonal entries, so on a
+/// nilpotent block (a shift register of input delays: all eigenvalues 0) it never deflates,
+/// and the zero Wilkinson shift only permutes the block. With the shift the test becomes
+/// relative to `‖A‖`, LAPACK's own backward-stable scale.
+fn shifted_schur(a: &DMatrix<C>) -> Result<(DMatrix<C>, DMatrix<C>)> {
+    let n = a.nrows();
+    let norm = a
+        .iter()
+        .map(|v| v.norm_sqr())
+        .sum::<f64>()
+        .sqrt()
+        .max(f64::MIN_POSITIVE);
+    let sigma = C::new(0.6, 0.8) * norm;
+    let shifted = a + DMatrix::<C>::identity(n, n) * sigma;
+    let schur =
+        nalgebra::Schur::try_new(shifted, f64::EPSILON, 200 * n.max(10)).ok_or_else(|| {
+            ModelError::NotConverged {
+                what: "the QR iteration of the Schur decomposition".into(),
+            }
+        })?;
+    let (q, t) = schur.unpack();
+    Ok((q, t - DMatrix::<C>::identity(n, n) * sigma))
 }
 
 /// Real matrix to complex.
@@ -267,6 +292,28 @@ pub fn shifted_triangular_solve(t: &DMatrix<C>, s: C, r: &DMatrix<C>) -> DMatrix
 #[allow(clippy::unwrap_used, clippy::expect_used)]
 pub(crate) mod tests {
     use super::*;
+
+    /// A model with three samples of input delay: a nilpotent 3×3 shift register beside a pole
+    /// at 0.5 (nalgebra's QR never deflates the register); the shifted route decomposes it:
+    /// `A = Q T Qᴴ` to `n·ε·‖A‖` (times 100), `T` triangular with the eigenvalues 0.5, 0, 0, 0
+    /// (a triple defective eigenvalue is only determined to `ε^{1/3}`).
+    #[test]
+    fn nilpotent_shift_register_is_decomposed() {
+        let mut a = DMatrix::<f64>::zeros(4, 4);
+        a[(0, 0)] = 0.5;
+        a[(0, 3)] = 1.0;
+        a[(2, 1)] = 1.0;
+        a[(3, 2)] = 1.0;
+        let ac = to_complex(&a);
+        let (q, t) = complex_schur(&ac).unwrap();
+        let back = &q * &t * q.adjoint();
+        let err = (back - &ac).iter().map(|v| v.norm()).fold(0.0, f64::max);
+        assert!(err <= 100.0 * 4.0 * f64::EPSILON * a.norm(), "{err}");
+        let mut ev: Vec<f64> = (0..4).map(|i| t[(i, i)].norm()).collect();
+        ev.sort_by(f64::total_cmp);
+        assert!((ev[3] - 0.5).abs() < 1e-12, "{ev:?}");
+        assert!(ev[..3].iter().all(|&x| x < 1e-4), "{ev:?}");
+    }
 
     /// A matrix on which the QR iteration with deflation tolerance ε stalls (test_data/README.md)
     /// is decomposed with the looser tolerance: `Q` unitary and `A = Q T Qᴴ` to `n·ε·‖A‖`
