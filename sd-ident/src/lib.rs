@@ -76,8 +76,8 @@ pub use quality::{
     FEEDBACK_ONLY_RESIDUAL, NO_EXCITATION_SNR,
 };
 pub use stabilization::{
-    physical_fit, DiagramPole, ModeKind, OrderRow, PhysicalFit, PhysicalMode, PoleClass,
-    StabilizationOptions,
+    physical_fit, DiagramPole, ModeKind, OrderRow, PhysicalFit, PhysicalFitSummary, PhysicalMode,
+    PoleClass, StabilizationOptions,
 };
 
 /// The crate README's example, compiled and run as a doctest.

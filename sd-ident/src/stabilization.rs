@@ -197,7 +197,59 @@ pub struct PhysicalFit {
     pub delay_scan: Vec<(f64, f64)>,
 }
 
+/// What `modes.json` holds ([`PhysicalFit::summary`]): the choice, the modes, every order's
+/// costs, the diagram and the delay search (serde; the fit's warnings as they are).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct PhysicalFitSummary<'a> {
+    /// The chosen order.
+    pub order: usize,
+    /// The chosen rigid-body count.
+    pub rigid_body: usize,
+    /// Input delay (samples).
+    pub delay_samples: f64,
+    /// The delays the data cannot tell apart, [lo, hi] (samples).
+    pub delay_interval: [f64; 2],
+    /// Worst phase error (degrees) of the delay's realization in the model with it.
+    pub delay_phase_error_deg: f64,
+    /// Cost per line on all lines (1 = the variance's level).
+    pub cost_per_line: f64,
+    /// Line spacing (Hz).
+    pub line_spacing_hz: f64,
+    /// The order rule's factor `q`.
+    pub heldout_factor: f64,
+    /// Modes of the final model.
+    pub modes: &'a [PhysicalMode],
+    /// Every order tried.
+    pub orders: &'a [OrderRow],
+    /// The stabilisation diagram.
+    pub diagram: &'a [DiagramPole],
+    /// The delay search at the chosen order, [τ, cost].
+    pub delay_scan: &'a [(f64, f64)],
+    /// The final fit's warnings.
+    pub warnings: &'a [crate::FitWarning],
+}
+
 impl PhysicalFit {
+    /// The summary of the fit, with the delay realization's phase error from
+    /// [`PhysicalFit::model_with_delay`].
+    pub fn summary(&self, delay_phase_error_deg: f64) -> PhysicalFitSummary<'_> {
+        PhysicalFitSummary {
+            order: self.order,
+            rigid_body: self.rigid_body,
+            delay_samples: self.delay_samples,
+            delay_interval: [self.delay_interval.0, self.delay_interval.1],
+            delay_phase_error_deg,
+            cost_per_line: self.cost_per_line,
+            line_spacing_hz: self.line_spacing_hz,
+            heldout_factor: self.heldout_factor,
+            modes: &self.modes,
+            orders: &self.orders,
+            diagram: &self.diagram,
+            delay_scan: &self.delay_scan,
+            warnings: &self.fit.warnings,
+        }
+    }
+
     /// The fitted model preceded by its input delay ([`sd_model::input_delay`]: whole samples
     /// exactly, a fraction by Thiran's first-order allpass) and the allpass's worst phase
     /// error (degrees) against the exact delay over `freq_hz` (0 for whole samples).

@@ -35,7 +35,7 @@ fn frd_out<'py>(py: Python<'py>, frd: &Frd) -> FrdOut<'py> {
     )
 }
 
-fn frd_in(
+pub(crate) fn frd_in(
     freq_hz: &PyReadonlyArray1<'_, f64>,
     resp: &PyReadonlyArray3<'_, Complex64>,
     var: Option<&PyReadonlyArray3<'_, f64>>,

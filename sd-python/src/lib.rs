@@ -16,6 +16,7 @@
 mod data;
 mod design;
 mod model;
+mod physical;
 mod synthesis;
 
 use nalgebra::DMatrix;
@@ -132,5 +133,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     design::register(m)?;
     synthesis::register(m)?;
     data::register(m)?;
+    physical::register(m)?;
     Ok(())
 }

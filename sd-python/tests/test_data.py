@@ -170,3 +170,24 @@ def test_predict_refuses_when_nothing_can_be_predicted(stage_data, tmp_path):
         sd.predict(tmp_path / "diag", new.manifest)
     with pytest.raises(ValueError, match="predictor.json"):
         sd.predict(tmp_path / "new", new.manifest)
+
+
+def test_fit_physical_matches_sdctl(stage_data, sdctl, tmp_path):
+    frd = sd.frf(stage_data.manifest, "slow")
+    keep = frd.freq_hz >= 2.0
+    frd = sd.Frd(frd.freq_hz[keep], frd.response[..., keep], frd.variance[..., keep], frd.dt)
+    r = sd.fit_physical(frd, max_order=10, max_delay=2)
+    p = tmp_path / "slow.json"
+    p.write_text(frd.to_json())
+    sdctl("fit", p, "--stabilization", "--max-order", 10, "--max-delay", 2, "--out", tmp_path / "phys")
+    cli = json.loads((tmp_path / "phys" / "modes.json").read_text())
+    assert r.order == cli["order"] and r.rigid_body == cli["rigid_body"]
+    assert r.delay_samples == pytest.approx(cli["delay_samples"], abs=1e-12)
+    assert r.cost_per_line == pytest.approx(cli["cost_per_line"], rel=1e-9)
+    assert [m["freq_hz"] for m in r.modes] == pytest.approx([m["freq_hz"] for m in cli["modes"]], rel=1e-9)
+    lo, hi = r.delay_interval
+    assert lo <= r.delay_samples <= hi
+    model = sd.StateSpace.from_json((tmp_path / "phys" / "model.json").read_text())
+    assert r.model.nstates == model.nstates and r.model.dt == frd.dt
+    with pytest.raises(ValueError):
+        sd.fit_physical(sd.Frd(frd.freq_hz, frd.response, frd.variance, None))

@@ -90,23 +90,12 @@ fn mode_table(r: &PhysicalFit) -> String {
     s
 }
 
-/// `modes.json`: the choice, the modes, every order's costs and the diagram.
+/// `modes.json`: the choice, the modes, every order's costs and the diagram
+/// ([`sd_ident::PhysicalFitSummary`]; each warning with its `message`).
 fn modes_json(r: &PhysicalFit, delay_phase_error_deg: f64) -> Result<String, CliError> {
-    let v = serde_json::json!({
-        "order": r.order,
-        "rigid_body": r.rigid_body,
-        "delay_samples": r.delay_samples,
-        "delay_phase_error_deg": delay_phase_error_deg,
-        "delay_interval": [r.delay_interval.0, r.delay_interval.1],
-        "cost_per_line": r.cost_per_line,
-        "line_spacing_hz": r.line_spacing_hz,
-        "heldout_factor": r.heldout_factor,
-        "modes": r.modes,
-        "orders": r.orders,
-        "diagram": r.diagram,
-        "delay_scan": r.delay_scan,
-        "warnings": crate::io::warnings_json(&r.fit.warnings),
-    });
+    let mut v = serde_json::to_value(r.summary(delay_phase_error_deg))
+        .map_err(|e| CliError::numerical(format!("modes JSON: {e}")))?;
+    v["warnings"] = crate::io::warnings_json(&r.fit.warnings);
     serde_json::to_string_pretty(&v).map_err(|e| CliError::numerical(format!("modes JSON: {e}")))
 }
 

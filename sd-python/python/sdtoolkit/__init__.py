@@ -55,6 +55,7 @@ __all__ = [
     "frf",
     "frf_from_arrays",
     "fit",
+    "fit_physical",
     "analyze",
     "diagnose",
     "predict",
@@ -530,6 +531,29 @@ def fit(frd: Frd, order: int, rigid_body: int = 0, strictly_proper: bool = False
                     bool(strictly_proper), weighting, float(min_damping), str(rank),
                     input_delay if isinstance(input_delay, str) else ",".join(str(int(v)) for v in input_delay))
     d["model"] = _from_tuple(d["model"])
+    return Result(d)
+
+
+def fit_physical(frd: Frd, max_order: int = 24, rigid_body: Optional[int] = None, max_delay: int = 0,
+                 strictly_proper: bool = False) -> Result:
+    """The physical modal model of a SISO discrete FRD (``sdctl fit --stabilization``): a
+    stabilisation diagram over the orders up to ``max_order``, no pole pair narrower than the
+    line spacing unless the data demand it, order and rigid body (``None``: chosen from the
+    data among 0, 1, 2) chosen by the held-out odd-indexed lines, an input delay up to
+    ``max_delay`` samples (a fraction allowed). ``model`` is the model with its delay; the other
+    fields are those of ``modes.json`` (docs/formats.md): ``order``, ``rigid_body``,
+    ``delay_samples``, ``delay_interval``, ``delay_phase_error_deg``, ``cost_per_line``,
+    ``line_spacing_hz``, ``heldout_factor``, ``modes``, ``orders``, ``diagram``,
+    ``delay_scan``, ``warnings`` (messages)."""
+    if not isinstance(frd, Frd):
+        frd = Frd.from_control(frd)
+    if frd.dt is None:
+        raise ValueError("fit_physical needs a discrete-time FRD (its dt fixes z = e^{jωT})")
+    rb = None if rigid_body is None else int(rigid_body)
+    model, text = _native.fit_physical(frd.freq_hz, frd.response, frd.variance, frd.dt,
+                                       int(max_order), rb, int(max_delay), bool(strictly_proper))
+    d = json.loads(text)
+    d["model"] = _from_tuple(model)
     return Result(d)
 
 
