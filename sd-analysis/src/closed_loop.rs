@@ -93,8 +93,8 @@ pub struct ClosedLoop {
     ks: StateSpace,
 }
 
-/// The summary `sdctl analyze` prints.
-#[derive(Debug, Clone, PartialEq)]
+/// The summary `sdctl analyze` prints (serde: its `--json` keys; a non-finite value is null).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Summary {
     /// Internally stable.
     pub stable: bool,

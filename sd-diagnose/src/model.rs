@@ -190,32 +190,40 @@ fn scan(
             break;
         }
         progress(&format!("fitting order {order}"));
-        let opt_n = FitOptions {
-            order,
-            ..base.clone()
-        };
-        let (crit, scores) = match folds {
-            Some((a, b)) => match two_fold(a, b, &opt_n) {
-                Some(v) => (v.iter().sum::<f64>() / v.len() as f64, v),
-                None => continue,
-            },
-            None => match sd_ident::fit(&fast.frd, &opt_n) {
-                Ok(r) => (
-                    sd_ident::final_prediction_error(r.cost, &opt_n, fast.frd.len()),
-                    Vec::new(),
-                ),
-                Err(_) => continue,
-            },
-        };
-        if crit.is_finite() {
-            scanned.push(Scanned {
-                order,
-                crit,
-                scores,
-            });
-        }
+        scanned.extend(judge(fast, folds, base, order));
     }
     scanned
+}
+
+/// One order's criterion: two-fold cross-validation between `folds` (the mean of the per-line
+/// held-out scores, kept), FPE without them; `None` when a fit fails or the criterion is not
+/// finite.
+fn judge(
+    fast: &Estimate,
+    folds: Option<&(Estimate, Estimate)>,
+    base: &FitOptions,
+    order: usize,
+) -> Option<Scanned> {
+    let opt_n = FitOptions {
+        order,
+        ..base.clone()
+    };
+    let (crit, scores) = match folds {
+        Some((a, b)) => {
+            let v = two_fold(a, b, &opt_n)?;
+            (v.iter().sum::<f64>() / v.len() as f64, v)
+        }
+        None => {
+            let r = sd_ident::fit(&fast.frd, &opt_n).ok()?;
+            let fpe = sd_ident::final_prediction_error(r.cost, &opt_n, fast.frd.len());
+            (fpe, Vec::new())
+        }
+    };
+    crit.is_finite().then_some(Scanned {
+        order,
+        crit,
+        scores,
+    })
 }
 
 /// The order with the least criterion.
@@ -315,18 +323,7 @@ fn choose_order(
     let lines = interleaved(fast)?;
     let mut scanned = scan(fast, Some(&lines), base, opt, progress);
     if let Some(p) = periods_best.filter(|&p| scanned.iter().all(|s| s.order != p)) {
-        let fo = FitOptions {
-            order: p,
-            ..base.clone()
-        };
-        if let Some(v) = two_fold(&lines.0, &lines.1, &fo) {
-            let crit = v.iter().sum::<f64>() / v.len() as f64;
-            scanned.push(Scanned {
-                order: p,
-                crit,
-                scores: v,
-            });
-        }
+        scanned.extend(judge(fast, Some(&lines), base, p));
     }
     let best = least(&scanned).ok_or_else(none)?;
     let kept = periods_best.and_then(|p| scanned.iter().find(|s| s.order == p));

@@ -65,7 +65,7 @@ pub fn thiran(d: f64, ts: f64) -> Result<StateSpace> {
             "a Thiran allpass needs a positive delay; got {d} samples"
         )));
     }
-    let a = (1.0 - d) / (1.0 + d);
+    let a = thiran_coefficient(d);
     StateSpace::new(
         DMatrix::from_element(1, 1, -a),
         DMatrix::from_element(1, 1, 1.0),
@@ -73,6 +73,11 @@ pub fn thiran(d: f64, ts: f64) -> Result<StateSpace> {
         DMatrix::from_element(1, 1, a),
         SampleTime::discrete(ts)?,
     )
+}
+
+/// `a = (1 − D)/(1 + D)` of Thiran's first-order allpass of delay `D`.
+fn thiran_coefficient(d: f64) -> f64 {
+    (1.0 - d) / (1.0 + d)
 }
 
 /// A SISO discrete model preceded by an input delay of `tau` samples: whole samples exactly,
@@ -127,7 +132,7 @@ pub fn phase_error_deg(tau: f64, ts: f64, freq_hz: &[f64]) -> f64 {
     if d == 0.0 {
         return 0.0;
     }
-    let a = (1.0 - d) / (1.0 + d);
+    let a = thiran_coefficient(d);
     freq_hz
         .iter()
         .map(|&f| {

@@ -159,6 +159,13 @@ fn analyze<'py>(py: Python<'py>, p: SysIn<'py>, k: SysIn<'py>) -> PyResult<Bound
         let text = serde_json::to_string(&m).map_err(|e| value_err(e.to_string()))?;
         d.set_item("loop_at_a_time_json", text)?;
     }
+    summary_into(&d, &s)?;
+    Ok(d)
+}
+
+/// A loop's summary (`sd_analysis::Summary`) as items of `d`: the keys of `sdctl analyze
+/// --json` (analyze, reduce_controller's `before` and `after`).
+pub(crate) fn summary_into(d: &Bound<'_, PyDict>, s: &sd_analysis::Summary) -> PyResult<()> {
     d.set_item("stable", s.stable)?;
     d.set_item("closed_loop_radius", s.closed_loop_radius)?;
     d.set_item("bandwidth_hz", s.bandwidth_hz)?;
@@ -169,8 +176,7 @@ fn analyze<'py>(py: Python<'py>, p: SysIn<'py>, k: SysIn<'py>) -> PyResult<Bound
     d.set_item("gain_margin_hz", s.gain_margin_hz)?;
     d.set_item("phase_margin_deg", s.phase_margin_deg)?;
     d.set_item("phase_margin_hz", s.phase_margin_hz)?;
-    d.set_item("modulus_margin", s.modulus_margin)?;
-    Ok(d)
+    d.set_item("modulus_margin", s.modulus_margin)
 }
 
 /// Registers this file's functions.

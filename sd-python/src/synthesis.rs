@@ -18,6 +18,18 @@ fn options(gamma: Option<f64>, tol: f64) -> sd_hinf::HinfOptions {
     }
 }
 
+/// A synthesis result as Python sees it: `controller` (model tuple) and `report_json`.
+fn report<'py>(
+    py: Python<'py>,
+    controller: &sd_model::StateSpace,
+    r: &impl serde::Serialize,
+) -> PyResult<Bound<'py, PyDict>> {
+    let out = PyDict::new(py);
+    out.set_item("controller", sys_out(py, controller))?;
+    out.set_item("report_json", json_text(r)?)?;
+    Ok(out)
+}
+
 /// H∞ synthesis on a generalized plant (`sd_hinf::hinfsyn`): `controller`, `report_json`.
 #[pyfunction]
 #[pyo3(signature = (plant, nmeas, ncon, gamma, tol))]
@@ -33,10 +45,7 @@ fn hinfsyn<'py>(
     let r = py
         .detach(|| sd_hinf::hinfsyn(&p, part(nmeas, ncon), &options(gamma, tol)))
         .map_err(py_err)?;
-    let out = PyDict::new(py);
-    out.set_item("controller", sys_out(py, &r.controller))?;
-    out.set_item("report_json", json_text(&r)?)?;
-    Ok(out)
+    report(py, &r.controller, &r)
 }
 
 /// H2 synthesis on a generalized plant (`sd_hinf::h2syn`): `controller`, `report_json`.
@@ -51,10 +60,7 @@ fn h2syn<'py>(
     let r = py
         .detach(|| sd_hinf::h2syn(&p, part(nmeas, ncon)))
         .map_err(py_err)?;
-    let out = PyDict::new(py);
-    out.set_item("controller", sys_out(py, &r.controller))?;
-    out.set_item("report_json", json_text(&r)?)?;
-    Ok(out)
+    report(py, &r.controller, &r)
 }
 
 /// Mixed-sensitivity synthesis (`sd_hinf::mixsyn`): `controller` (negative feedback),
@@ -84,10 +90,8 @@ fn mixsyn<'py>(
     let (r, gp) = py
         .detach(|| sd_hinf::mixsyn(&g, &w, &options(gamma, tol)))
         .map_err(py_err)?;
-    let out = PyDict::new(py);
-    out.set_item("controller", sys_out(py, &r.controller))?;
+    let out = report(py, &r.controller, &r)?;
     out.set_item("generalized_plant", sys_out(py, &gp))?;
-    out.set_item("report_json", json_text(&r)?)?;
     Ok(out)
 }
 
@@ -117,13 +121,7 @@ fn reduce_controller<'py>(
         .map_err(py_err)?;
     let side = |s: &sd_analysis::Summary| -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);
-        d.set_item("stable", s.stable)?;
-        d.set_item("closed_loop_radius", s.closed_loop_radius)?;
-        d.set_item("crossover_hz", s.crossover_hz)?;
-        d.set_item("sensitivity_peak_db", s.sensitivity_peak_db)?;
-        d.set_item("gain_margin_db", s.gain_margin_db)?;
-        d.set_item("phase_margin_deg", s.phase_margin_deg)?;
-        d.set_item("modulus_margin", s.modulus_margin)?;
+        crate::design::summary_into(&d, s)?;
         Ok(d)
     };
     let out = PyDict::new(py);

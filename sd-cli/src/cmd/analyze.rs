@@ -87,19 +87,8 @@ impl Args {
             .map(|u| robust(&p, &k, u, weight_order, destabilising_out.as_deref()))
             .transpose()?;
         if json {
-            let mut v = json!({
-                "stable": s.stable,
-                "closed_loop_radius": s.closed_loop_radius,
-                "bandwidth_hz": s.bandwidth_hz,
-                "crossover_hz": s.crossover_hz,
-                "sensitivity_peak_db": s.sensitivity_peak_db,
-                "sensitivity_peak_hz": s.sensitivity_peak_hz,
-                "gain_margin_db": s.gain_margin_db,
-                "gain_margin_hz": s.gain_margin_hz,
-                "phase_margin_deg": s.phase_margin_deg,
-                "phase_margin_hz": s.phase_margin_hz,
-                "modulus_margin": s.modulus_margin,
-            });
+            let mut v = serde_json::to_value(&s)
+                .map_err(|e| CliError::numerical(format!("summary JSON: {e}")))?;
             if let (Some(r), Some(obj)) = (&robust, v.as_object_mut()) {
                 obj.insert("robust".into(), json!(r));
             }

@@ -2,7 +2,7 @@
 
 use crate::commands::model_json;
 use crate::io::{emit, from_analysis, from_model, read_model, CliError};
-use sd_analysis::{reduce_controller, ReductionMethod, Summary};
+use sd_analysis::{reduce_controller, ReductionMethod};
 use serde_json::json;
 
 /// Arguments of `sdctl reduce`.
@@ -81,20 +81,13 @@ impl Args {
             reduce_controller(&p, &k, self.order, method).map_err(|e| from_analysis(kpath, e))?;
         let kjson = model_json(&r.controller)?;
         if self.json {
-            let loop_json = |s: &Summary| {
-                json!({"stable": s.stable, "closed_loop_radius": s.closed_loop_radius,
-                       "crossover_hz": s.crossover_hz, "bandwidth_hz": s.bandwidth_hz,
-                       "sensitivity_peak_db": s.sensitivity_peak_db, "sensitivity_peak_hz": s.sensitivity_peak_hz,
-                       "gain_margin_db": s.gain_margin_db, "phase_margin_deg": s.phase_margin_deg,
-                       "modulus_margin": s.modulus_margin})
-            };
             let k: serde_json::Value = serde_json::from_str(&kjson)
                 .map_err(|e| CliError::numerical(format!("model JSON: {e}")))?;
             let v = json!({
                 "method": r.method, "order_before": r.orders.0, "order_after": r.orders.1,
                 "hankel_sv": r.hankel_sv, "band_hz": r.band_hz,
                 "max_delta_s_db": r.max_delta_s_db, "max_delta_t_db": r.max_delta_t_db,
-                "before": loop_json(&r.before), "after": loop_json(&r.after), "controller": k,
+                "before": r.before, "after": r.after, "controller": k,
             });
             emit(&v.to_string(), self.output.as_deref())
         } else {
