@@ -44,6 +44,7 @@ pub mod lft;
 pub mod lmi;
 pub mod loopshape;
 pub mod mixsyn;
+pub mod multirate;
 pub mod riccati;
 mod sda;
 pub mod tol;
@@ -55,6 +56,10 @@ pub use hinfsyn::{hinfsyn, GammaOutcome, GammaStep, HinfOptions, HinfSynthesis};
 pub use lft::{lft_lower, undo_loop_shift, Blocks, Partition};
 pub use loopshape::{gamma_min, loopshape, Loopshape, LoopshapeOptions, RiccatiReport};
 pub use mixsyn::{augw, mixsyn, MixsynWeights};
+pub use multirate::{
+    multirate_h2syn, multirate_hinfsyn, multirate_norm, multirate_plant, MultirateSynthesis,
+    MultirateWeights,
+};
 pub use riccati::{care, care_residual_of, dare, RiccatiSolution};
 
 /// The crate README's example, compiled and run as a doctest.

@@ -220,7 +220,8 @@ pub fn makeweight(
     positive(freq_hz, "frequency")?;
     if !((dc < mag && mag < hf) || (dc > mag && mag > hf)) {
         return Err(HinfError::InvalidArgument(format!(
-            "the gain {mag} at {freq_hz} Hz must lie strictly between the low-frequency gain              {dc} and the high-frequency gain {hf}"
+            "the gain {mag} at {freq_hz} Hz must lie strictly between the low-frequency gain \
+             {dc} and the high-frequency gain {hf}"
         )));
     }
     if !(1..=2).contains(&order) {

@@ -11,6 +11,7 @@
 mod bench;
 mod bench_hinf;
 mod mixsyn_design;
+mod multirate_design;
 mod paper;
 mod physical;
 mod scaling;

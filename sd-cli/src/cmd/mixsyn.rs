@@ -23,6 +23,23 @@ pub(crate) struct Args {
     /// the plant has poles on the stability boundary (a rigid body).
     #[arg(long)]
     pub(crate) wd: Option<String>,
+    /// Multirate design: PLANT is the fast model at h and the controller runs at T = F·h,
+    /// sampling the error at the slow instants and holding its output; every weight acts at
+    /// the fast rate and the error between the samples counts (the lifted plant,
+    /// `sd_hinf::multirate`). Without --wr there is no reference: disturbance rejection.
+    #[arg(long)]
+    pub(crate) factor: Option<usize>,
+    /// With --factor: the smooth reference's shaping r = W_r r̃ (ny×ny, fast rate).
+    #[arg(long)]
+    pub(crate) wr: Option<String>,
+    /// With --factor: the sensor noise's gain at the slow samples (the same on every
+    /// measurement).
+    #[arg(long, allow_negative_numbers = true)]
+    pub(crate) wn: Option<f64>,
+    /// With --factor: the effort weight on the controller's samples (nu×nu, discrete at T),
+    /// instead of or beside --w2 on the held control at every fast sample.
+    #[arg(long)]
+    pub(crate) w2_slow: Option<String>,
     /// Design at this γ (at least γ_min) instead of at γ_min.
     #[arg(long, allow_negative_numbers = true)]
     pub(crate) gamma: Option<f64>,
@@ -64,17 +81,28 @@ impl Args {
             tolerance: tol,
             ..Default::default()
         };
-        let (r, p) = sd_hinf::mixsyn(&g, &w, &opt).map_err(|e| from_hinf(&self.plant, e))?;
+        let (r, p, extra) = match self.factor {
+            None => {
+                if self.wr.is_some() || self.wn.is_some() || self.w2_slow.is_some() {
+                    return Err(CliError::input(
+                        "--wr, --wn and --w2-slow belong to a multirate design: give --factor F",
+                    ));
+                }
+                let (r, p) =
+                    sd_hinf::mixsyn(&g, &w, &opt).map_err(|e| from_hinf(&self.plant, e))?;
+                (
+                    r,
+                    p,
+                    vec![("convention", "u = K (r − y) (negative feedback)".into())],
+                )
+            }
+            Some(f) => self.multirate(&g, f, w, &opt)?,
+        };
         let controller = model_json(&r.controller)?;
         if self.json {
-            let v = report_json(
-                &r,
-                &controller,
-                vec![
-                    ("generalized_plant_states", p.n().into()),
-                    ("convention", "u = K (r − y) (negative feedback)".into()),
-                ],
-            )?;
+            let mut extra = extra;
+            extra.push(("generalized_plant_states", p.n().into()));
+            let v = report_json(&r, &controller, extra)?;
             emit(&v, self.output.as_deref())
         } else {
             eprintln!(
@@ -93,4 +121,47 @@ impl Args {
             emit(&controller, self.output.as_deref())
         }
     }
+
+    /// The multirate design (`--factor`).
+    fn multirate(
+        &self,
+        g: &StateSpace,
+        factor: usize,
+        mix: sd_hinf::MixsynWeights<'_>,
+        opt: &sd_hinf::HinfOptions,
+    ) -> Result<(sd_hinf::HinfSynthesis, StateSpace, Extra), CliError> {
+        if factor == 0 {
+            return Err(CliError::input("--factor must be at least 1 (T = F·h)"));
+        }
+        let wr = self.wr.as_deref().map(read_model).transpose()?;
+        let w2s = self.w2_slow.as_deref().map(read_model).transpose()?;
+        let wn = match self.wn {
+            Some(v) if !v.is_finite() => {
+                return Err(CliError::input(format!("--wn {v}: give a finite number")))
+            }
+            Some(v) => Some(nalgebra::DMatrix::identity(g.ny(), g.ny()) * v),
+            None => None,
+        };
+        let w = sd_hinf::MultirateWeights {
+            mix,
+            wr: wr.as_ref(),
+            wn: wn.as_ref(),
+            w2_slow: w2s.as_ref(),
+        };
+        let r = sd_hinf::multirate_hinfsyn(g, factor, &w, opt)
+            .map_err(|e| from_hinf(&self.plant, e))?;
+        let extra: Extra = vec![
+            ("factor", factor.into()),
+            (
+                "convention",
+                "u_k = K m_k at T = F·h, m_k = e(kF) the sampled error (negative feedback), \
+                 u held over the F fast samples"
+                    .into(),
+            ),
+        ];
+        Ok((r.synthesis, r.plant, extra))
+    }
 }
+
+/// Extra JSON keys of the report.
+type Extra = Vec<(&'static str, serde_json::Value)>;
