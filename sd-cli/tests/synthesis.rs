@@ -248,4 +248,41 @@ fn mixsyn_designs_a_stable_loop() {
     assert_eq!(v["controller"]["ts"].as_f64(), Some(0.001));
     let o = sdctl(&["mixsyn", &p, "--wd", &wd]);
     one_line_error(&o, 2, "at least one of W1");
+    // multirate: the same plant and weights as the fast model at 1 kHz, the controller at
+    // 4 ms, sensor noise at its samples
+    let o = sdctl(&[
+        "mixsyn", &p, "--w1", &w1, "--w2", &w2, "--wd", &wd, "--factor", "4", "--wn", "1e-3",
+        "--json",
+    ]);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["factor"].as_u64(), Some(4), "{v}");
+    assert_eq!(v["controller"]["ts"].as_f64(), Some(0.004), "{v}");
+    assert_eq!(v["closed_loop_stable"], serde_json::json!(true));
+    assert!(v["achieved_norm"].as_f64().unwrap() <= v["gamma"].as_f64().unwrap() * (1.0 + 1e-6));
+    let o = sdctl(&["mixsyn", &p, "--w1", &w1, "--wd", &wd, "--wn", "1e-3"]);
+    one_line_error(&o, 2, "--factor");
+    let o = sdctl(&["mixsyn", &p, "--w1", &w1, "--wd", &wd, "--factor", "0"]);
+    one_line_error(&o, 2, "at least 1");
+    // an effort weight at the fast period where the slow one is meant
+    let o = sdctl(&[
+        "mixsyn",
+        &p,
+        "--w1",
+        &w1,
+        "--wd",
+        &wd,
+        "--factor",
+        "4",
+        "--wn",
+        "1e-3",
+        "--w2-slow",
+        &w2,
+    ]);
+    one_line_error(&o, 2, "slow effort weight");
 }

@@ -64,9 +64,11 @@ fn h2syn<'py>(
 }
 
 /// Mixed-sensitivity synthesis (`sd_hinf::mixsyn`): `controller` (negative feedback),
-/// `report_json`, `generalized_plant`.
+/// `report_json`, `generalized_plant`. With `factor` the multirate design
+/// (`sd_hinf::multirate_hinfsyn`: the plant at the fast rate, the controller at `factor` times
+/// its period, `wr`, `wn`, `w2_slow` as `sdctl mixsyn --factor`).
 #[pyfunction]
-#[pyo3(signature = (plant, w1, w2, w3, wd, gamma, tol))]
+#[pyo3(signature = (plant, w1, w2, w3, wd, gamma, tol, factor=None, wr=None, wn=None, w2_slow=None))]
 #[allow(clippy::too_many_arguments)]
 fn mixsyn<'py>(
     py: Python<'py>,
@@ -77,19 +79,49 @@ fn mixsyn<'py>(
     wd: Option<SysIn<'py>>,
     gamma: Option<f64>,
     tol: f64,
+    factor: Option<usize>,
+    wr: Option<SysIn<'py>>,
+    wn: Option<f64>,
+    w2_slow: Option<SysIn<'py>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let g = sys_in(&plant)?;
     let conv = |w: &Option<SysIn<'py>>| w.as_ref().map(sys_in).transpose();
     let (w1, w2, w3, wd) = (conv(&w1)?, conv(&w2)?, conv(&w3)?, conv(&wd)?);
+    let (wr, w2s) = (conv(&wr)?, conv(&w2_slow)?);
     let w = sd_hinf::MixsynWeights {
         w1: w1.as_ref(),
         w2: w2.as_ref(),
         w3: w3.as_ref(),
         wd: wd.as_ref(),
     };
-    let (r, gp) = py
-        .detach(|| sd_hinf::mixsyn(&g, &w, &options(gamma, tol)))
-        .map_err(py_err)?;
+    let opt = options(gamma, tol);
+    let (r, gp) = match factor {
+        None => {
+            if wr.is_some() || wn.is_some() || w2s.is_some() {
+                return Err(value_err(
+                    "Wr, wn and W2_slow belong to a multirate design: give factor",
+                ));
+            }
+            py.detach(|| sd_hinf::mixsyn(&g, &w, &opt))
+                .map_err(py_err)?
+        }
+        Some(f) => {
+            if wn.is_some_and(|v| !v.is_finite()) {
+                return Err(value_err("wn must be a finite number"));
+            }
+            let wn = wn.map(|v| nalgebra::DMatrix::identity(g.ny(), g.ny()) * v);
+            let mw = sd_hinf::MultirateWeights {
+                mix: w,
+                wr: wr.as_ref(),
+                wn: wn.as_ref(),
+                w2_slow: w2s.as_ref(),
+            };
+            let m = py
+                .detach(|| sd_hinf::multirate_hinfsyn(&g, f, &mw, &opt))
+                .map_err(py_err)?;
+            (m.synthesis, m.plant)
+        }
+    };
     let out = report(py, &r.controller, &r)?;
     out.set_item("generalized_plant", sys_out(py, &gp))?;
     Ok(out)

@@ -51,3 +51,25 @@ def test_mixsyn_and_reduce_controller():
         sd.reduce_controller(G, K, 1)
     with pytest.raises(ValueError):
         sd.reduce_controller(G, K, 3, method="optimal")
+
+
+def test_multirate_mixsyn_matches_sdctl(sdctl, tmp_path):
+    # the same damped double integrator as the fast model at 1 kHz, the controller at 4 ms
+    G = sd.c2d(sd.StateSpace([[0.0, 1.0], [0.0, -0.1]], [[0.0], [1.0]], [[1.0, 0.0]], [[0.0]]), 1e-3)
+    one = lambda v: sd.StateSpace(np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), [[v]], 1e-3)
+    m = sd.mixsyn(G, W1=one(10.0), W2=one(0.01), Wd=one(1.0), factor=4, wn=1e-3)
+    assert m.factor == 4 and m.closed_loop_stable
+    assert m.achieved_norm <= m.gamma * (1 + 1e-6)
+    assert abs(m.controller.dt - 4e-3) < 1e-15
+    paths = {}
+    for name, sys in (("g", G), ("w1", one(10.0)), ("w2", one(0.01)), ("wd", one(1.0))):
+        paths[name] = tmp_path / f"{name}.json"
+        paths[name].write_text(sys.to_json())
+    cli = json.loads(sdctl("mixsyn", paths["g"], "--w1", paths["w1"], "--w2", paths["w2"],
+                           "--wd", paths["wd"], "--factor", 4, "--wn", "1e-3", "--json"))
+    assert cli["factor"] == 4
+    assert m.gamma == pytest.approx(cli["gamma"], rel=1e-12)
+    with pytest.raises(ValueError):
+        sd.mixsyn(G, W1=one(10.0), Wd=one(1.0), wn=1e-3)
+    with pytest.raises(TypeError):
+        sd.mixsyn(G, W1=one(10.0), Wd=one(1.0), factor=2.5, wn=1e-3)
