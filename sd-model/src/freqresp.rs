@@ -324,9 +324,7 @@ impl FreqRespEvaluator {
     /// `G(s)` at a point of the complex plane (s for CT, z for DT).
     pub fn eval_at(&self, s: C) -> DMatrix<C> {
         if let Some((a, b, c)) = &self.dense {
-            let n = a.nrows();
-            let m = DMatrix::<C>::identity(n, n) * s - a;
-            return match m.lu().solve(b) {
+            return match dense_solve(a, b, s) {
                 Some(x) => c * x + &self.d,
                 None => DMatrix::from_element(
                     self.d.nrows(),
@@ -575,6 +573,21 @@ impl StateSpace {
         }
         Ok(to_complex(self.c()) * x + to_complex(self.d()))
     }
+}
+
+/// `(sI − A)⁻¹B` by faer's blocked partial-pivoting LU (nalgebra's unblocked one took 84 % of
+/// an H∞ norm of a 128-state loop that needs this path); `None` at a pole (a non-finite
+/// solution).
+fn dense_solve(a: &DMatrix<C>, b: &DMatrix<C>, s: C) -> Option<DMatrix<C>> {
+    use faer::linalg::solvers::Solve;
+    let n = a.nrows();
+    let m = faer::Mat::<C>::from_fn(n, n, |i, j| if i == j { s - a[(i, j)] } else { -a[(i, j)] });
+    let rhs = faer::Mat::<C>::from_fn(n, b.ncols(), |i, j| b[(i, j)]);
+    let x = m.partial_piv_lu().solve(&rhs);
+    let x = DMatrix::<C>::from_fn(n, b.ncols(), |i, j| x[(i, j)]);
+    x.iter()
+        .all(|v| v.re.is_finite() && v.im.is_finite())
+        .then_some(x)
 }
 
 /// A frequency grid: `n` points from `fmin` to `fmax` Hz, linear or logarithmic.
