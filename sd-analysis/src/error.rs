@@ -1,5 +1,6 @@
 //! The one error type of `sd-analysis`.
 
+use sd_hinf::HinfError;
 use sd_model::ModelError;
 use sd_multirate::MultirateError;
 
@@ -13,6 +14,9 @@ pub enum AnalysisError {
     /// An error of the multirate operations.
     #[error(transparent)]
     Multirate(#[from] MultirateError),
+    /// An error of the Riccati-based operations (coprime factors).
+    #[error(transparent)]
+    Hinf(#[from] HinfError),
     /// An argument that is not usable (message says which and why).
     #[error("{0}")]
     InvalidArgument(String),
@@ -27,6 +31,7 @@ impl AnalysisError {
         match self {
             AnalysisError::Model(m) => m.is_numerical(),
             AnalysisError::Multirate(m) => m.is_numerical(),
+            AnalysisError::Hinf(h) => h.is_numerical(),
             AnalysisError::ReductionFailed(_) => true,
             _ => false,
         }

@@ -176,6 +176,41 @@ fn reduce_controller_keeps_the_loop_or_says_it_cannot() {
     assert_eq!(v["after"]["stable"], serde_json::json!(true));
     assert_eq!(v["method"], serde_json::json!("closed_loop_weighted"));
     assert_eq!(v["controller"]["a"].as_array().unwrap().len(), 3);
+    // the coprime factors of the loop-scaled controller
+    let o = sdctl(&[
+        "reduce",
+        "--controller",
+        &k,
+        "--plant",
+        &p,
+        "--order",
+        "3",
+        "--method",
+        "coprime",
+        "--json",
+    ]);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["method"], serde_json::json!("coprime_factor"));
+    assert_eq!(v["after"]["stable"], serde_json::json!(true));
+    assert!(v["max_delta_s_db"].as_f64().unwrap() <= 0.5, "{v}");
+    let o = sdctl(&[
+        "reduce",
+        "--controller",
+        &k,
+        "--plant",
+        &p,
+        "--order",
+        "3",
+        "--method",
+        "optimal",
+    ]);
+    one_line_error(&o, 2, "coprime");
     let o = sdctl(&["reduce", "--controller", &k, "--plant", &p, "--order", "1"]);
     one_line_error(&o, 1, "does not stabilize the loop");
     let o = sdctl(&["reduce", "--controller", &k, "--plant", &p, "--order", "0"]);

@@ -45,6 +45,7 @@ pub mod lmi;
 pub mod loopshape;
 pub mod mixsyn;
 pub mod multirate;
+pub mod ncf;
 pub mod riccati;
 mod sda;
 pub mod tol;
@@ -60,6 +61,7 @@ pub use multirate::{
     multirate_h2syn, multirate_hinfsyn, multirate_norm, multirate_plant, MultirateSynthesis,
     MultirateWeights,
 };
+pub use ncf::{coprime_reduce, normalized_lcf, CoprimeReduction};
 pub use riccati::{care, care_residual_of, dare, RiccatiSolution};
 
 /// The crate README's example, compiled and run as a doctest.

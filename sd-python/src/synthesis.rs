@@ -138,15 +138,9 @@ fn reduce_controller<'py>(
     order: usize,
     method: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let method = match method {
-        "weighted" => sd_analysis::ReductionMethod::ClosedLoopWeighted,
-        "plain" => sd_analysis::ReductionMethod::Plain,
-        other => {
-            return Err(value_err(format!(
-                "method {other:?}: use \"weighted\" or \"plain\""
-            )))
-        }
-    };
+    let method: sd_analysis::ReductionMethod = method
+        .parse()
+        .map_err(|e: sd_analysis::AnalysisError| value_err(e.to_string()))?;
     let (p, k) = (sys_in(&plant)?, sys_in(&controller)?);
     let r = py
         .detach(|| sd_analysis::reduce_controller(&p, &k, order, method))
@@ -158,6 +152,11 @@ fn reduce_controller<'py>(
     };
     let out = PyDict::new(py);
     out.set_item("controller", sys_out(py, &r.controller))?;
+    let method = serde_json::to_value(r.method)
+        .ok()
+        .and_then(|v| v.as_str().map(str::to_string))
+        .unwrap_or_default();
+    out.set_item("method", method)?;
     out.set_item("order_before", r.orders.0)?;
     out.set_item("order_after", r.orders.1)?;
     out.set_item("hankel_sv", r.hankel_sv.clone())?;

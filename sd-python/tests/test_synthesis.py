@@ -51,6 +51,8 @@ def test_mixsyn_and_reduce_controller():
         sd.reduce_controller(G, K, 1)
     with pytest.raises(ValueError):
         sd.reduce_controller(G, K, 3, method="optimal")
+    c = sd.reduce_controller(G, K, 3, method="coprime")
+    assert c.method == "coprime_factor" and c.after.stable and c.order_after == 3
 
 
 def test_multirate_mixsyn_matches_sdctl(sdctl, tmp_path):

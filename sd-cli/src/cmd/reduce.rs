@@ -20,7 +20,8 @@ pub(crate) struct Args {
     /// The plant of the controller's loop (with --controller).
     #[arg(long)]
     pub(crate) plant: Option<String>,
-    /// With --controller: `weighted` (closed-loop weight, the default) or `plain`.
+    /// With --controller: `weighted` (closed-loop weight, the default), `coprime` (balanced
+    /// truncation of the loop-scaled controller's normalized coprime factors) or `plain`.
     #[arg(long, default_value = "weighted")]
     pub(crate) method: String,
     /// With --controller: print the comparison as JSON (the reduced controller under
@@ -67,15 +68,10 @@ impl Args {
     }
 
     fn controller_run(&self, kpath: &str, ppath: &str) -> Result<(), CliError> {
-        let method = match self.method.as_str() {
-            "weighted" => ReductionMethod::ClosedLoopWeighted,
-            "plain" => ReductionMethod::Plain,
-            other => {
-                return Err(CliError::input(format!(
-                    "--method {other}: use `weighted` or `plain`"
-                )))
-            }
-        };
+        let method: ReductionMethod = self
+            .method
+            .parse()
+            .map_err(|e: sd_analysis::AnalysisError| CliError::input(format!("--method: {e}")))?;
         let (k, p) = (read_model(kpath)?, read_model(ppath)?);
         let r =
             reduce_controller(&p, &k, self.order, method).map_err(|e| from_analysis(kpath, e))?;

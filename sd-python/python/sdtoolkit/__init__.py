@@ -469,7 +469,9 @@ def reduce_controller(P, K, order: int, method: str = "weighted") -> Result:
     """Reduce controller ``K`` (negative feedback around ``P``) to ``order`` states keeping the
     loop, as ``sdctl reduce --controller --json``: ``controller``, ``order_before`` /
     ``order_after``, ``hankel_sv``, ``band_hz``, ``max_delta_s_db``, ``max_delta_t_db``,
-    ``before`` / ``after`` (stability and margins). A reduced controller that loses the loop
+    ``before`` / ``after`` (stability and margins). ``method``: ``"weighted"`` (balanced
+    truncation with the closed-loop weight), ``"coprime"`` (the loop-scaled controller's
+    normalized coprime factors) or ``"plain"``. A reduced controller that loses the loop
     raises NumericalError."""
     d = _native.reduce_controller(_ss(P, "P")._tuple(), _ss(K, "K")._tuple(), int(order), str(method))
     d["controller"] = _from_tuple(d["controller"])
