@@ -20,7 +20,12 @@
 //!   `(Q + ρ(AᵀA − I), R + ρBᵀB, S + ρAᵀB)`, whose R is positive definite when B has full
 //!   column rank, and whose gain and closed loop are the same.
 //! - CARE: the ordered complex Schur form of the Hamiltonian `[A_s −G; −Q_s −A_sᵀ]` (stable
-//!   eigenvalues moved to the top by ZTREXC-style swaps, `X = U₂₁U₁₁⁻¹`; Laub 1979).
+//!   eigenvalues moved to the top by ZTREXC-style swaps, `X = U₂₁U₁₁⁻¹`; Laub 1979). The
+//!   eigenvalues are split by the sign of their real parts, however close to the axis (CAREX
+//!   2.8 has them ±5e-13 off it at ±1j); the refusal is then decided by the result: fewer or
+//!   more than n stable eigenvalues, a singular `U₁₁`, or a refined X whose closed loop
+//!   `A − BK` has an eigenvalue with a real part ≥ 0 (its abscissa is reported as
+//!   `closed_loop`: the distance of the solution to the axis).
 //! - Both: Newton refinement on the original data (Kleinman 1968 / Hewer 1971 as defect
 //!   correction: `A_cᵀΔ + ΔA_c = −𝓡(X)` resp. `A_cᵀΔA_c − Δ = −𝓡(X)`, Bartels–Stewart), a step
 //!   kept only when it lowers the residual. This is what recovers full accuracy on badly scaled
@@ -426,19 +431,43 @@ pub fn care(
     r: &DMatrix<f64>,
     s: Option<&DMatrix<f64>>,
 ) -> Result<RiccatiSolution> {
+    care_with(a, b, q, r, s, None)
+}
+
+/// [`care`] that refuses a Hamiltonian eigenvalue within [`tol::AXIS`]`·‖H‖` of the axis: the
+/// H∞ existence tests (γ-iteration, loopshaping's γ_min), where a level at the optimum shows
+/// exactly so and a solution computed across it would pass the later tests wrongly.
+pub(crate) fn care_separated(
+    a: &DMatrix<f64>,
+    b: &DMatrix<f64>,
+    q: &DMatrix<f64>,
+    r: &DMatrix<f64>,
+    s: Option<&DMatrix<f64>>,
+) -> Result<RiccatiSolution> {
+    care_with(a, b, q, r, s, Some(tol::AXIS))
+}
+
+fn care_with(
+    a: &DMatrix<f64>,
+    b: &DMatrix<f64>,
+    q: &DMatrix<f64>,
+    r: &DMatrix<f64>,
+    s: Option<&DMatrix<f64>>,
+    axis: Option<f64>,
+) -> Result<RiccatiSolution> {
     let d = check(a, b, q, r, s)?;
     let n = d.a.nrows();
     if n == 0 {
         return Ok(empty(d.b.ncols()));
     }
-    let x0 = match care_initial(&d) {
+    let x0 = match care_initial(&d, axis) {
         Ok(x) => x,
         Err(e) => return Err(diagnose(&d, Kind::Continuous).unwrap_or(e)),
     };
     finish(&d, x0, 0, Kind::Continuous)
 }
 
-fn care_initial(d: &Data) -> Result<DMatrix<f64>> {
+fn care_initial(d: &Data, axis: Option<f64>) -> Result<DMatrix<f64>> {
     let n = d.a.nrows();
     let rinv_st = sym_solve(&d.r, &d.s.transpose())
         .ok_or_else(|| HinfError::InvalidArgument("R must be invertible for the CARE".into()))?;
@@ -453,10 +482,15 @@ fn care_initial(d: &Data) -> Result<DMatrix<f64>> {
     h.view_mut((n, 0), (n, n)).copy_from(&(-&q_s));
     h.view_mut((n, n), (n, n)).copy_from(&(-a_s.transpose()));
     let (mut u, mut t) = complex_schur(&to_complex(&h))?;
-    let hn = h.norm();
+    // Unless `axis` is given, eigenvalues at rounding distance of the axis are not refused by
+    // themselves (CAREX 2.8:
+    // ±5e-13 off it, a stabilizing solution exists): the split by the sign of the real part
+    // must give n stable ones, and `finish` requires the refined X's closed loop to be
+    // stable; a pair the rounding put on one side then fails there.
     let stable = |z: C| z.re < 0.0;
-    let on_axis = (0..2 * n).any(|i| t[(i, i)].re.abs() <= tol::AXIS * hn);
     let count = (0..2 * n).filter(|&i| stable(t[(i, i)])).count();
+    let hn = h.norm();
+    let on_axis = axis.is_some_and(|tol| (0..2 * n).any(|i| t[(i, i)].re.abs() <= tol * hn));
     if on_axis || count != n {
         return Err(HinfError::NoStabilizingSolution {
             equation: "CARE".into(),
@@ -829,6 +863,55 @@ mod tests {
 
     fn m(r: usize, c: usize, v: &[f64]) -> DMatrix<f64> {
         DMatrix::from_row_slice(r, c, v)
+    }
+
+    /// CAREX 2.8 (Benner, Laub & Mehrmann 1995; ε = 1e-6): the Hamiltonian's eigenvalues are
+    /// ±5e-13 off the imaginary axis at ±1j, a stabilizing solution exists: solved, its
+    /// closed loop stable (abscissa negative, at rounding distance of the axis) and its
+    /// residual `‖AᵀX + XA − XBR⁻¹BᵀX + Q‖_F` at `100·n·ε·(‖Q‖ + 2‖A‖‖X‖ + ‖B‖²‖X‖²)`.
+    /// Eigenvalues exactly on the axis with no stabilizing solution (an undamped oscillator
+    /// that Q does not see) are still refused.
+    #[test]
+    fn near_axis_care_is_solved_and_on_axis_refused() {
+        let e = 1e-6;
+        let a = m(
+            4,
+            4,
+            &[
+                -e, 1.0, 0.0, 0.0, -1.0, -e, 0.0, 0.0, 0.0, 0.0, e, 1.0, 0.0, 0.0, -1.0, e,
+            ],
+        );
+        let b = DMatrix::from_element(4, 1, 1.0);
+        let q = DMatrix::from_element(4, 4, 1.0);
+        let r = m(1, 1, &[1.0]);
+        let sol = care(&a, &b, &q, &r, None).expect("CAREX 2.8 has a stabilizing solution");
+        let x = &sol.x;
+        let res = a.transpose() * x + x * &a - x * &b * b.transpose() * x + &q;
+        let scale = q.norm() + 2.0 * a.norm() * x.norm() + b.norm_squared() * x.norm_squared();
+        assert!(
+            res.norm() <= 100.0 * 4.0 * f64::EPSILON * scale,
+            "residual {:e} of {scale:e}",
+            res.norm()
+        );
+        println!(
+            "CAREX 2.8: residual {:.2e} (relative {:.2e}), closed-loop abscissa {:.2e}, \
+             condition {:.2e}",
+            res.norm(),
+            sol.residual,
+            sol.closed_loop,
+            sol.condition
+        );
+        assert!(
+            sol.closed_loop < 0.0 && sol.closed_loop > -1e-6,
+            "{}",
+            sol.closed_loop
+        );
+        let osc = m(2, 2, &[0.0, 1.0, -1.0, 0.0]);
+        let err = care(&osc, &m(2, 1, &[0.0, 1.0]), &DMatrix::zeros(2, 2), &r, None);
+        assert!(
+            err.is_err(),
+            "an undamped mode Q does not see has no stabilizing solution"
+        );
     }
 
     /// Smith's squaring (`stein_sum`) against the Bartels–Stewart Stein solver on a lightly

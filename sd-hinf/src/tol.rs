@@ -16,10 +16,11 @@ pub const MAX_DOUBLING: usize = 64;
 pub const CONDITION_SUM: f64 = 1e-6;
 /// Newton refinement stops below this relative residual.
 pub const NEWTON_STOP: f64 = 1e-16;
+/// In the H∞ existence tests, Hamiltonian eigenvalues with `|Re λ| ≤ AXIS·‖H‖` count as on
+/// the imaginary axis (a level at the optimum); the user-level CARE splits by sign instead.
+pub const AXIS: f64 = 1e-13;
 /// Most Newton refinement steps.
 pub const MAX_NEWTON: usize = 8;
-/// Hamiltonian eigenvalues with `|Re λ| ≤ AXIS·‖H‖` count as on the imaginary axis.
-pub const AXIS: f64 = 1e-13;
 /// Pencil eigenvalues within this of the unit circle (relative to |λ| for the axis) are on it.
 pub const CIRCLE: f64 = 1e-9;
 /// `|β| ≤ INFINITE_EIG·|α|`: an infinite generalized eigenvalue.

@@ -27,7 +27,7 @@ use super::normalize::Normalized;
 use super::GammaOutcome;
 use crate::error::Result;
 use crate::lft::lft_lower;
-use crate::riccati::{care, RiccatiSolution};
+use crate::riccati::{care_separated, RiccatiSolution};
 use crate::tol;
 use nalgebra::DMatrix;
 use sd_model::linalg::convert::eigenvalues;
@@ -153,8 +153,8 @@ fn riccati_pair(nz: &Normalized, gamma: f64) -> (Result<RiccatiSolution>, Result
         })
     };
     let (x, y) = rayon::join(
-        || care(&bl.a, &b, &qx, &r, Some(&sx)),
-        || care(&at, &ct, &qy, &rt, Some(&sy)),
+        || care_separated(&bl.a, &b, &qx, &r, Some(&sx)),
+        || care_separated(&at, &ct, &qy, &rt, Some(&sy)),
     );
     (unscale(x, m1), unscale(y, p1))
 }
