@@ -33,6 +33,21 @@ def test_dare_and_care_against_scipy():
     assert c.closed_loop < 0.0
 
 
+def test_care_near_the_axis_carex_2_8():
+    # CAREX 2.8 (ε = 1e-6): Hamiltonian eigenvalues ±5e-13 off the axis at ±1j; scipy solves it
+    e = 1e-6
+    A = np.array([[-e, 1, 0, 0], [-1, -e, 0, 0], [0, 0, e, 1], [0, 0, -1, e]])
+    B, Q, R = np.ones((4, 1)), np.ones((4, 4)), np.eye(1)
+    c = sd.care(A, B, Q, R)
+    X = c.X
+    res = A.T @ X + X @ A - X @ B @ B.T @ X + Q
+    assert np.linalg.norm(res) <= 1e-12 * (1 + np.linalg.norm(X) ** 2)
+    assert -1e-6 < c.closed_loop < 0.0
+    ref = sl.solve_continuous_are(A, B, Q, R)
+    res_ref = A.T @ ref + ref @ A - ref @ B @ B.T @ ref + Q
+    assert np.linalg.norm(res) <= 10 * np.linalg.norm(res_ref) + 1e-15
+
+
 def test_dare_without_a_solution_says_why():
     with pytest.raises(ValueError) as e:
         sd.dare([[2.0]], [[0.0]], [[1.0]], [[1.0]])
