@@ -2024,3 +2024,41 @@ fn diagnose_then_predict_another_rate() {
         "predictor.json: not found",
     );
 }
+
+/// `sdctl c2d --method matched | impulse`: poles mapped by `e^{pT}`, the DC gain kept; a
+/// feedthrough refused by the impulse-invariant map and a MIMO model by the matched one
+/// (exit 2, one line).
+#[test]
+fn c2d_matched_and_impulse() {
+    let d = tmpdir("mapped");
+    let ct = write(&d, "ct.json", CT);
+    let m = model_of(&sdctl(&["c2d", &ct, "--ts", "0.01", "--method", "matched"]));
+    let g = sd_model::model_from_json_str(CT).unwrap();
+    let one = num_complex::Complex64::new(1.0, 0.0);
+    let (dc, dcd) = (
+        g.eval_direct(num_complex::Complex64::new(0.0, 0.0))
+            .unwrap()[(0, 0)],
+        m.eval_direct(one).unwrap()[(0, 0)],
+    );
+    assert!((dc - dcd).norm() < 1e-10, "{dc} vs {dcd}");
+    let i = model_of(&sdctl(&["c2d", &ct, "--ts", "0.01", "--method", "impulse"]));
+    assert_eq!(i.n(), 2);
+    let with_d = write(
+        &d,
+        "with_d.json",
+        r#"{"type":"ss","ts":null,"a":[[-1]],"b":[[1]],"c":[[1]],"d":[[2]]}"#,
+    );
+    assert_input_error(
+        &sdctl(&["c2d", &with_d, "--ts", "0.01", "--method", "impulse"]),
+        "strictly proper",
+    );
+    let mimo = write(
+        &d,
+        "mimo.json",
+        r#"{"type":"ss","ts":null,"a":[[-1]],"b":[[1,1]],"c":[[1],[1]],"d":[[0,0],[0,0]]}"#,
+    );
+    assert_input_error(
+        &sdctl(&["c2d", &mimo, "--ts", "0.01", "--method", "matched"]),
+        "SISO",
+    );
+}

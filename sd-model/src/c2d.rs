@@ -29,6 +29,10 @@ pub enum Discretization {
         /// Frequency in Hz where the discrete response equals the continuous one.
         prewarp_hz: Option<f64>,
     },
+    /// Matched pole-zero mapping, SISO (`crate::c2d_mapped`'s documentation).
+    Matched,
+    /// Impulse-invariant mapping, strictly proper models.
+    Impulse,
 }
 
 fn require_continuous(sys: &StateSpace, op: &str) -> Result<()> {
@@ -76,6 +80,8 @@ fn c2d_matrices(sys: &StateSpace, ts: f64, method: Discretization) -> Result<Sta
             let dd = sys.d() + sys.c() * &g2;
             StateSpace::new(phi, bd, sys.c().clone(), dd, time)
         }
+        Discretization::Matched => crate::c2d_mapped::matched(sys, ts),
+        Discretization::Impulse => crate::c2d_mapped::impulse(sys, ts),
         Discretization::Tustin { prewarp_hz } => {
             let k = match prewarp_hz {
                 None => 2.0 / ts,

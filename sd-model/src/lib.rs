@@ -19,6 +19,7 @@
 
 pub mod alias;
 pub mod c2d;
+mod c2d_mapped;
 pub mod connect;
 pub mod d2c;
 pub mod delay;

@@ -26,9 +26,11 @@ fn c2d<'py>(
         "zoh" => sd_model::Discretization::Zoh,
         "foh" => sd_model::Discretization::Foh,
         "tustin" | "bilinear" => sd_model::Discretization::Tustin { prewarp_hz },
+        "matched" => sd_model::Discretization::Matched,
+        "impulse" => sd_model::Discretization::Impulse,
         other => {
             return Err(value_err(format!(
-                "method {other:?}: use \"zoh\", \"foh\" or \"tustin\""
+                "method {other:?}: use \"zoh\", \"foh\", \"tustin\", \"matched\" or \"impulse\""
             )))
         }
     };

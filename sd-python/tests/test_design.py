@@ -85,3 +85,24 @@ def test_loopshape_weight_and_analyze_match_sdctl(stage, sdctl, tmp_path):
     same = {k: v for k, v in ny.items() if k != "turn_residual"}
     assert same == {k: v for k, v in cli_a["nyquist"].items() if k != "turn_residual"}
     assert ny["agrees"] and ny["stable"] and ny["turn_residual"] < 1e-6
+
+
+def test_c2d_matched_and_impulse_match_scipy_and_the_definition():
+    # impulse-invariant: scipy's cont2discrete(method="impulse") is the same mapping
+    import scipy.signal as ss
+    A = np.array([[0.0, 1.0], [-100.0, -2.0]])
+    B, C, D = np.array([[0.0], [100.0]]), np.array([[1.0, 0.0]]), np.zeros((1, 1))
+    G = sd.StateSpace(A, B, C, D)
+    i = sd.c2d(G, 0.01, method="impulse")
+    ad, bd, cd, dd, _ = ss.cont2discrete((A, B, C, D), 0.01, method="impulse")
+    w = np.exp(1j * np.linspace(0.01, 3.0, 7))
+    for z in w:
+        mine = (i.C @ np.linalg.solve(z * np.eye(2) - i.A, i.B) + i.D)[0, 0]
+        ref = (cd @ np.linalg.solve(z * np.eye(2) - ad, bd) + dd)[0, 0]
+        assert abs(mine - ref) <= 1e-12 * abs(ref)
+    m = sd.c2d(G, 0.01, method="matched")
+    assert np.allclose(sorted(np.abs(np.linalg.eigvals(m.A))), sorted(np.abs(np.exp(np.linalg.eigvals(A) * 0.01))))
+    dc = (m.C @ np.linalg.solve(np.eye(2) - m.A, m.B) + m.D)[0, 0]
+    assert abs(dc - 1.0) < 1e-10
+    with pytest.raises(ValueError):
+        sd.c2d(sd.StateSpace([[-1.0]], [[1.0]], [[1.0]], [[2.0]]), 0.01, method="impulse")

@@ -9,6 +9,10 @@ pub(crate) enum Method {
     Zoh,
     Foh,
     Tustin,
+    /// Matched pole-zero (SISO; zeros at infinity but one to z = −1; low-frequency gain kept).
+    Matched,
+    /// Impulse-invariant (strictly proper models).
+    Impulse,
 }
 
 /// Arguments of `sdctl c2d`.
@@ -19,7 +23,8 @@ pub(crate) struct Args {
     /// Sampling period in seconds.
     #[arg(long, allow_negative_numbers = true)]
     pub(crate) ts: f64,
-    /// Method: zoh (exact zero-order hold, default), foh (triangle hold) or tustin (bilinear).
+    /// Method: zoh (exact zero-order hold, default), foh (triangle hold), tustin (bilinear),
+    /// matched (pole-zero mapping, SISO) or impulse (impulse-invariant, D = 0).
     #[arg(long, value_enum, default_value = "zoh")]
     pub(crate) method: Method,
     /// Tustin prewarp frequency in Hz.
@@ -83,6 +88,8 @@ impl Args {
             Method::Zoh => Discretization::Zoh,
             Method::Foh => Discretization::Foh,
             Method::Tustin => Discretization::Tustin { prewarp_hz },
+            Method::Matched => Discretization::Matched,
+            Method::Impulse => Discretization::Impulse,
         };
         let d = c2d(&sys, ts, m).map_err(|e| from_model(&model, e))?;
         emit(&model_json(&d)?, output.as_deref())

@@ -297,8 +297,10 @@ def c2d(*args, method: str = "zoh", hold_delay: float = 0.0, averaging: float = 
         prewarp_hz: Optional[float] = None) -> StateSpace:
     """Exact discretisation: ``c2d(sys, dt)`` or ``c2d(A, B, C, D, dt)``.
 
-    ``method`` "zoh" (exact zero-order hold), "foh" (triangle hold) or "tustin" (bilinear,
-    optionally prewarped at ``prewarp_hz``). ``hold_delay`` (fraction of the period the hold
+    ``method`` "zoh" (exact zero-order hold), "foh" (triangle hold), "tustin" (bilinear,
+    optionally prewarped at ``prewarp_hz``), "matched" (pole-zero mapping, SISO: zeros at
+    infinity but one to z = −1, the low-frequency gain kept, a rigid body's included) or
+    "impulse" (impulse-invariant, strictly proper models). ``hold_delay`` (fraction of the period the hold
     switches late, may exceed 1) and ``averaging`` (the sampler returns the mean of the last
     fraction of the period) give the rate-tied non-ideal ZOH.
     """
