@@ -478,36 +478,61 @@ mod tests {
         assert!((e_out / e_in).sqrt() <= s.achieved_norm * (1.0 + 1e-9));
     }
 
-    /// The multirate design is best on its own criterion: a single-rate mixed-sensitivity
-    /// controller designed at T on the downsampled plant with the same weights (discretized at
-    /// T) scores at least the multirate γ_min on the fast-rate norm.
+    /// Each design is best on its own criterion (the standstill problem on the paper's stage:
+    /// the error in nm at every fast sample, a 0.05 N force disturbance per fast sample, 0.3 nm
+    /// of sensor noise and a force weight rising above 100 Hz on the controller's samples).
+    /// The multirate controller's fast-rate norm is at most the single-rate design's (designed
+    /// at T on the downsampled plant with the same weights); the single-rate controller's norm
+    /// at the samples (`F = 1` on the downsampled plant) is at most the multirate one's.
     #[test]
-    fn multirate_design_beats_single_rate_on_the_fast_norm() {
-        let (g, w1, w2, wd, wn) = problem();
-        let wr = crate::weights::lowpass(250.0, 0.7, Some(H)).unwrap();
-        let w = weights(&w1, &w2, &wd, Some(&wr), Some(&wn));
-        let r = multirate_hinfsyn(&g, F, &w, &HinfOptions::default()).unwrap();
-        let mine = multirate_norm(&g, F, &w, &r.synthesis.controller).unwrap();
-        assert!((mine - r.synthesis.achieved_norm).abs() <= 1e-6 * mine);
+    fn each_design_is_best_on_its_own_criterion() {
+        let g = c2d(&paper_stage(0.01).unwrap(), H, Discretization::Zoh).unwrap();
         let gs = sd_multirate::downsample(&g, F).unwrap();
-        let t = gs.time();
-        let w1s = makeweight(1e5, 60.0, 1.0, 0.6, 2, Some(H * F as f64)).unwrap();
-        let one = |v: f64| StateSpace::gain(DMatrix::from_element(1, 1, v), t).unwrap();
-        let (w2s, wds) = (one(3e-8), one(1.0));
-        let mw = MixsynWeights {
-            w1: Some(&w1s),
-            w2: Some(&w2s),
-            w3: None,
-            wd: Some(&wds),
+        let w2s = makeweight(1.0, 100.0, 100.0, 400.0, 2, Some(H * F as f64)).unwrap();
+        let problem_at = |plant: &StateSpace, f: usize| -> (StateSpace, StateSpace, DMatrix<f64>) {
+            let one = |v: f64| StateSpace::gain(DMatrix::from_element(1, 1, v), plant.time());
+            let wn = DMatrix::from_element(1, 1, 0.3e-9 * (f as f64).sqrt());
+            (one(1e9).unwrap(), one(0.05).unwrap(), wn)
         };
-        let (single, _) = crate::mixsyn(&gs, &mw, &HinfOptions::default()).unwrap();
-        let theirs = multirate_norm(&g, F, &w, &single.controller).unwrap();
-        eprintln!(
-            "fast-rate norm: multirate {:.4e} (γ_min {:.4e}), single-rate mixsyn {theirs:.4e} \
-             (its own γ {:.4e})",
-            mine, r.synthesis.gamma_min, single.gamma
+        let (w1f, wdf, wnf) = problem_at(&g, F);
+        let fast = MultirateWeights {
+            mix: MixsynWeights {
+                w1: Some(&w1f),
+                w2: None,
+                w3: None,
+                wd: Some(&wdf),
+            },
+            wr: None,
+            wn: Some(&wnf),
+            w2_slow: Some(&w2s),
+        };
+        let (w1s, wds, wns) = problem_at(&gs, 1);
+        let slow = MultirateWeights {
+            mix: MixsynWeights {
+                w1: Some(&w1s),
+                w2: None,
+                w3: None,
+                wd: Some(&wds),
+            },
+            wr: None,
+            wn: Some(&wns),
+            w2_slow: Some(&w2s),
+        };
+        let multi = multirate_hinfsyn(&g, F, &fast, &HinfOptions::default()).unwrap();
+        let single = multirate_hinfsyn(&gs, 1, &slow, &HinfOptions::default()).unwrap();
+        let (km, ks) = (&multi.synthesis.controller, &single.synthesis.controller);
+        let fast_m = multirate_norm(&g, F, &fast, km).unwrap();
+        let fast_s = multirate_norm(&g, F, &fast, ks).unwrap();
+        let slow_m = multirate_norm(&gs, 1, &slow, km).unwrap();
+        let slow_s = multirate_norm(&gs, 1, &slow, ks).unwrap();
+        println!(
+            "worst-case standstill error (nm per unit disturbance): at every 5 kHz sample \
+             multirate {fast_m:.3}, single-rate {fast_s:.3}; at the 1 kHz samples multirate \
+             {slow_m:.3}, single-rate {slow_s:.3}"
         );
-        assert!(theirs >= r.synthesis.gamma_min * (1.0 - 1e-3));
+        assert!((fast_m - multi.synthesis.achieved_norm).abs() <= 1e-6 * fast_m);
+        assert!(fast_m <= fast_s * (1.0 + 1e-3), "{fast_m} vs {fast_s}");
+        assert!(slow_s <= slow_m * (1.0 + 1e-3), "{slow_s} vs {slow_m}");
     }
 
     #[test]
