@@ -27,9 +27,9 @@ pub const W2: f64 = 3e-8;
 /// W_d (N).
 pub const WD: f64 = 1.0;
 
-/// The design and its figures.
+/// An H∞ design and its figures (the mixed-sensitivity and the multirate ones).
 pub struct Design {
-    /// The controller for negative feedback `u = K(r − y)`.
+    /// The controller for negative feedback on the measured error.
     pub controller: StateSpace,
     /// γ the controller was built for (= γ_min of the iteration).
     pub gamma: f64,
@@ -41,7 +41,8 @@ pub struct Design {
     pub seconds: f64,
 }
 
-fn gain(v: f64, time: SampleTime) -> Result<StateSpace, String> {
+/// A 1×1 static weight.
+pub(crate) fn gain(v: f64, time: SampleTime) -> Result<StateSpace, String> {
     StateSpace::gain(nalgebra::DMatrix::from_element(1, 1, v), time).map_err(|e| e.to_string())
 }
 

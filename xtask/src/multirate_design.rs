@@ -15,6 +15,7 @@
 //! fast error (`sd_hinf::multirate`). `W₂` was chosen (among a few corner frequencies and
 //! gains) so that both designs stay stable on the true stage with its averaging sensor.
 
+use crate::mixsyn_design::{gain, Design};
 use nalgebra::DMatrix;
 use sd_hinf::weights::makeweight;
 use sd_hinf::{multirate_hinfsyn, multirate_norm, HinfOptions, MixsynWeights, MultirateWeights};
@@ -36,20 +37,6 @@ pub const W1: f64 = 1e9;
 /// (hold, sensor) above the crossover.
 pub const W2: (f64, f64, f64, f64) = (1.0, 100.0, 100.0, 400.0);
 
-/// One design and its figures.
-pub struct Design {
-    /// The controller for negative feedback on the measured error, at 1 kHz.
-    pub controller: StateSpace,
-    /// γ_min of the iteration.
-    pub gamma: f64,
-    /// The achieved norm on the design's own problem.
-    pub achieved: f64,
-    /// States of the (lifted) generalized plant.
-    pub plant_states: usize,
-    /// Wall time of the synthesis (s).
-    pub seconds: f64,
-}
-
 /// The multirate design and the single-rate design of the same problem.
 pub struct Designs {
     /// The multirate design (5 kHz model, 1 kHz controller).
@@ -58,10 +45,6 @@ pub struct Designs {
     pub single: Design,
     /// The fast design model the multirate criterion is evaluated on.
     pub fast_model: StateSpace,
-}
-
-fn gain(v: f64, g: &StateSpace) -> Result<StateSpace, String> {
-    StateSpace::gain(DMatrix::from_element(1, 1, v), g.time()).map_err(|e| e.to_string())
 }
 
 /// The weights at `g`'s rate.
@@ -76,10 +59,10 @@ impl Weights {
     fn at(g: &StateSpace, factor: usize) -> Result<Weights, String> {
         let slow_ts = g.ts().map(|t| t * factor as f64);
         Ok(Weights {
-            w1: gain(W1, g)?,
+            w1: gain(W1, g.time())?,
             // on the controller's samples, at T
             w2: makeweight(W2.0, W2.1, W2.2, W2.3, 2, slow_ts).map_err(|e| e.to_string())?,
-            wd: gain(FORCE, g)?,
+            wd: gain(FORCE, g.time())?,
             // per slow sample; the lifted column carries 1/√F (physical-time energies)
             wn: DMatrix::from_element(1, 1, SENSOR * (factor as f64).sqrt()),
         })
