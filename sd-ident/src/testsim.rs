@@ -23,3 +23,33 @@ pub(crate) fn mode_record(seed: u64, fm: f64, zeta: f64, n: usize) -> (Vec<f64>,
     }
     (u, y)
 }
+
+/// [`mode_record`] in a loop: input injection `u = r − k·y`, force noise of rms `w` at the
+/// mode's input and output noise of rms 0.05: `(r, u, y)`, seeded.
+pub(crate) fn closed_mode_record(
+    seed: u64,
+    fm: f64,
+    zeta: f64,
+    n: usize,
+    k: f64,
+    w: f64,
+) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let fs = 1000.0;
+    let wn = TAU * fm;
+    let p = C::new(-zeta * wn, wn * (1.0 - zeta * zeta).sqrt());
+    let lam = (p / fs).exp();
+    let c = C::new(0.0, -wn / 2.0) * (lam - 1.0) / p;
+    let mut rng = crate::rng::SplitMix::new(seed);
+    let mut x = C::new(0.0, 0.0);
+    let (mut r, mut u, mut y) = (Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..n {
+        let rk = rng.normal();
+        let yk = 2.0 * (c * x).re + 0.05 * rng.normal();
+        let uk = rk - k * yk;
+        r.push(rk);
+        u.push(uk);
+        y.push(yk);
+        x = lam * x + uk + w * rng.normal();
+    }
+    (r, u, y)
+}

@@ -589,7 +589,21 @@ pub fn level_case_sized(
     rec: Recording,
     top: f64,
 ) -> Option<LevelCase> {
+    level_case_realization(seed, effect, levels, rec, top, 0)
+}
+
+/// [`level_case_sized`] with another realization of the excitation and the noise (`0`: the
+/// seed's own) on the same stage: repeated experiments for the spread of an estimate.
+pub fn level_case_realization(
+    seed: u64,
+    effect: LevelEffect,
+    levels: &[f64],
+    rec: Recording,
+    top: f64,
+    realization: u64,
+) -> Option<LevelCase> {
     let (mut st, m0) = level_stage(seed);
+    let noise_seed = |k: usize| seed * 11 + k as u64 + realization * 1_000_003;
     let len = st.fast_rate as usize * (1 + rec.steady);
     let exp = |st: &Stage, l: f64, k: usize| Exp {
         lines: Lines::RandomOdd {
@@ -600,14 +614,14 @@ pub fn level_case_sized(
         rate: st.fast_rate,
         rms: 0.5 * l,
         ni: NonIdealities::default(),
-        seed: seed * 11 + k as u64,
+        seed: noise_seed(k),
         role: if k == 0 {
             Role::Model
         } else {
             Role::Validation
         },
         signal: (!rec.periodic).then(|| {
-            filtered_noise(seed * 11 + k as u64, len)
+            filtered_noise(noise_seed(k), len)
                 .into_iter()
                 .map(|v| v * 0.5 * l)
                 .collect()

@@ -30,8 +30,8 @@ use sd_tests::modal_truth::{TrackError, TruthCheck};
 
 use sd_diagnose::{Cause, CornerTrend, DampingTrend, DriftCheck, FreqTrend};
 use sd_tests::diagcases::{
-    burst_case, level_case, level_rate_case, per_seed, rising_case, LevelCase, LevelEffect,
-    Recording,
+    burst_case, level_case, level_case_realization, level_rate_case, per_seed, rising_case,
+    LevelCase, LevelEffect, Recording,
 };
 
 /// The linear model's held-out statistic from which a level's nonlinearity counts as visible.
@@ -188,6 +188,9 @@ enum Form {
     /// [`Form::Rising`] as burst random: each level's force on for 60 % of its seconds, then
     /// a free decay (the diagnosis cuts at the level changes only).
     Burst,
+    /// [`Form::Separate`] with another realization of the excitation and noise on the
+    /// seed's stage.
+    Repeat(Recording, u64),
 }
 
 fn run(seed: u64, effect: LevelEffect, levels: &[f64], form: Form) -> Option<Outcome> {
@@ -195,6 +198,10 @@ fn run(seed: u64, effect: LevelEffect, levels: &[f64], form: Form) -> Option<Out
         Form::Separate(rec) => level_case(seed, effect, levels, rec)?,
         Form::Rising => rising_case(seed, effect, levels, NOISE)?,
         Form::Burst => burst_case(seed, effect, levels, NOISE)?,
+        Form::Repeat(rec, r) => {
+            let top = levels.iter().cloned().fold(1.0, f64::max);
+            level_case_realization(seed, effect, levels, rec, top, r)?
+        }
     };
     let form_label = format!("{form:?}");
     let t = std::time::Instant::now();
@@ -703,6 +710,30 @@ fn development_levels() {
     };
     let out = cases(a..b, form);
     summarize(&out);
+}
+
+/// Realizations of one stage's noise records (the spread of its tracked modes against their
+/// truth): `LEVEL_SEED=7 LEVEL_REALIZATIONS=0..20 cargo test --release -p sd-tests --test
+/// diagnose_levels realizations -- --ignored --nocapture` (Coulomb friction at the rigid body:
+/// its flexible modes linear and tracked; four levels).
+#[test]
+#[ignore]
+fn realizations_of_one_stage() {
+    let seed: u64 = std::env::var("LEVEL_SEED").map_or(7, |s| s.parse().unwrap());
+    let spec = std::env::var("LEVEL_REALIZATIONS").unwrap_or_else(|_| "1..9".into());
+    let (a, b) = spec.split_once("..").unwrap();
+    let (a, b): (u64, u64) = (a.parse().unwrap(), b.parse().unwrap());
+    let out: Vec<Outcome> = (a..b)
+        .filter_map(|r| {
+            run(
+                seed,
+                LevelEffect::Coulomb,
+                &[1.0, 2.0, 4.0, 8.0],
+                Form::Repeat(NOISE, r),
+            )
+        })
+        .collect();
+    truth_check(&out).print();
 }
 
 /// The report of a rising record: the pieces table, the moving-modes table and one amplitude
