@@ -48,9 +48,9 @@
 //! Judged against each mode's best linear approximation computed apart (the level suite's
 //! `sd_tests::modal_truth`: every mode integrated alone under random-phase forces with each
 //! level's spectrum), the tracked frequencies lie within 2.576 standard errors on 96.5 % of
-//! the points on periodic records and on 90.8–91.6 % on LPM estimates (noise records, rising
-//! and burst records), whose standard errors are therefore optimistic (docs/diagnosis.md has
-//! the figures and the command).
+//! the points on periodic records and on 97.5–97.7 % on LPM estimates (noise records, rising
+//! and burst records; 90.8–91.6 % before the local fit pooled the variances of correlated
+//! lines, [`sd_ident::local_mode_with`]); docs/diagnosis.md has the figures and the command.
 
 use crate::{DampingTrend, FreqTrend, Result};
 use rayon::prelude::*;

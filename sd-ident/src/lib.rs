@@ -63,7 +63,9 @@ pub use frf::{
 pub use frf_mimo::{frf_periodic_mimo, Channels, MimoFrfEstimate};
 pub use input_delay::{advance_inputs, shift_inputs, DelayScan, InputDelay};
 pub use local_dft::{local_mode_dft, LineSpectra};
-pub use local_mode::{local_mode, local_mode_with, LineNoise, LocalMode};
+pub use local_mode::{
+    local_mode, local_mode_with, LineNoise, LocalMode, MIN_LINES, MIN_POOLED_LINES,
+};
 pub use lpm::{
     lpm, lpm_closed_loop, lpm_closed_loop_mimo, lpm_closed_loop_snr, lpm_excitation_correlation,
     lpm_polynomial_correlation, LpmEstimate, LpmOptions,

@@ -37,15 +37,40 @@
 //! for circular noise); `s² = max(1, cost/(2L − 10))`: an excess of the cost over its
 //! degrees of freedom — a band the local form describes only approximately, or weights
 //! `1/σ̂²` from estimated variances (their scatter raises the cost per degree of freedom to
-//! `ν/(ν − 2)` for `ν` real degrees of freedom, and the estimate's variance by about as
-//! much when neighbouring variances share their data, as the LPM's do) — widens the
-//! standard errors rather than being ignored.
+//! `ν/(ν − 2)` for `ν` real degrees of freedom) — widens the standard errors rather than
+//! being ignored.
+//!
+//! # Weights of correlated lines
+//!
+//! An LPM line's variance comes from its window's residual (6 real degrees of freedom by
+//! default) and its neighbours' windows share data with its estimate: weights `1/σ̂²_k`
+//! are then both scattered and tied to the errors of the lines around `k`, which the
+//! sandwich above does not see (on closed-loop records with force noise the frequency's
+//! error over its standard error had an rms of 1.47, on the virtual stage's noise records
+//! 1.3–1.45). With correlated lines (`ρ` given) and at least [`MIN_POOLED_LINES`] in the
+//! band, the fit is therefore repeated from its first result with the pooled variance
+//!
+//! ```text
+//! σ²(ω) = a + b·|Ĝ(ω)|²,    a, b ≥ 0 by least squares on the lines' σ̂²_k
+//! ```
+//!
+//! (`Ĝ` the first fit's local form: white noise at the output, and at the input through
+//! the mode, as force noise or a noisy input passes), a smooth function of two parameters
+//! from hundreds of lines, nearly independent of any line's error (the method of variance
+//! functions: Carroll & Ruppert, *Transformation and Weighting in Regression*, 1988, ch. 3).
+//! The sandwich's meat keeps each line's own variance: the whitened errors of lines `k`, `m`
+//! have the covariance `ρ_km √(q_k q_m)`, `q_k = σ̂²_k/σ²(ω_k)`, and `s² = max(1,
+//! cost/(2L − 10)/q̄)`.
 //!
 //! # Accuracy
 //!
 //! On synthetic two-mode FRFs with complex Gaussian noise (unit test) the frequency is within
 //! 2.5 standard errors of the truth; the standard error is the Cramér–Rao bound of the local
-//! model to first order in the noise. A band with fewer than [`MIN_LINES`] lines is refused.
+//! model to first order in the noise. On 60 LPM records of one mode the error over the
+//! standard error has an rms of 0.81 (open loop; the LPM correlation's sandwich is
+//! conservative there) and 1.19 in closed loop with force noise, where the lines the input
+//! SNR leaves out are chosen by the noise (unit tests). A band with fewer than
+//! [`MIN_LINES`] lines is refused.
 
 use crate::{IdentError, Result};
 use nalgebra::{DMatrix, DVector};
