@@ -126,3 +126,71 @@ fn the_default_testbed_configuration_is_printed() {
         .unwrap();
     assert_eq!(o.status.code(), Some(2));
 }
+
+/// `fit --order auto` on the default testbed's 5 kHz FRF: the order and rigid body the
+/// held-out lines choose — the same as `fit --stabilization` — and the stage's physics (a
+/// free mass: two rigid-body poles, and its two modes at 653 and 1650 Hz: order 6); refused,
+/// naming what to give instead, with `--weighting`.
+#[test]
+fn order_auto_is_the_held_out_lines_choice() {
+    let d = std::env::temp_dir().join(format!("sdctl-guard-{}-auto", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    let run = |args: &[&str]| {
+        let o = Command::new(env!("CARGO_BIN_EXE_sdctl"))
+            .args(args)
+            .current_dir(&d)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        o
+    };
+    run(&["testbed", "--out", "data"]);
+    let frd = run(&["frf", "data/experiments.toml", "--experiment", "fast"]);
+    std::fs::write(d.join("frf.json"), &frd.stdout).unwrap();
+    let auto = run(&[
+        "fit",
+        "frf.json",
+        "--order",
+        "auto",
+        "--max-order",
+        "12",
+        "--json",
+    ]);
+    let auto: serde_json::Value = serde_json::from_slice(&auto.stdout).unwrap();
+    run(&[
+        "fit",
+        "frf.json",
+        "--stabilization",
+        "--max-order",
+        "12",
+        "--out",
+        "modal",
+    ]);
+    let modes: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("modal/modes.json")).unwrap())
+            .unwrap();
+    assert_eq!(auto["order"], modes["order"]);
+    assert_eq!(auto["rigid_body"], modes["rigid_body"]);
+    assert_eq!(auto["order"], 6, "{}", auto["orders"]);
+    assert_eq!(auto["rigid_body"], 2);
+    assert_eq!(auto["model"]["a"].as_array().unwrap().len(), 6);
+    assert!(auto["cost_per_line"].as_f64().unwrap() < 1.5);
+    let o = Command::new(env!("CARGO_BIN_EXE_sdctl"))
+        .args([
+            "fit",
+            "frf.json",
+            "--order",
+            "auto",
+            "--weighting",
+            "uniform",
+        ])
+        .current_dir(&d)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(err.contains("give a number of poles"), "{err}");
+    std::fs::remove_dir_all(&d).unwrap();
+}

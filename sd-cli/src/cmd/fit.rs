@@ -10,19 +10,43 @@ pub(crate) enum WeightingArg {
     Uniform,
 }
 
+/// `--order`: a number of poles, or `auto`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum OrderArg {
+    /// Chosen by the held-out lines ([`sd_ident::physical_fit`]).
+    Auto,
+    /// This many poles.
+    Fixed(usize),
+}
+
+impl std::str::FromStr for OrderArg {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        if s.eq_ignore_ascii_case("auto") {
+            return Ok(OrderArg::Auto);
+        }
+        s.parse::<usize>()
+            .map(OrderArg::Fixed)
+            .map_err(|_| format!("`{s}` is no model order: give a number of poles or `auto`"))
+    }
+}
+
 /// Arguments of `sdctl fit`.
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
     /// FRD JSON (discrete).
     pub(crate) frd: String,
-    /// Model order: the number of poles, rigid-body poles included (not with
-    /// --stabilization, which chooses it).
+    /// Model order: the number of poles, rigid-body poles included, or `auto` (SISO: the
+    /// order and rigid-body count the held-out odd-indexed lines choose up to --max-order, as
+    /// --stabilization does, and an input delay up to --max-delay; the model is written as
+    /// with a number). Not with --stabilization, which chooses it.
     #[arg(
         long,
         required_unless_present = "stabilization",
-        conflicts_with = "stabilization"
+        conflicts_with = "stabilization",
+        value_parser = |s: &str| s.parse::<OrderArg>()
     )]
-    pub(crate) order: Option<usize>,
+    pub(crate) order: Option<OrderArg>,
     /// Poles fixed at z = 1 (0, 1 or 2; default 0, and with --stabilization chosen from the
     /// data unless given).
     #[arg(long)]
@@ -111,8 +135,29 @@ impl Args {
             let out = out.unwrap_or_default();
             return crate::cmd::fit_stabilization::run(&frd, &data, &opt, &out);
         }
+        if order == Some(OrderArg::Auto) {
+            let fixed_only = !matches!(weighting, WeightingArg::Variance) || min_damping != 0.0;
+            if data.shape() != (1, 1) || input_delay != sd_ident::InputDelay::None || fixed_only {
+                return Err(CliError::input(format!(
+                    "{frd}: --order auto chooses the order of a SISO FRD with variance weights \
+                     and free dampings; give a number of poles for a MIMO FRD, --input-delay, \
+                     --weighting or --min-damping"
+                )));
+            }
+            let opt = sd_ident::StabilizationOptions {
+                max_order,
+                rigid_body,
+                feedthrough: !strictly_proper,
+                max_delay,
+            };
+            return run_auto(&frd, &data, &opt, json, output.as_deref());
+        }
+        let order = match order {
+            Some(OrderArg::Fixed(n)) => n,
+            _ => 0,
+        };
         let opt = sd_ident::FitOptions {
-            order: order.unwrap_or_default(),
+            order,
             rigid_body: rigid_body.unwrap_or(0),
             feedthrough: !strictly_proper,
             weighting: match weighting {
@@ -189,6 +234,53 @@ impl Args {
             output.as_deref(),
         )
     }
+}
+
+/// `--order auto`: the physical fit's choice ([`sd_ident::physical_fit`]), its model (with the
+/// input delay found) written as a fixed order's; with `json` also `order`, `rigid_body`,
+/// `delay_samples`, `cost_per_line` and `orders` (every order tried).
+fn run_auto(
+    name: &str,
+    data: &sd_model::Frd,
+    opt: &sd_ident::StabilizationOptions,
+    json: bool,
+    output: Option<&str>,
+) -> Result<(), CliError> {
+    let r = sd_ident::physical_fit(data, opt, &mut |s| eprintln!("[fit] {s}"))
+        .map_err(|e| from_ident(name, e))?;
+    eprint!("{}", crate::cmd::fit_stabilization::mode_table(&r));
+    eprintln!(
+        "[fit] order auto: {} ({} rigid-body poles, input delay {:.3} samples), {:.3} per line \
+         (1 = the noise level), median relative error {:.3} %",
+        r.order,
+        r.rigid_body,
+        r.delay_samples,
+        r.cost_per_line,
+        100.0 * r.fit.median_rel_error
+    );
+    for w in &r.fit.warnings {
+        eprintln!("sdctl: warning: {name}: {w}");
+    }
+    let (model, _) = r
+        .model_with_delay(data.freq_hz())
+        .map_err(|e| from_ident(name, e))?;
+    if !json {
+        return emit(&model_json(&model)?, output);
+    }
+    let bad = |e: serde_json::Error| CliError::numerical(format!("fit JSON: {e}"));
+    let m: serde_json::Value = serde_json::from_str(&model_json(&model)?).map_err(bad)?;
+    let out = serde_json::json!({
+        "model": m,
+        "order": r.order,
+        "rigid_body": r.rigid_body,
+        "delay_samples": r.delay_samples,
+        "cost": r.fit.cost,
+        "cost_per_line": r.cost_per_line,
+        "median_rel_error": r.fit.median_rel_error,
+        "orders": r.orders,
+        "warnings": crate::io::warnings_json(&r.fit.warnings),
+    });
+    emit(&serde_json::to_string_pretty(&out).map_err(bad)?, output)
 }
 
 /// A MIMO FRD: one set of poles for every entry ([`sd_ident::fit_common_poles`]).

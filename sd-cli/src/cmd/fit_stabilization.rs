@@ -56,7 +56,7 @@ pub(crate) fn run(
 }
 
 /// The mode table people read: one row per mode.
-fn mode_table(r: &PhysicalFit) -> String {
+pub(crate) fn mode_table(r: &PhysicalFit) -> String {
     let mut s = format!(
         "[fit] physical model: order {} ({} rigid-body pole(s)), input delay {:.3} samples, cost \
          {:.2} per line (1 = the FRD's variance), line spacing {:.3} Hz\n\
