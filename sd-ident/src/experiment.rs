@@ -390,6 +390,20 @@ fn channel_columns(
 /// A missing column (the message lists the header), a bad or empty cell in a named column
 /// (file, line, column), no data rows.
 pub fn read_columns<R: Read>(reader: R, file: &str, names: &[&str]) -> Result<Vec<Vec<f64>>> {
+    Ok(read_table(reader, file, names, false)?.0)
+}
+
+/// Header names taken as a time column in seconds (case ignored) when no channel uses them.
+pub const TIME_COLUMNS: [&str; 4] = ["t", "time", "time_s", "t_s"];
+
+/// [`read_columns`], and with `time` also the first column named as in [`TIME_COLUMNS`] that
+/// is not among `names` (its name and values; `None` without one).
+fn read_table<R: Read>(
+    reader: R,
+    file: &str,
+    names: &[&str],
+    time: bool,
+) -> Result<(Vec<Vec<f64>>, Option<(String, Vec<f64>)>)> {
     let ferr = |detail: String| IdentError::Format {
         file: file.to_string(),
         detail,
@@ -408,6 +422,16 @@ pub fn read_columns<R: Read>(reader: R, file: &str, names: &[&str]) -> Result<Ve
         .iter()
         .map(|h| h.trim().trim_matches('"').trim())
         .collect();
+    let time_col = time
+        .then(|| {
+            cols.iter().position(|c| {
+                TIME_COLUMNS.iter().any(|t| c.eq_ignore_ascii_case(t)) && !names.contains(c)
+            })
+        })
+        .flatten();
+    let time_name = time_col.map(|i| cols[i].to_string());
+    let all: Vec<&str> = names.iter().copied().chain(time_name.as_deref()).collect();
+    let names = &all[..];
     let mut idx = Vec::with_capacity(names.len());
     for name in names {
         match cols.iter().position(|c| c == name) {
@@ -464,7 +488,49 @@ pub fn read_columns<R: Read>(reader: R, file: &str, names: &[&str]) -> Result<Ve
     if out.first().map(|c| c.is_empty()).unwrap_or(true) {
         return Err(ferr("no data rows".into()));
     }
-    Ok(out)
+    let t = match time_name {
+        Some(name) => out.pop().map(|v| (name, v)),
+        None => None,
+    };
+    Ok((out, t))
+}
+
+/// The rate a time column (seconds) implies, `(n − 1)/(t_last − t_first)`, against the
+/// manifest's: more than 1 % apart (a rate in kHz given as Hz, a wrong column) is an error
+/// naming both; a time column that does not increase is one too; a sample counter (steps of
+/// exactly 1) is not checked.
+fn check_time_column(spec: &ExperimentSpec, name: &str, t: &[f64]) -> Result<()> {
+    let ferr = |detail: String| IdentError::Format {
+        file: spec.file.clone(),
+        detail,
+    };
+    if t.len() < 2 {
+        return Ok(());
+    }
+    if let Some(k) = t.windows(2).position(|w| w[1] <= w[0]) {
+        return Err(ferr(format!(
+            "the time column `{name}` does not increase at data row {} ({} then {}): sort the \
+             rows or name the column otherwise if it is no time",
+            k + 2,
+            t[k],
+            t[k + 1]
+        )));
+    }
+    // a sample counter (steps of exactly 1) says nothing of the rate
+    if t.windows(2).all(|w| w[1] - w[0] == 1.0) {
+        return Ok(());
+    }
+    let span = t[t.len() - 1] - t[0];
+    let implied = (t.len() - 1) as f64 / span;
+    let given = spec.sample_rate_hz;
+    if (implied / given - 1.0).abs() > 0.01 {
+        return Err(ferr(format!(
+            "the time column `{name}` implies {implied:.6} Hz but sample_rate_hz = {given} \
+             (kHz given as Hz?): correct sample_rate_hz in the manifest, or rename the column \
+             if it is not the time in seconds"
+        )));
+    }
+    Ok(())
 }
 
 impl Experiment {
@@ -475,7 +541,11 @@ impl Experiment {
     pub fn from_reader<R: Read>(spec: ExperimentSpec, reader: R) -> Result<Self> {
         let (ins, outs, refs) = (spec.inputs(), spec.outputs(), spec.references());
         let names: Vec<&str> = ins.iter().chain(&outs).chain(&refs).copied().collect();
-        let mut cols = read_columns(reader, &spec.file, &names)?.into_iter();
+        let (cols, time) = read_table(reader, &spec.file, &names, true)?;
+        if let Some((name, t)) = &time {
+            check_time_column(&spec, name, t)?;
+        }
+        let mut cols = cols.into_iter();
         let mut take = |n: usize| -> Vec<Vec<f64>> { cols.by_ref().take(n).collect() };
         let (mut u, mut y, mut r) = (take(ins.len()), take(outs.len()), take(refs.len()));
         let first = |v: &mut Vec<Vec<f64>>| (!v.is_empty()).then(|| v.remove(0));
@@ -610,6 +680,36 @@ output = "y"
         assert_eq!(e.u.len(), 8);
         assert_eq!(e.u[2], 1e-3);
         assert_eq!(e.r.as_ref().unwrap()[1], 3.5);
+    }
+
+    #[test]
+    fn a_time_column_checks_the_sample_rate() {
+        let spec = |rate: f64| {
+            let mut s = parse_manifest(MANIFEST).unwrap().remove(1);
+            s.sample_rate_hz = rate;
+            s
+        };
+        // 5 kHz rows: 0.0002 s apart (the testbed's `{:e}` format)
+        let csv: String = std::iter::once("t,u,y\n".to_string())
+            .chain((0..50).map(|i| format!("{:e},{},{}\n", i as f64 * 2e-4, i, 2 * i)))
+            .collect();
+        assert!(Experiment::from_reader(spec(5000.0), csv.as_bytes()).is_ok());
+        let e = Experiment::from_reader(spec(5.0), csv.as_bytes())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("implies 5000.000000 Hz") && e.contains("sample_rate_hz = 5"),
+            "{e}"
+        );
+        // a column named `time` that goes backwards
+        let back = "time,u,y\n0.0,1,2\n0.001,1,2\n0.0005,1,2\n";
+        let e = Experiment::from_reader(spec(1000.0), back.as_bytes())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("does not increase at data row 3"), "{e}");
+        // without a time column nothing is checked
+        let plain = "u,y\n1,2\n3,4\n";
+        assert!(Experiment::from_reader(spec(5.0), plain.as_bytes()).is_ok());
     }
 
     #[test]

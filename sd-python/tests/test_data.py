@@ -191,3 +191,22 @@ def test_fit_physical_matches_sdctl(stage_data, sdctl, tmp_path):
     assert r.model.nstates == model.nstates and r.model.dt == frd.dt
     with pytest.raises(ValueError):
         sd.fit_physical(sd.Frd(frd.freq_hz, frd.response, frd.variance, None))
+
+
+def test_fit_order_auto_matches_sdctl(stage_data, sdctl, tmp_path):
+    frd = sd.frf(stage_data.manifest, "slow")
+    keep = frd.freq_hz >= 2.0
+    frd = sd.Frd(frd.freq_hz[keep], frd.response[..., keep], frd.variance[..., keep], frd.dt)
+    r = sd.fit(frd, "auto", max_order=10)
+    p = tmp_path / "slow.json"
+    p.write_text(frd.to_json())
+    cli = json.loads(sdctl("fit", p, "--order", "auto", "--max-order", 10, "--json"))
+    assert r.order == cli["order"] and r.rigid_body == cli["rigid_body"]
+    assert r.cost_per_line == pytest.approx(cli["cost_per_line"], rel=1e-9)
+    assert r.model.nstates == len(cli["model"]["a"])
+    with pytest.raises(ValueError, match="no model order"):
+        sd.fit(frd, "sixty")
+    with pytest.raises(ValueError, match="give a number of poles"):
+        sd.fit(frd, "auto", weighting="uniform")
+    with pytest.raises(TypeError):
+        sd.fit(frd, 6.5)

@@ -530,9 +530,9 @@ def frf_from_arrays(r, u, y, fs: float, period: Optional[int] = None, skip_perio
     return _frd_from_native(t, w)
 
 
-def fit(frd: Frd, order: int, rigid_body: int = 0, strictly_proper: bool = False, weighting: str = "variance",
-        min_damping: float = 0.0, rank: Union[str, int] = "select",
-        input_delay: Union[str, Sequence[int]] = "none") -> Result:
+def fit(frd: Frd, order: Union[int, str], rigid_body: Optional[int] = None, strictly_proper: bool = False,
+        weighting: str = "variance", min_damping: float = 0.0, rank: Union[str, int] = "select",
+        input_delay: Union[str, Sequence[int]] = "none", max_order: int = 24, max_delay: int = 0) -> Result:
     """A discrete-time rational model of a SISO FRD (order up to ~60; SK iterations then
     Levenberg–Marquardt on the variance-weighted cost; ``rigid_body`` poles fixed at z = 1):
     ``model`` (StateSpace), ``cost``, ``median_rel_error``, ``line_cost``, ``poles``,
@@ -543,11 +543,27 @@ def fit(frd: Frd, order: int, rigid_body: int = 0, strictly_proper: bool = False
     ``input_delay`` (MIMO only: ``"none"``, ``"auto"`` (±8 samples), ``"auto:N"`` or one whole
     number of samples per input; negative: the outputs respond before that input is recorded)
     ``input_delay`` (the delays used; the model maps u_j(t − δ_j)) and ``delay_scans`` (per
-    estimated input: ``input``, ``delay``, ``cost`` as (δ, V) pairs, ``threshold``)."""
+    estimated input: ``input``, ``delay``, ``cost`` as (δ, V) pairs, ``threshold``).
+
+    ``order="auto"`` (SISO, ``sdctl fit --order auto``): the order, rigid body (``None``:
+    chosen among 0, 1, 2) and input delay (up to ``max_delay`` samples) the held-out lines
+    choose up to ``max_order``, as :func:`fit_physical`, whose result it returns; refused with
+    another ``weighting``, a ``min_damping`` or an ``input_delay``."""
     if not isinstance(frd, Frd):
         frd = Frd.from_control(frd)
     if frd.dt is None:
         raise ValueError("fit needs a discrete-time FRD (its dt fixes z = e^{jωT})")
+    if isinstance(order, str):
+        if order.lower() != "auto":
+            raise ValueError(f"order {order!r} is no model order: give a number of poles or 'auto'")
+        if weighting != "variance" or min_damping != 0.0 or input_delay != "none":
+            raise ValueError("order='auto' chooses the order of a SISO FRD with variance weights and free "
+                             "dampings; give a number of poles for weighting, min_damping or input_delay")
+        return fit_physical(frd, max_order=max_order, rigid_body=rigid_body, max_delay=max_delay,
+                            strictly_proper=strictly_proper)
+    if isinstance(order, bool) or not isinstance(order, (int, np.integer)):
+        raise TypeError(f"order must be an int or 'auto', not {type(order).__name__}")
+    rigid_body = 0 if rigid_body is None else rigid_body
     d = _native.fit(frd.freq_hz, frd.response, frd.variance, frd.dt, int(order), int(rigid_body),
                     bool(strictly_proper), weighting, float(min_damping), str(rank),
                     input_delay if isinstance(input_delay, str) else ",".join(str(int(v)) for v in input_delay))
