@@ -396,14 +396,12 @@ pub fn read_columns<R: Read>(reader: R, file: &str, names: &[&str]) -> Result<Ve
 /// Header names taken as a time column in seconds (case ignored) when no channel uses them.
 pub const TIME_COLUMNS: [&str; 4] = ["t", "time", "time_s", "t_s"];
 
+/// The named columns, and a time column's name and values when one was asked for and found.
+type Table = (Vec<Vec<f64>>, Option<(String, Vec<f64>)>);
+
 /// [`read_columns`], and with `time` also the first column named as in [`TIME_COLUMNS`] that
 /// is not among `names` (its name and values; `None` without one).
-fn read_table<R: Read>(
-    reader: R,
-    file: &str,
-    names: &[&str],
-    time: bool,
-) -> Result<(Vec<Vec<f64>>, Option<(String, Vec<f64>)>)> {
+fn read_table<R: Read>(reader: R, file: &str, names: &[&str], time: bool) -> Result<Table> {
     let ferr = |detail: String| IdentError::Format {
         file: file.to_string(),
         detail,
