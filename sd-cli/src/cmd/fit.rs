@@ -136,21 +136,16 @@ impl Args {
             return crate::cmd::fit_stabilization::run(&frd, &data, &opt, &out);
         }
         if order == Some(OrderArg::Auto) {
-            let fixed_only = !matches!(weighting, WeightingArg::Variance) || min_damping != 0.0;
-            if data.shape() != (1, 1) || input_delay != sd_ident::InputDelay::None || fixed_only {
-                return Err(CliError::input(format!(
-                    "{frd}: --order auto chooses the order of a SISO FRD with variance weights \
-                     and free dampings; give a number of poles for a MIMO FRD, --input-delay, \
-                     --weighting or --min-damping"
-                )));
-            }
+            let fixed_only = !matches!(weighting, WeightingArg::Variance)
+                || min_damping != 0.0
+                || input_delay != sd_ident::InputDelay::None;
             let opt = sd_ident::StabilizationOptions {
                 max_order,
                 rigid_body,
                 feedthrough: !strictly_proper,
                 max_delay,
             };
-            return run_auto(&frd, &data, &opt, json, output.as_deref());
+            return run_auto(&frd, &data, &opt, fixed_only, json, output.as_deref());
         }
         let order = match order {
             Some(OrderArg::Fixed(n)) => n,
@@ -239,13 +234,22 @@ impl Args {
 /// `--order auto`: the physical fit's choice ([`sd_ident::physical_fit`]), its model (with the
 /// input delay found) written as a fixed order's; with `json` also `order`, `rigid_body`,
 /// `delay_samples`, `cost_per_line` and `orders` (every order tried).
+/// `fixed_only`: an option only a fixed order takes was given (refused, as a MIMO FRD is).
 fn run_auto(
     name: &str,
     data: &sd_model::Frd,
     opt: &sd_ident::StabilizationOptions,
+    fixed_only: bool,
     json: bool,
     output: Option<&str>,
 ) -> Result<(), CliError> {
+    if data.shape() != (1, 1) || fixed_only {
+        return Err(CliError::input(format!(
+            "{name}: --order auto chooses the order of a SISO FRD with variance weights and \
+             free dampings; give a number of poles for a MIMO FRD, --input-delay, --weighting \
+             or --min-damping"
+        )));
+    }
     let r = sd_ident::physical_fit(data, opt, &mut |s| eprintln!("[fit] {s}"))
         .map_err(|e| from_ident(name, e))?;
     eprint!("{}", crate::cmd::fit_stabilization::mode_table(&r));
