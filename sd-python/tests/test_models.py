@@ -179,3 +179,38 @@ def test_complex_input_is_refused_not_made_real():
         sd.StateSpace([[0.0]], [[1j]], [[1.0]], [[0.0]])
     with pytest.raises(TypeError, match="u is complex"):
         sd.frf_from_arrays(None, np.ones(64) * 1j, np.ones(64), 1000.0)
+
+
+def test_from_json_takes_a_path_or_text(tmp_path):
+    m = sd.StateSpace([[0.5]], [[1.0]], [[1.0]], [[0.0]], 0.001)
+    p = tmp_path / "m.json"
+    p.write_text(m.to_json())
+    for arg in (p, str(p), m.to_json(), "  \n" + m.to_json()):
+        back = sd.StateSpace.from_json(arg)
+        assert back.dt == 0.001 and np.allclose(back.A, m.A)
+    f = sd.Frd(np.array([1.0, 2.0]), np.ones((1, 1, 2), complex), None, 0.001)
+    q = tmp_path / "f.json"
+    q.write_text(f.to_json())
+    assert np.allclose(sd.Frd.from_json(q).response, f.response)
+    with pytest.raises(ValueError, match="neither JSON text"):
+        sd.StateSpace.from_json(tmp_path / "missing.json")
+    with pytest.raises(TypeError):
+        sd.Frd.from_json(42)
+
+
+def test_result_repr_shows_values_and_summary():
+    r = sd.Result({"gamma": 2.531427, "stable": True, "name": "k", "freq_hz": [1.0, 2.0, 3.0, 4.0, 5.0],
+                   "pair": [1, 2], "inner": {"a": 1, "b": [0.5]}, "missing": None})
+    text = repr(r)
+    assert "gamma=2.53143" in text and "stable=True" in text and "name='k'" in text
+    assert "freq_hz=[1, 2, 3, … (5 items)]" in text and "pair=[1, 2]" in text
+    assert "inner=Result(a, b)" in text and "missing=None" in text
+    lines = r.summary().splitlines()
+    assert lines[0] == "gamma: 2.53143" and "inner:" in lines and "  b: [0.5]" in lines
+    assert "summary" in dir(r)
+
+
+def test_dir_lists_the_public_names_only():
+    names = dir(sd)
+    assert "fit" in names and "StateSpace" in names
+    assert not {"np", "os", "json", "_native"} & set(names)

@@ -31,6 +31,11 @@ from ._native import NumericalError
 #: give the stage rate-tied non-idealities.
 DEFAULT_TESTBED_CONFIG: str = _native.DEFAULT_TESTBED_CONFIG
 
+def __dir__():
+    """``dir(sdtoolkit)``: the public names (``__all__``), not the modules it imports."""
+    return sorted(__all__)
+
+
 __all__ = [
     "hinfsyn",
     "h2syn",
@@ -161,9 +166,10 @@ class StateSpace:
         return _native.model_to_json(self._tuple())
 
     @classmethod
-    def from_json(cls, text: str) -> "StateSpace":
-        """A model from the toolkit's model JSON text (``{"type": "ss", ...}`` or ``"tf"``)."""
-        return _from_tuple(_native.model_from_json(text))
+    def from_json(cls, text: Union[str, os.PathLike]) -> "StateSpace":
+        """A model from the toolkit's model JSON (``{"type": "ss", ...}`` or ``"tf"``): the text,
+        or the path of a file holding it."""
+        return _from_tuple(_native.model_from_json(_json_text(text, "StateSpace.from_json")))
 
     def __repr__(self) -> str:
         t = "continuous" if self.dt is None else f"dt={self.dt:g} s"
@@ -226,13 +232,27 @@ class Frd:
         return _native.frd_to_json(self.freq_hz, self.response, self.variance, self.dt)
 
     @classmethod
-    def from_json(cls, text: str) -> "Frd":
-        """An FRD from the toolkit's FRD JSON text."""
-        return _frd_from_native(_native.frd_from_json(text), [])
+    def from_json(cls, text: Union[str, os.PathLike]) -> "Frd":
+        """An FRD from the toolkit's FRD JSON: the text, or the path of a file holding it."""
+        return _frd_from_native(_native.frd_from_json(_json_text(text, "Frd.from_json")), [])
 
     def __repr__(self) -> str:
         ny, nu, nf = self.response.shape
         return f"Frd({ny}x{nu}, {nf} lines, variance {'yes' if self.variance is not None else 'no'})"
+
+
+def _json_text(text: Union[str, os.PathLike], who: str) -> str:
+    """JSON text as given (a string whose first non-blank character is ``{``), or read from
+    the path given; anything else is refused naming what was passed."""
+    if isinstance(text, str) and text.lstrip().startswith("{"):
+        return text
+    if isinstance(text, (str, os.PathLike)):
+        path = os.fspath(text)
+        if os.path.isfile(path):
+            with open(path, encoding="utf-8") as f:
+                return f.read()
+        raise ValueError(f"{who}: {path[:60]!r} is neither JSON text (starting with '{{') nor an existing file")
+    raise TypeError(f"{who} takes JSON text or a path, not {type(text).__name__}")
 
 
 def _frd_from_native(t, warnings) -> Frd:
@@ -268,10 +288,50 @@ class Result:
         return {k: _unwrap(v) for k, v in self._fields.items()}
 
     def __repr__(self) -> str:
-        return "Result(" + ", ".join(self._fields) + ")"
+        return "Result(" + ", ".join(f"{k}={_short(v, 1)}" for k, v in self._fields.items()) + ")"
+
+    def summary(self) -> str:
+        """One line per field, ``name: value`` (long lists and arrays abbreviated, nested results
+        indented)."""
+        return "\n".join(self._summary_lines(""))
+
+    def _summary_lines(self, indent: str):
+        for k, v in self._fields.items():
+            if isinstance(v, Result):
+                yield f"{indent}{k}:"
+                yield from v._summary_lines(indent + "  ")
+            else:
+                yield f"{indent}{k}: {_short(v)}"
 
     def __dir__(self):
-        return list(self._fields) + ["to_dict", "keys"]
+        return list(self._fields) + ["to_dict", "keys", "summary"]
+
+
+def _short(v, depth: int = 0) -> str:
+    """A value as ``repr`` shows it: numbers to 6 digits, lists and arrays abbreviated beyond
+    four items (with their length), nested results by their fields' names."""
+    if isinstance(v, bool) or v is None:
+        return repr(v)
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    if isinstance(v, (float, np.floating)):
+        return f"{float(v):.6g}"
+    if isinstance(v, complex):
+        return f"({v.real:.6g}{v.imag:+.6g}j)"
+    if isinstance(v, str):
+        return repr(v if len(v) <= 60 else v[:57] + "...")
+    if isinstance(v, np.ndarray):
+        if v.size <= 4:
+            return np.array2string(v, precision=6, separator=", ")
+        return f"array(shape={v.shape}, dtype={v.dtype})"
+    if isinstance(v, Result):
+        return "Result(" + ", ".join(v.keys()) + ")" if depth else repr(v)
+    if isinstance(v, (list, tuple)):
+        items = [_short(x, depth + 1) for x in v[:4]]
+        if len(v) > 4:
+            return "[" + ", ".join(items[:3]) + f", … ({len(v)} items)]"
+        return "[" + ", ".join(items) + "]"
+    return repr(v)
 
 
 def _wrap(v):
