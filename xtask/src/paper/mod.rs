@@ -414,10 +414,6 @@ fn controllers(truth: &Truth, fitted: &Fitted, averaging: f64) -> Result<Control
         // … and on the true 1 kHz plant (with its averaging sensor)
         let clt = ClosedLoop::new(&true_slow, k).map_err(s)?;
         let tsum = clt.summary().map_err(s)?;
-        eprintln!(
-            "DBG {name} crossover {} S peak {} stable {} {}",
-            sum.crossover_hz, sum.sensitivity_peak_db, sum.stable, tsum.stable
-        );
         summary.push((name, json!({
             "fast_rate_norm": finite_or_null(multi.fast_norm(k)?),
             "slow_rate_norm": finite_or_null(multi.slow_norm(k)?),
