@@ -214,3 +214,43 @@ def test_dir_lists_the_public_names_only():
     names = dir(sd)
     assert "fit" in names and "StateSpace" in names
     assert not {"np", "os", "json", "_native"} & set(names)
+
+
+def test_series_parallel_feedback_match_python_control():
+    rng = np.random.default_rng(7)
+    dt = 1e-3
+    f = np.array([3.0, 40.0, 170.0, 420.0])
+    z = np.exp(2j * np.pi * f * dt)
+
+    def rand(n, ny, nu):
+        g = ct.drss(n, ny, nu, dt=dt)
+        g = ct.ss(g.A, g.B, g.C, rng.normal(size=(ny, nu)) * 0.3, dt)
+        return g, sd.StateSpace.from_control(g)
+
+    def resp(g):  # python-control's response at the frequencies: (ny, nu, nf)
+        return np.stack([np.asarray(g(zk)).reshape(g.noutputs, g.ninputs) for zk in z], axis=-1)
+
+    c1, s1 = rand(3, 2, 2)
+    c2, s2 = rand(2, 2, 2)
+    for ours, theirs in [
+        (sd.series(s1, s2), ct.series(c1, c2)),
+        (sd.parallel(s1, s2), ct.parallel(c1, c2)),
+        (sd.feedback(s1, s2), ct.feedback(c1, c2)),
+        (sd.feedback(s1, s2, sign=1), ct.feedback(c1, c2, sign=1)),
+        (s1.feedback(), ct.feedback(c1, np.eye(2))),
+    ]:
+        got = sd.freqresp(ours, f, squeeze=False)
+        want = resp(theirs)
+        assert np.max(np.abs(got - want)) <= 1e-9 * max(1.0, np.max(np.abs(want)))
+    # chained series (three blocks) and the poles method
+    c3, s3 = rand(1, 2, 2)
+    got = sd.freqresp(sd.series(s1, s2, s3), f, squeeze=False)
+    assert np.allclose(got, resp(ct.series(c1, c2, c3)), rtol=1e-9, atol=1e-12)
+    assert np.allclose(np.sort_complex(s1.poles()), np.sort_complex(np.linalg.eigvals(c1.A)))
+    with pytest.raises(ValueError, match="sample times"):
+        sd.series(s1, sd.StateSpace(s2.A, s2.B, s2.C, s2.D, 2e-3))
+    with pytest.raises(ValueError, match="outputs"):
+        sd.series(s1, sd.StateSpace([[0.5]], [[1.0]], [[1.0]], [[0.0]], dt))
+    with pytest.raises(ValueError, match="not well posed"):
+        g = sd.StateSpace([[0.5]], [[1.0]], [[1.0]], [[1.0]], dt)
+        sd.feedback(g, sd.StateSpace([[0.5]], [[1.0]], [[1.0]], [[1.0]], dt), sign=1)

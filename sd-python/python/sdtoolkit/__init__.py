@@ -37,6 +37,9 @@ def __dir__():
 
 
 __all__ = [
+    "series",
+    "parallel",
+    "feedback",
     "hinfsyn",
     "h2syn",
     "mixsyn",
@@ -170,6 +173,22 @@ class StateSpace:
         """A model from the toolkit's model JSON (``{"type": "ss", ...}`` or ``"tf"``): the text,
         or the path of a file holding it."""
         return _from_tuple(_native.model_from_json(_json_text(text, "StateSpace.from_json")))
+
+    def poles(self) -> np.ndarray:
+        """:func:`poles` of this model."""
+        return poles(self)
+
+    def zeros(self) -> np.ndarray:
+        """:func:`zeros` of this model."""
+        return zeros(self)
+
+    def freqresp(self, f_hz: Any, squeeze: bool = True):
+        """:func:`freqresp` of this model at ``f_hz`` (Hz)."""
+        return freqresp(self, f_hz, squeeze=squeeze)
+
+    def feedback(self, other: Any = None, sign: int = -1) -> "StateSpace":
+        """:func:`feedback` of this model with ``other`` in the feedback path."""
+        return feedback(self, other, sign)
 
     def __repr__(self) -> str:
         t = "continuous" if self.dt is None else f"dt={self.dt:g} s"
@@ -438,6 +457,78 @@ def zeros(sys) -> np.ndarray:
     eigenvalues of the reduced pencil). ``NumericalError`` when the pencil is normal-rank
     deficient (a transfer matrix singular at every frequency, e.g. a zero channel)."""
     return _native.zeros(_ss(sys)._tuple())
+
+
+def _same_time(a: StateSpace, b: StateSpace, what: str) -> Optional[float]:
+    if a.dt != b.dt:
+        raise ValueError(f"{what}: the models have sample times {a.dt} and {b.dt} (None: continuous); "
+                         "discretise or resample one of them first")
+    return a.dt
+
+
+def series(sys1, sys2, *more) -> StateSpace:
+    """``sys1`` then ``sys2`` (then each of ``more``): the product ``… sys2·sys1`` as one
+    state-space model, states of ``sys1`` first (python-control's ``series``)::
+
+        A = [A1 0; B2 C1 A2],  B = [B1; B2 D1],  C = [D2 C1  C2],  D = D2 D1
+    """
+    g1, g2 = _ss(sys1, "sys1"), _ss(sys2, "sys2")
+    dt = _same_time(g1, g2, "series")
+    if g2.ninputs != g1.noutputs:
+        raise ValueError(f"series: sys1 has {g1.noutputs} outputs but sys2 {g2.ninputs} inputs")
+    n1, n2 = g1.nstates, g2.nstates
+    a = np.block([[g1.A, np.zeros((n1, n2))], [g2.B @ g1.C, g2.A]])
+    b = np.vstack([g1.B, g2.B @ g1.D])
+    c = np.hstack([g2.D @ g1.C, g2.C])
+    out = StateSpace(a, b, c, g2.D @ g1.D, dt)
+    return series(out, *more) if more else out
+
+
+def parallel(sys1, sys2, *more) -> StateSpace:
+    """``sys1 + sys2`` (+ each of ``more``): the same input to both, outputs summed
+    (python-control's ``parallel``): ``A = diag(A1, A2)``, ``B = [B1; B2]``,
+    ``C = [C1 C2]``, ``D = D1 + D2``."""
+    g1, g2 = _ss(sys1, "sys1"), _ss(sys2, "sys2")
+    dt = _same_time(g1, g2, "parallel")
+    if (g1.noutputs, g1.ninputs) != (g2.noutputs, g2.ninputs):
+        raise ValueError(f"parallel: the models are {g1.noutputs}x{g1.ninputs} and {g2.noutputs}x{g2.ninputs}")
+    n1, n2 = g1.nstates, g2.nstates
+    a = np.block([[g1.A, np.zeros((n1, n2))], [np.zeros((n2, n1)), g2.A]])
+    out = StateSpace(a, np.vstack([g1.B, g2.B]), np.hstack([g1.C, g2.C]), g1.D + g2.D, dt)
+    return parallel(out, *more) if more else out
+
+
+def feedback(sys1, sys2=None, sign: int = -1) -> StateSpace:
+    """The closed loop ``y = sys1·e``, ``e = u + sign·sys2·y`` (``sign`` −1: negative feedback,
+    python-control's ``feedback``; ``sys2`` None: unit feedback). With
+    ``F = (I − sign·D1 D2)⁻¹`` (refused when singular: the loop is not well posed)::
+
+        A = [A1 + s B1 D2 F C1,  s B1 (I + s D2 F D1) C2;  B2 F C1,  A2 + s B2 F D1 C2]
+        B = [B1 (I + s D2 F D1);  B2 F D1],   C = [F C1,  s F D1 C2],   D = F D1
+    """
+    g1 = _ss(sys1, "sys1")
+    if sys2 is None:
+        sys2 = StateSpace(np.zeros((0, 0)), np.zeros((0, g1.noutputs)), np.zeros((g1.ninputs, 0)),
+                          np.eye(g1.ninputs, g1.noutputs), g1.dt)
+    g2 = _ss(sys2, "sys2")
+    if sign not in (-1, 1):
+        raise ValueError(f"feedback: sign must be -1 or +1, not {sign!r}")
+    dt = _same_time(g1, g2, "feedback")
+    if (g2.ninputs, g2.noutputs) != (g1.noutputs, g1.ninputs):
+        raise ValueError(f"feedback: sys1 is {g1.noutputs}x{g1.ninputs}, so sys2 must be "
+                         f"{g1.ninputs}x{g1.noutputs}, not {g2.noutputs}x{g2.ninputs}")
+    m = np.eye(g1.noutputs) - sign * g1.D @ g2.D
+    if np.linalg.cond(m) > 1.0 / np.finfo(float).eps:
+        raise ValueError("feedback: I − sign·D1·D2 is singular: the loop is not well posed "
+                         "(an algebraic loop with no solution)")
+    f = np.linalg.inv(m)
+    s = float(sign)
+    k = np.eye(g1.ninputs) + s * g2.D @ f @ g1.D
+    a = np.block([[g1.A + s * g1.B @ g2.D @ f @ g1.C, s * g1.B @ k @ g2.C],
+                  [g2.B @ f @ g1.C, g2.A + s * g2.B @ f @ g1.D @ g2.C]])
+    b = np.vstack([g1.B @ k, g2.B @ f @ g1.D])
+    c = np.hstack([f @ g1.C, s * f @ g1.D @ g2.C])
+    return StateSpace(a, b, c, f @ g1.D, dt)
 
 
 # ---------------------------------------------------------------- design and analysis
