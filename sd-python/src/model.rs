@@ -1,4 +1,4 @@
-//! Models: `c2d`, `d2c`, `alias`, `downsample`, `freqresp`.
+//! Models: `c2d`, `d2c`, `alias`, `downsample`, `freqresp`, `poles`, `zeros`, `lsim`.
 
 use crate::{py_err, sys_in, sys_out, value_err, SysIn, SysOut};
 use numpy::ndarray::Array3;
@@ -240,6 +240,36 @@ fn model_to_json(sys: SysIn<'_>) -> PyResult<String> {
     sd_model::model_to_json_string(&sys_in(&sys)?).map_err(py_err)
 }
 
+/// `lsim`'s result: the outputs (N × ny) and the final state.
+type Simulated<'py> = (Bound<'py, numpy::PyArray2<f64>>, Bound<'py, PyArray1<f64>>);
+
+/// Simulation of a discrete model (`x₀` zero when `None`), or of a continuous one under a
+/// zero-order hold of period `dt_hold` (exact at the samples, Lemma 5): the outputs (N × ny,
+/// one row per sample) and the final state.
+#[pyfunction]
+#[pyo3(signature = (sys, u, x0, dt_hold))]
+fn lsim<'py>(
+    py: Python<'py>,
+    sys: SysIn<'py>,
+    u: numpy::PyReadonlyArray2<'py, f64>,
+    x0: Option<PyReadonlyArray1<'py, f64>>,
+    dt_hold: Option<f64>,
+) -> PyResult<Simulated<'py>> {
+    let s = sys_in(&sys)?;
+    let u = crate::mat(&u);
+    let x0 = x0.map(|x| nalgebra::DVector::from_column_slice(&x.as_array().to_vec()));
+    let sim = py
+        .detach(|| match dt_hold {
+            Some(h) => s.simulate_zoh(&u, h, x0.as_ref()),
+            None => s.simulate(&u, x0.as_ref()),
+        })
+        .map_err(py_err)?;
+    Ok((
+        crate::np(py, &sim.y),
+        sim.x_final.as_slice().to_vec().into_pyarray(py),
+    ))
+}
+
 /// Registers this file's functions.
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(c2d, m)?)?;
@@ -249,6 +279,7 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(freqresp, m)?)?;
     m.add_function(wrap_pyfunction!(poles, m)?)?;
     m.add_function(wrap_pyfunction!(zeros, m)?)?;
+    m.add_function(wrap_pyfunction!(lsim, m)?)?;
     m.add_function(wrap_pyfunction!(model_from_json, m)?)?;
     m.add_function(wrap_pyfunction!(model_to_json, m)?)?;
     Ok(())

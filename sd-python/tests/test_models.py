@@ -254,3 +254,35 @@ def test_series_parallel_feedback_match_python_control():
     with pytest.raises(ValueError, match="not well posed"):
         g = sd.StateSpace([[0.5]], [[1.0]], [[1.0]], [[1.0]], dt)
         sd.feedback(g, sd.StateSpace([[0.5]], [[1.0]], [[1.0]], [[1.0]], dt), sign=1)
+
+
+def test_lsim_and_step_response_match_python_control():
+    rng = np.random.default_rng(11)
+    dt = 1e-3
+    g = ct.drss(4, 2, 2, dt=dt)
+    g = ct.ss(g.A, g.B, g.C, rng.normal(size=(2, 2)) * 0.2, dt)
+    s = sd.StateSpace.from_control(g)
+    n = 300
+    u = rng.normal(size=(n, 2))
+    x0 = rng.normal(size=4)
+    r = sd.lsim(s, u, x0=x0)
+    ref = ct.forced_response(g, T=np.arange(n) * dt, U=u.T, X0=x0)
+    assert np.allclose(r.y, np.asarray(ref.outputs).T, rtol=1e-10, atol=1e-12)
+    assert np.allclose(r.x_final, g.A @ ref.states[:, -1] + g.B @ u[-1], rtol=1e-10, atol=1e-12)
+    assert np.allclose(r.t, np.arange(n) * dt)
+    st = sd.step_response(s, 50)
+    ref = ct.step_response(g, T=np.arange(50) * dt)
+    assert np.allclose(st.y, np.asarray(ref.outputs).reshape(2, 2, 50), rtol=1e-10, atol=1e-12)
+    # a continuous model through the hold: python-control's exact ZOH discretisation
+    c = ct.rss(3, 1, 1)
+    c = ct.ss(c.A, c.B, c.C, c.D)
+    uc = rng.normal(size=n)
+    rc = sd.lsim(sd.StateSpace.from_control(c), uc, dt=dt)
+    refc = ct.forced_response(ct.c2d(c, dt, "zoh"), T=np.arange(n) * dt, U=uc)
+    assert np.allclose(rc.y[:, 0], np.asarray(refc.outputs).reshape(-1), rtol=1e-8, atol=1e-10)
+    with pytest.raises(ValueError, match="hold period"):
+        sd.lsim(sd.StateSpace.from_control(c), uc)
+    with pytest.raises(ValueError, match=r"\(N, 2\)"):
+        sd.lsim(s, rng.normal(size=(n, 3)))
+    with pytest.raises(TypeError):
+        sd.lsim(s, u + 1j)

@@ -37,6 +37,8 @@ def __dir__():
 
 
 __all__ = [
+    "lsim",
+    "step_response",
     "series",
     "parallel",
     "feedback",
@@ -457,6 +459,48 @@ def zeros(sys) -> np.ndarray:
     eigenvalues of the reduced pencil). ``NumericalError`` when the pencil is normal-rank
     deficient (a transfer matrix singular at every frequency, e.g. a zero channel)."""
     return _native.zeros(_ss(sys)._tuple())
+
+
+def lsim(sys, u: Any, x0: Any = None, dt: Optional[float] = None) -> Result:
+    """The response to the input samples ``u`` (``(N,)`` for one input, else ``(N, nu)``, one
+    row per sample) from the state ``x0`` (zero when None): ``x_{k+1} = A x_k + B u_k``,
+    ``y_k = C x_k + D u_k``. A continuous model is driven through a zero-order hold of period
+    ``dt`` (exact at the samples); a discrete one takes ``dt`` None or its own period.
+    Returns ``t`` (s, ``k·dt``), ``y`` (``(N, ny)``) and ``x_final``."""
+    g = _ss(sys)
+    u = np.asarray(u)
+    if np.iscomplexobj(u):
+        raise TypeError("lsim: the input samples u are complex; a simulation takes real signals")
+    u = u.astype(float).reshape(-1, 1) if u.ndim == 1 else np.asarray(u, dtype=float)
+    if u.ndim != 2 or u.shape[1] != g.ninputs:
+        raise ValueError(f"lsim: u must be (N,) or (N, {g.ninputs}) for a model with {g.ninputs} inputs, "
+                         f"not {np.shape(u)}")
+    if g.dt is None and dt is None:
+        raise ValueError("lsim: a continuous model needs the hold period dt of its input samples")
+    if g.dt is not None and dt is not None and dt != g.dt:
+        raise ValueError(f"lsim: dt {dt} differs from the model's sample period {g.dt}")
+    x = None if x0 is None else np.ascontiguousarray(_real(x0, "x0").reshape(-1))
+    y, xf = _native.lsim(g._tuple(), np.ascontiguousarray(u), x, None if g.dt is not None else float(dt))
+    period = g.dt if g.dt is not None else float(dt)
+    return Result({"t": np.arange(u.shape[0]) * period, "y": y, "x_final": xf})
+
+
+def step_response(sys, n: int, dt: Optional[float] = None) -> Result:
+    """The response to a unit step at every input in turn over ``n`` samples (from rest):
+    ``t`` and ``y`` of shape ``(ny, nu, n)`` (python-control's layout); a continuous model
+    through a zero-order hold of period ``dt``."""
+    g = _ss(sys)
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+        raise ValueError(f"step_response: n must be a positive number of samples, not {n!r}")
+    y = np.empty((g.noutputs, g.ninputs, int(n)))
+    t = None
+    for j in range(g.ninputs):
+        u = np.zeros((int(n), g.ninputs))
+        u[:, j] = 1.0
+        r = lsim(g, u, dt=dt)
+        y[:, j, :] = r.y.T
+        t = r.t
+    return Result({"t": t, "y": y})
 
 
 def _same_time(a: StateSpace, b: StateSpace, what: str) -> Optional[float]:
