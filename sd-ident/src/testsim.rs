@@ -3,15 +3,20 @@
 use num_complex::Complex64 as C;
 use std::f64::consts::TAU;
 
+/// The mode `fm` Hz, damping `zeta`, ZOH-sampled at 1 kHz: its pole `λ = e^{pT}` and the
+/// output weight `c` of `y = 2 Re(c x)`, `x⁺ = λx + u` (residue `−jω_n/2`).
+fn sampled_mode(fm: f64, zeta: f64) -> (C, C) {
+    let wn = TAU * fm;
+    let p = C::new(-zeta * wn, wn * (1.0 - zeta * zeta).sqrt());
+    let lam = (p / 1000.0).exp();
+    (lam, C::new(0.0, -wn / 2.0) * (lam - 1.0) / p)
+}
+
 /// `n` samples at 1 kHz of one ZOH-sampled mode (`fm` Hz, damping `zeta`, residue giving unit
 /// static gain scale `ω_n/2`) simulated in the time domain from rest under white noise `u`,
 /// with white output noise of rms 0.05: `(u, y)`, seeded.
 pub(crate) fn mode_record(seed: u64, fm: f64, zeta: f64, n: usize) -> (Vec<f64>, Vec<f64>) {
-    let fs = 1000.0;
-    let wn = TAU * fm;
-    let p = C::new(-zeta * wn, wn * (1.0 - zeta * zeta).sqrt());
-    let lam = (p / fs).exp();
-    let c = C::new(0.0, -wn / 2.0) * (lam - 1.0) / p;
+    let (lam, c) = sampled_mode(fm, zeta);
     let mut rng = crate::rng::SplitMix::new(seed);
     let mut x = C::new(0.0, 0.0);
     let (mut u, mut y) = (Vec::with_capacity(n), Vec::with_capacity(n));
@@ -34,11 +39,7 @@ pub(crate) fn closed_mode_record(
     k: f64,
     w: f64,
 ) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
-    let fs = 1000.0;
-    let wn = TAU * fm;
-    let p = C::new(-zeta * wn, wn * (1.0 - zeta * zeta).sqrt());
-    let lam = (p / fs).exp();
-    let c = C::new(0.0, -wn / 2.0) * (lam - 1.0) / p;
+    let (lam, c) = sampled_mode(fm, zeta);
     let mut rng = crate::rng::SplitMix::new(seed);
     let mut x = C::new(0.0, 0.0);
     let (mut r, mut u, mut y) = (Vec::new(), Vec::new(), Vec::new());

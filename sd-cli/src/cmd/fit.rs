@@ -125,27 +125,22 @@ impl Args {
         } = self;
         let text = crate::io::read_text(&frd)?;
         let data = sd_model::frd_from_json_str(&text).map_err(|e| from_model(&frd, e))?;
+        // the physical fit's options (--stabilization, --order auto)
+        let physical = sd_ident::StabilizationOptions {
+            max_order,
+            rigid_body,
+            feedthrough: !strictly_proper,
+            max_delay,
+        };
         if stabilization {
-            let opt = sd_ident::StabilizationOptions {
-                max_order,
-                rigid_body,
-                feedthrough: !strictly_proper,
-                max_delay,
-            };
             let out = out.unwrap_or_default();
-            return crate::cmd::fit_stabilization::run(&frd, &data, &opt, &out);
+            return crate::cmd::fit_stabilization::run(&frd, &data, &physical, &out);
         }
         if order == Some(OrderArg::Auto) {
             let fixed_only = !matches!(weighting, WeightingArg::Variance)
                 || min_damping != 0.0
                 || input_delay != sd_ident::InputDelay::None;
-            let opt = sd_ident::StabilizationOptions {
-                max_order,
-                rigid_body,
-                feedthrough: !strictly_proper,
-                max_delay,
-            };
-            return run_auto(&frd, &data, &opt, fixed_only, json, output.as_deref());
+            return run_auto(&frd, &data, &physical, fixed_only, json, output.as_deref());
         }
         let order = match order {
             Some(OrderArg::Fixed(n)) => n,
@@ -178,57 +173,67 @@ impl Args {
                  its poles (drop the option or fit the MIMO FRD)"
             )));
         }
-        // an order beyond what the lines determine (600 typed for 60) is refused at once
-        sd_ident::check_order_determined(data.len(), &opt).map_err(|e| from_ident(&frd, e))?;
-        let r = sd_ident::fit_with_progress(&data, &opt, &mut |p| {
-            eprintln!(
-                "[fit] {} iteration {:>3}: cost {:.6e}",
-                p.stage, p.iteration, p.cost
-            );
-        })
-        .map_err(|e| from_ident(&frd, e))?;
-        // with variance weights a line's expected term is 1 when the model is right
         let noise_scaled = matches!(weighting, WeightingArg::Variance) && data.variance().is_some();
-        eprintln!(
-            "[fit] order {}: cost {:.6e} ({:.3} per line{}), median relative error {:.3} %; \
-             largest line terms: {}",
-            r.model.n(),
-            r.cost,
-            r.cost / data.len().max(1) as f64,
-            if noise_scaled {
-                ", 1 = the noise level"
-            } else {
-                ""
-            },
-            100.0 * r.median_rel_error,
-            largest_terms(data.freq_hz(), &r.line_cost, r.cost)
-        );
-        for w in &r.warnings {
-            eprintln!("sdctl: warning: {frd}: {w}");
-        }
-        if !json {
-            return emit(&model_json(&r.model)?, output.as_deref());
-        }
-        let bad = |e: serde_json::Error| CliError::numerical(format!("fit JSON: {e}"));
-        let model: serde_json::Value = serde_json::from_str(&model_json(&r.model)?).map_err(bad)?;
-        let lines: Vec<serde_json::Value> = data
-            .freq_hz()
-            .iter()
-            .zip(&r.line_cost)
-            .map(|(f, c)| serde_json::json!({"freq_hz": f, "cost": c}))
-            .collect();
-        let out = serde_json::json!({
-            "model": model,
-            "cost": r.cost,
-            "median_rel_error": r.median_rel_error,
-            "lines": lines,
-            "warnings": crate::io::warnings_json(&r.warnings),
-        });
-        emit(
-            &serde_json::to_string_pretty(&out).map_err(bad)?,
-            output.as_deref(),
-        )
+        run_siso(&frd, &data, &opt, noise_scaled, json, output.as_deref())
     }
+}
+
+/// A SISO FRD at a fixed order: the fit with progress on stderr, its summary (cost per line,
+/// `noise_scaled`: 1 = the noise level), the model or with `json` the fit's JSON.
+fn run_siso(
+    frd: &str,
+    data: &sd_model::Frd,
+    opt: &sd_ident::FitOptions,
+    noise_scaled: bool,
+    json: bool,
+    output: Option<&str>,
+) -> Result<(), CliError> {
+    // an order beyond what the lines determine (600 typed for 60) is refused at once
+    sd_ident::check_order_determined(data.len(), opt).map_err(|e| from_ident(frd, e))?;
+    let r = sd_ident::fit_with_progress(data, opt, &mut |p| {
+        eprintln!(
+            "[fit] {} iteration {:>3}: cost {:.6e}",
+            p.stage, p.iteration, p.cost
+        );
+    })
+    .map_err(|e| from_ident(frd, e))?;
+    // with variance weights a line's expected term is 1 when the model is right
+    eprintln!(
+        "[fit] order {}: cost {:.6e} ({:.3} per line{}), median relative error {:.3} %; \
+             largest line terms: {}",
+        r.model.n(),
+        r.cost,
+        r.cost / data.len().max(1) as f64,
+        if noise_scaled {
+            ", 1 = the noise level"
+        } else {
+            ""
+        },
+        100.0 * r.median_rel_error,
+        largest_terms(data.freq_hz(), &r.line_cost, r.cost)
+    );
+    for w in &r.warnings {
+        eprintln!("sdctl: warning: {frd}: {w}");
+    }
+    if !json {
+        return emit(&model_json(&r.model)?, output);
+    }
+    let bad = |e: serde_json::Error| CliError::numerical(format!("fit JSON: {e}"));
+    let model: serde_json::Value = serde_json::from_str(&model_json(&r.model)?).map_err(bad)?;
+    let lines: Vec<serde_json::Value> = data
+        .freq_hz()
+        .iter()
+        .zip(&r.line_cost)
+        .map(|(f, c)| serde_json::json!({"freq_hz": f, "cost": c}))
+        .collect();
+    let out = serde_json::json!({
+        "model": model,
+        "cost": r.cost,
+        "median_rel_error": r.median_rel_error,
+        "lines": lines,
+        "warnings": crate::io::warnings_json(&r.warnings),
+    });
+    emit(&serde_json::to_string_pretty(&out).map_err(bad)?, output)
 }
 
 /// `--order auto`: the physical fit's choice ([`sd_ident::physical_fit`]), its model (with the
