@@ -29,6 +29,10 @@
 //! `levels − 1` degrees of freedom at the verdict's α, Bonferroni over the modes); modes that
 //! do not move keep their linear poles.
 //!
+//! **On the tracks** ([`on_tracks`]): a variant of the level fits where the pairs that tracked
+//! physical modes follow take the tracks' local fits; the diagnosis chooses between the
+//! variants on the training levels.
+//!
 //! **Prediction of a level** from the trend at that level's measured amplitudes: the moving
 //! poles from the trend, the others linear, the residues fitted jointly to the training levels
 //! (each with its own poles). Its variance carries the residues' covariance and the trend's.
@@ -38,8 +42,8 @@ use crate::lemma6::{compare, Pred};
 use crate::modal::{ModalBasis, Residues};
 use crate::stats::{statistic, threshold, Line};
 use crate::{
-    CornerTrend, DampingTrend, DiagnoseError, FreqTrend, ModePoint, MovingMode, PoleKind, Result,
-    Trend,
+    CornerTrend, DampingTrend, DiagnoseError, FreqTrend, ModePoint, MovingMode, PointFit, PoleKind,
+    Result, Trend,
 };
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64 as C;
@@ -51,11 +55,13 @@ use sd_multirate::NonIdeal;
 use std::f64::consts::TAU;
 
 mod level_fit;
+mod on_tracks;
 mod spectrum;
 mod trend;
 
 use level_fit::*;
 pub(crate) use level_fit::{candidates, describes, fit_level, level_floor};
+pub(crate) use on_tracks::on_tracks;
 use spectrum::*;
 pub(crate) use trend::kinds;
 use trend::*;
@@ -87,6 +93,8 @@ pub(crate) struct LevelFit {
     amplitude: Vec<f64>,
     /// The linear basis's frequency and damping of each candidate.
     linear: Vec<(f64, f64, f64, f64)>,
+    /// Where each candidate's `modal` comes from ([`on_tracks`]).
+    fit_of: Vec<PointFit>,
 }
 
 impl LevelFit {
@@ -533,6 +541,7 @@ impl AmplitudeModel {
                     freq_hz_std: f.modal[m].2,
                     damping: f.modal[m].1,
                     damping_std: f.modal[m].3,
+                    fit: f.fit_of[m],
                 })
                 .collect();
             out.push(MovingMode {

@@ -529,6 +529,21 @@ pub struct ModePoint {
     /// Natural frequency (Hz) and damping that the amplitude model fitted without this level
     /// predicted for it (left-out levels only).
     pub held_out_prediction: Option<(f64, f64)>,
+    /// Which fit the frequency and damping come from.
+    pub fit: PointFit,
+}
+
+/// Where a moving mode's frequency and damping at one level come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PointFit {
+    /// The local fit in the mode's band of a tracked physical mode ([`tracks`]): the trend
+    /// and the amplitude model's pole use it.
+    Local,
+    /// The level's modal fit with the candidates' poles free: no tracked mode is this pole
+    /// (a friction corner, or a pair no local fit follows), or the track has no local fit at
+    /// this level (its band's SNR gate or its fit dropped it).
+    Level,
 }
 
 /// A mode whose frequency or damping moves with amplitude.

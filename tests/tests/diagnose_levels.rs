@@ -110,6 +110,9 @@ struct Outcome {
     track_errors: Vec<TrackError>,
     /// Tracks near no true mode (their frequencies, Hz).
     spurious: Vec<f64>,
+    /// A moving mode of the amplitude model takes its points from the tracks' local fits
+    /// (`sd_diagnose::PointFit::Local`).
+    on_tracks: bool,
 }
 
 impl Outcome {
@@ -336,6 +339,14 @@ fn run(seed: u64, effect: LevelEffect, levels: &[f64], form: Form) -> Option<Out
             })
             .collect(),
         shift_errors: shift_errors(&d, case.mode_hz),
+        on_tracks: d.causes.iter().any(|c| match c {
+            Cause::Nonlinearity { modes, .. } => modes.iter().any(|m| {
+                m.points
+                    .iter()
+                    .any(|p| p.fit == sd_diagnose::PointFit::Local)
+            }),
+            _ => false,
+        }),
         seconds,
         pieces_right: matches!(form, Form::Separate(_) | Form::Repeat(..))
             || (d.pieces.len() == levels.len() && d.pieces.iter().all(|p| p.excited_s >= 1.0)),
@@ -457,6 +468,12 @@ fn summarize(out: &[Outcome]) -> (usize, usize) {
         .flat_map(|o| o.shift_errors.iter().copied())
         .collect();
     let t: Vec<f64> = out.iter().map(|o| o.seconds).collect();
+    let nonlinear = out.iter().filter(|o| o.cause == "nonlinearity").count();
+    println!(
+        "amplitude model with a moving mode on the tracks' local fits: {} of {nonlinear} \
+         nonlinearity answers",
+        out.iter().filter(|o| o.on_tracks).count()
+    );
     println!(
         "{} cases, {wrong} wrong (kind of the nonlinear ones, `none` for the linear, no kind for \
          the drifting); cubic: pooled held-out gain median {:.2}, worst {:.2} over {}; visible \

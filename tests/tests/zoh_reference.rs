@@ -93,15 +93,12 @@ fn stage60_matches_the_reference_realisation() {
 /// generator): the exact ZOH at or below scipy's error (or within `10·n·ε` of the reference,
 /// where scipy's is smaller than that).
 ///
-/// Ignored: it fails today on the two cases whose exponential is ill-conditioned (the
-/// generator's condition estimate 4e7 and 5e7): `light16_sim_h0.001` (A_d 6.4e-6 against
-/// scipy's 5.8e-6) and `stiff_mixed_n8` (2.2e-6 against 1.8e-6) — the same algorithm
-/// (Al-Mohy–Higham 2009) as scipy's, whose rounding lands on either side; on the other six it
-/// is at or below (issue #40 item 7 stays open: the squaring phase in double-double is the
-/// planned remedy). `cargo test --release -p sd-tests --test zoh_reference -- --ignored
-/// --nocapture`.
+/// Issue #40 item 7. Before the squaring phase went to double-double where it loses digits
+/// (`sd_model::linalg::expm`), the two cases whose exponential is ill-conditioned (the
+/// generator's condition estimate 4e7 and 5e7) were above scipy's error: `light16_sim_h0.001`
+/// (A_d 6.4e-6 against 5.8e-6) and `stiff_mixed_n8` (2.2e-6 against 1.8e-6); now 2.8e-9 and
+/// 3.7e-10. `cargo test --release -p sd-tests --test zoh_reference -- --nocapture` prints them.
 #[test]
-#[ignore]
 fn zoh_at_or_below_scipys_error() {
     let data = read_json("zoh_vs_scipy.json");
     let mut worse = Vec::new();

@@ -222,10 +222,12 @@ pub(super) fn finish(
         .iter()
         .map(|&pm| natural(linear_basis.poles()[pm], [[0.0; 2]; 2]))
         .collect();
+    let fit_of = vec![PointFit::Level; modal.len()];
     Ok(LevelFit {
         modal,
         amplitude,
         linear,
+        fit_of,
     })
 }
 

@@ -6,7 +6,8 @@ use super::decide::*;
 use super::judged::*;
 use super::read::*;
 use crate::amplitude::{
-    candidates, describes, fit_level, kinds, level_floor, AmplitudeModel, Level, LevelFit,
+    candidates, describes, fit_level, kinds, level_floor, on_tracks, AmplitudeModel, Level,
+    LevelFit,
 };
 use crate::data::held_out_label;
 use crate::lemma6::Pair;
@@ -102,6 +103,7 @@ pub(super) fn without_unneeded_slow_poles(
 }
 
 /// One basis the levels may be modelled on, with its candidates and every level's fit.
+#[derive(Clone)]
 pub(super) struct Variant {
     pub(super) basis: ModalBasis,
     pub(super) cand: Vec<usize>,
@@ -344,6 +346,9 @@ pub(super) fn nonlinearity(
     let Some((basis, (cand, fits))) = tried else {
         return Ok(per_level(data, found, (relative_levels, check), alpha));
     };
+    // the two-level validation fits its earlier periods with the level fit: it keeps the
+    // level fits of the model experiment too, not the tracks'
+    let level_fitted = fits.clone();
     let mut variants = vec![Variant {
         basis: basis.clone(),
         cand,
@@ -353,6 +358,20 @@ pub(super) fn nonlinearity(
         variants.extend(other_corners(j, data, &levels, alpha)?);
         variants.extend(without_slow_extras(&damped, data, &levels));
     }
+    progress("every physical mode tracked over the levels by local fits");
+    let tracks = tracked(data, &levels, &at, alpha);
+    // each variant also with the pairs the tracks follow on their local fits
+    // ([`crate::amplitude::on_tracks`]); [`choose`] takes the one that describes the training
+    // levels best
+    let names: Vec<&str> = levels.iter().map(|l| l.name.as_str()).collect();
+    let on_local: Vec<Variant> = variants
+        .iter()
+        .filter_map(|v| {
+            let mut t = v.clone();
+            (on_tracks(&t.basis, &t.cand, &mut t.fits, &names, &tracks) > 0).then_some(t)
+        })
+        .collect();
+    variants.extend(on_local);
     let every: Vec<usize> = (0..levels.len()).collect();
     let chosen = choose(&variants, &levels, &every, data.h, alpha);
     let Variant { basis, cand, fits } = &variants[chosen];
@@ -364,16 +383,14 @@ pub(super) fn nonlinearity(
         levels_left_out(data, ch, &levels, &at, (&variants, chosen, alpha))?
     } else {
         (
-            later_periods(data, j, &levels, fits, (basis, cand), alpha)?,
+            later_periods(data, j, &levels, &level_fitted, (basis, cand), alpha)?,
             Vec::new(),
             BTreeMap::new(),
         )
     };
     let modes = model.report(&all, &fit_refs, &loo);
     let (kind, damping_trend, corner_trend) = kinds(&modes, normal_quantile(1.0 - alpha / 2.0));
-    progress("every physical mode tracked over the levels by local fits");
     // the dominant tracked mode names the kind and the damping trend where it states them
-    let tracks = tracked(data, &levels, &at, alpha);
     let (kind, damping_trend) = crate::tracks::decided(&tracks, (kind, damping_trend));
     let mut models = BTreeMap::new();
     for lv in &levels {
