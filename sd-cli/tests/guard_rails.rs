@@ -194,3 +194,30 @@ fn order_auto_is_the_held_out_lines_choice() {
     assert!(err.contains("give a number of poles"), "{err}");
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// `sdctl freqresp` of a model with a pole on the grid (an integrator at 0 Hz): refused with
+/// exit 2 and one line naming the frequency (issue #40 item 2), not a huge finite number.
+#[test]
+fn a_pole_on_the_grid_is_refused() {
+    let d = std::env::temp_dir().join(format!("sdctl-guard-{}-pole", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    let p = d.join("int.json");
+    std::fs::write(
+        &p,
+        r#"{"type":"ss","ts":0.001,"a":[[1,0.001],[0,1]],"b":[[0],[0.001]],"c":[[1,0]],"d":[[0]]}"#,
+    )
+    .unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_sdctl"))
+        .args(["freqresp", &p.to_string_lossy(), "--grid", "0:10:11"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("0 Hz is a pole of the model"), "{err}");
+    // one step off the pole the same model answers
+    let o = Command::new(env!("CARGO_BIN_EXE_sdctl"))
+        .args(["freqresp", &p.to_string_lossy(), "--grid", "1:10:10"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(0));
+}

@@ -19,6 +19,7 @@
 use crate::error::{ModelError, Result};
 use crate::frd::Frd;
 use crate::linalg::schur::{block_diagonalize, to_complex, BlockDiagonal, SPLIT_BOUND};
+use crate::pole_guard::{AtPole, PoleGuard};
 use crate::pole_sum::{offsets, PoleSum, LANES};
 use crate::ss::StateSpace;
 use crate::time::SampleTime;
@@ -70,6 +71,8 @@ pub struct FreqRespEvaluator {
     hess: Option<HessenbergForm>,
     /// `(A, B, C)` when the Hessenberg form failed it too: dense solves per point.
     dense: Option<(DMatrix<C>, DMatrix<C>, DMatrix<C>)>,
+    /// Marks the entries at a pole as infinite ([`crate::pole_guard`]).
+    guard: PoleGuard,
 }
 
 /// `A = Q H Qᵀ` (real, orthogonal `Q`, upper Hessenberg `H`) with `B̃ = QᵀB`, `C̃ = CQ`: per
@@ -226,6 +229,12 @@ impl FreqRespEvaluator {
                 c: bd.ct.columns(st, sz).into_owned(),
             })
             .collect();
+        let eig: Vec<(C, usize)> = bd
+            .blocks
+            .iter()
+            .flat_map(|&(st, sz)| (st..st + sz).map(move |i| (i, sz)))
+            .map(|(i, sz)| (bd.t[(i, i)], sz))
+            .collect();
         let mut ev = FreqRespEvaluator {
             poles: pole_sum(&bd),
             clusters,
@@ -233,6 +242,7 @@ impl FreqRespEvaluator {
             time: sys.time(),
             hess: None,
             dense: None,
+            guard: PoleGuard::new((sys.a(), sys.b(), sys.c()), &eig, bd.t.norm(), sys.time()),
         };
         // Accuracy check against dense LU solves next to every eigenvalue, on the stability
         // boundary where responses are evaluated. A defective multiple pole formed by a series
@@ -321,8 +331,38 @@ impl FreqRespEvaluator {
         }
     }
 
-    /// `G(s)` at a point of the complex plane (s for CT, z for DT).
+    /// `G(s)` at a point of the complex plane (s for CT, z for DT); an entry for which `s`
+    /// is a pole (to working precision, [`crate::pole_guard`]) is `+∞`.
     pub fn eval_at(&self, s: C) -> DMatrix<C> {
+        let mut g = self.eval_at_unguarded(s);
+        self.guarded(s, g.as_mut_slice(), false);
+        g
+    }
+
+    /// Marks the entries of `g` at `s` that `s` is a pole of as `+∞`, and evaluates the others
+    /// around an eigenvalue that is no pole of theirs ([`crate::pole_guard`]).
+    fn guarded(&self, s: C, g: &mut [C], on_axis: bool) {
+        if self.guard.mark(s, g, on_axis) == AtPole::No {
+            return;
+        }
+        let d = self.guard.circle(s);
+        let around: Vec<DMatrix<C>> = [
+            C::new(d, 0.0),
+            C::new(0.0, d),
+            C::new(-d, 0.0),
+            C::new(0.0, -d),
+        ]
+        .iter()
+        .map(|&o| self.eval_at_unguarded(s + o))
+        .collect();
+        for (e, v) in g.iter_mut().enumerate() {
+            if !v.re.is_infinite() {
+                *v = around.iter().map(|m| m.as_slice()[e]).sum::<C>() / 4.0;
+            }
+        }
+    }
+
+    fn eval_at_unguarded(&self, s: C) -> DMatrix<C> {
         if let Some((a, b, c)) = &self.dense {
             return match dense_solve(a, b, s) {
                 Some(x) => c * x + &self.d,
@@ -357,8 +397,13 @@ impl FreqRespEvaluator {
     /// allocating where the reduced form has simple poles only.
     pub fn eval_hz_into(&self, f_hz: f64, out: &mut [C]) {
         let s = self.point(f_hz);
+        self.eval_into_unguarded(s, out);
+        self.guarded(s, out, true);
+    }
+
+    fn eval_into_unguarded(&self, s: C, out: &mut [C]) {
         if self.dense.is_some() {
-            let g = self.eval_at(s);
+            let g = self.eval_at_unguarded(s);
             out.copy_from_slice(g.as_slice());
             return;
         }
@@ -507,6 +552,9 @@ impl FreqRespEvaluator {
                 || (vec![[0.0; LANES]; m], vec![[0.0; LANES]; m]),
                 |(gr, gi), (o, f)| self.eval_batch(f, o, gr, gi),
             );
+        for (o, &f) in out.chunks_mut(m).zip(freq_hz) {
+            self.guarded(self.point(f), o, true);
+        }
         out
     }
 
@@ -537,10 +585,25 @@ impl StateSpace {
     /// Frequency response at `freq_hz` (Hz) as an [`Frd`]. Discrete models are evaluated on
     /// the unit circle; frequencies above Nyquist are allowed here (the response is periodic)
     /// — the command line refuses them.
+    ///
+    /// # Errors
+    /// A frequency that is a pole of the model (an integrator at 0 Hz, an undamped mode at its
+    /// frequency: the response is infinite there, [`FreqRespEvaluator::eval_at`]).
     pub fn freqresp(&self, freq_hz: &[f64]) -> Result<Frd> {
         check_freqs(freq_hz)?;
         let ev = FreqRespEvaluator::new(self)?;
-        Frd::new(freq_hz.to_vec(), ev.eval_many(freq_hz), None, self.time())
+        let g = ev.eval_many(freq_hz);
+        if let Some(k) = g
+            .iter()
+            .position(|r| r.iter().any(|v| !(v.re.is_finite() && v.im.is_finite())))
+        {
+            return Err(ModelError::InvalidArgument(format!(
+                "{} Hz is a pole of the model (its response is infinite there); leave that \
+                 frequency out",
+                freq_hz[k]
+            )));
+        }
+        Frd::new(freq_hz.to_vec(), g, None, self.time())
     }
 
     /// `G(s)` at one point by a dense LU solve of `(sI − A) X = B` — the O(n³) reference.

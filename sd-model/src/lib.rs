@@ -30,6 +30,7 @@ pub mod json;
 pub mod keys;
 pub mod linalg;
 pub mod norms;
+mod pole_guard;
 mod pole_sum;
 pub mod poles;
 pub mod quantile;

@@ -99,6 +99,21 @@ def test_downsample_is_lemma6_and_matches_sdctl(stage, sdctl, tmp_path):
         sd.downsample(fast, 2.5)
 
 
+def test_freqresp_at_a_pole_is_infinite():
+    """Issue #40 item 2: an integrator's response at 0 Hz (z = 1) is inf, not a huge finite
+    number; the other points and an uncontrollable pole's entry stay finite."""
+    h = 1e-3
+    d = sd.StateSpace([[1.0, h], [0.0, 1.0]], [[0.0], [h]], [[1.0, 0.0]], [[0.0]], h)
+    g = sd.freqresp(d, [0.0, 0.5, 10.0])
+    assert np.isinf(g[0].real)
+    z = np.exp(2j * np.pi * np.array([0.5, 10.0]) * h)
+    close(g[1:], h * h * (z + 1) / (2 * (z - 1) ** 2), 1e-8)
+    # two inputs: the integrator from the first only, a lag from the second
+    m = sd.StateSpace([[0.0, 0.0], [0.0, -1.0]], np.eye(2), [[1.0, 1.0]], [[0.0, 0.0]])
+    g = sd.freqresp(m, [0.0], squeeze=False)
+    assert np.isinf(g[0, 0, 0].real) and abs(g[0, 1, 0] - 1.0) < 1e-12
+
+
 def test_freqresp_matches_sdctl_and_python_control(stage, sdctl, tmp_path):
     d = sd.c2d(stage, 2e-4)
     f = np.linspace(1.0, 2400.0, 500)

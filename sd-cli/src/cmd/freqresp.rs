@@ -49,6 +49,18 @@ impl Args {
         // one flat buffer evaluated in parallel, formatted in parallel chunks and written
         // chunk by chunk (no matrix per point, no single copy of the document)
         let flat = ev.eval_many_flat(&f);
+        // a point at a pole has an infinite response ([`sd_model::FreqRespEvaluator::eval_at`]),
+        // which JSON cannot hold
+        let m = (sys.ny() * sys.nu()).max(1);
+        if let Some(k) = flat
+            .iter()
+            .position(|v| !(v.re.is_finite() && v.im.is_finite()))
+        {
+            return Err(CliError::input(format!(
+                "{model}: {} Hz is a pole of the model (its response is infinite there); leave that frequency out of the grid",
+                f[k / m]
+            )));
+        }
         // the FRD object gains `"eval_path"` (informational, ignored by the readers)
         let chunks = sd_model::frd_json_chunks(
             &f,
