@@ -1499,6 +1499,40 @@ fn intersample_under_uncertainty() {
         "6",
     ]);
     assert_input_error(&o, "fast plant's period");
+    // #40 item 6: the margin on the bound's lines that intersample prints beside the weight's
+    // is the one `analyze --uncertainty` reports on the downsampled bound (one loop, one fit)
+    for k in [p("k.json"), p("hot.json")] {
+        let o = run(&k, &p("u.json"), true);
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let lines = &v["robust_lines"];
+        #[rustfmt::skip]
+        let o = sdctl_ok(&["analyze", "--plant", &p("ms.json"), "--controller", &k, "--uncertainty", &p("us.json"), "--json"]);
+        let a: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let (mi, ma) = (
+            lines["margin"].as_f64().unwrap(),
+            a["robust"]["margin_lines"].as_f64().unwrap(),
+        );
+        assert!(
+            (mi / ma - 1.0).abs() < 1e-6,
+            "intersample {mi} vs analyze {ma}: {lines}"
+        );
+        println!(
+            "{k}: slow margin with the weight {:.3}, on the lines {mi:.3} (analyze {ma:.3}), \
+             weight over the lines' bound up to {:.2}",
+            v["robust"]["slow_margin"].as_f64().unwrap_or(f64::NAN),
+            lines["weight_over_bound"].as_f64().unwrap_or(f64::NAN)
+        );
+        // the weight overbounds the lines: its downsampled bound is at least theirs
+        assert!(
+            lines["weight_over_bound"].as_f64().unwrap() >= 0.99,
+            "{lines}"
+        );
+        let text = String::from_utf8_lossy(&run(&k, &p("u.json"), false).stdout).into_owned();
+        assert!(
+            text.contains("on the bound's") && text.contains("slow lines"),
+            "{text}"
+        );
+    }
 }
 
 /// `sdctl fit` of a 2×2 FRD: one set of poles for the four entries; two rank-one pairs are

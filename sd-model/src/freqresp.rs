@@ -331,19 +331,36 @@ impl FreqRespEvaluator {
         }
     }
 
-    /// `G(s)` at a point of the complex plane (s for CT, z for DT); an entry for which `s`
-    /// is a pole (to working precision, [`crate::pole_guard`]) is `+∞`.
+    /// `G(s)` at a point of the complex plane (s for CT, z for DT). At a pole the value is
+    /// whatever rounding makes of the division (a huge finite number, or a non-finite one):
+    /// internal computations take limits through it (a type-2 loop's sensitivity at DC);
+    /// [`FreqRespEvaluator::mark_poles`] turns the entries at a pole into `+∞` for a user.
     pub fn eval_at(&self, s: C) -> DMatrix<C> {
-        let mut g = self.eval_at_unguarded(s);
-        self.guarded(s, g.as_mut_slice(), false);
-        g
+        self.eval_at_unguarded(s)
+    }
+
+    /// The entries of `flat` (as [`FreqRespEvaluator::eval_many_flat`] wrote them for
+    /// `freq_hz`) at a pole of the model set to `+∞`: `sI − A` singular within `10·n·ε·‖A‖_F`
+    /// and the mode reaching that entry's input and output ([`crate::pole_guard`]; an
+    /// uncontrollable or unobservable mode's entry is evaluated around the point instead).
+    /// Returns whether any point was at an eigenvalue.
+    pub fn mark_poles(&self, freq_hz: &[f64], flat: &mut [C]) -> bool {
+        let m = self.d.nrows() * self.d.ncols();
+        if m == 0 {
+            return false;
+        }
+        let mut any = false;
+        for (o, &f) in flat.chunks_mut(m).zip(freq_hz) {
+            any |= self.guarded(self.point(f), o, true);
+        }
+        any
     }
 
     /// Marks the entries of `g` at `s` that `s` is a pole of as `+∞`, and evaluates the others
     /// around an eigenvalue that is no pole of theirs ([`crate::pole_guard`]).
-    fn guarded(&self, s: C, g: &mut [C], on_axis: bool) {
+    fn guarded(&self, s: C, g: &mut [C], on_axis: bool) -> bool {
         if self.guard.mark(s, g, on_axis) == AtPole::No {
-            return;
+            return false;
         }
         let d = self.guard.circle(s);
         let around: Vec<DMatrix<C>> = [
@@ -360,6 +377,7 @@ impl FreqRespEvaluator {
                 *v = around.iter().map(|m| m.as_slice()[e]).sum::<C>() / 4.0;
             }
         }
+        true
     }
 
     fn eval_at_unguarded(&self, s: C) -> DMatrix<C> {
@@ -398,7 +416,6 @@ impl FreqRespEvaluator {
     pub fn eval_hz_into(&self, f_hz: f64, out: &mut [C]) {
         let s = self.point(f_hz);
         self.eval_into_unguarded(s, out);
-        self.guarded(s, out, true);
     }
 
     fn eval_into_unguarded(&self, s: C, out: &mut [C]) {
@@ -552,9 +569,6 @@ impl FreqRespEvaluator {
                 || (vec![[0.0; LANES]; m], vec![[0.0; LANES]; m]),
                 |(gr, gi), (o, f)| self.eval_batch(f, o, gr, gi),
             );
-        for (o, &f) in out.chunks_mut(m).zip(freq_hz) {
-            self.guarded(self.point(f), o, true);
-        }
         out
     }
 
@@ -592,10 +606,14 @@ impl StateSpace {
     pub fn freqresp(&self, freq_hz: &[f64]) -> Result<Frd> {
         check_freqs(freq_hz)?;
         let ev = FreqRespEvaluator::new(self)?;
-        let g = ev.eval_many(freq_hz);
-        if let Some(k) = g
+        let (ny, nu) = (self.ny(), self.nu());
+        let mut flat = ev.eval_many_flat(freq_hz);
+        ev.mark_poles(freq_hz, &mut flat);
+        let m = (ny * nu).max(1);
+        if let Some(k) = flat
             .iter()
-            .position(|r| r.iter().any(|v| !(v.re.is_finite() && v.im.is_finite())))
+            .position(|v| !(v.re.is_finite() && v.im.is_finite()))
+            .map(|e| e / m)
         {
             return Err(ModelError::InvalidArgument(format!(
                 "{} Hz is a pole of the model (its response is infinite there); leave that \
@@ -603,6 +621,13 @@ impl StateSpace {
                 freq_hz[k]
             )));
         }
+        let g: Vec<DMatrix<C>> = if ny * nu == 0 {
+            vec![DMatrix::zeros(ny, nu); freq_hz.len()]
+        } else {
+            flat.chunks(m)
+                .map(|c| DMatrix::from_column_slice(ny, nu, c))
+                .collect()
+        };
         Frd::new(freq_hz.to_vec(), g, None, self.time())
     }
 

@@ -204,8 +204,10 @@ fn freqresp<'py>(
     let (ny, nu, nf) = (s.ny(), s.nu(), f.len());
     let out = py.detach(|| {
         // the library's own (parallel) evaluation, then one copy into numpy's layout
-        let g = ev.eval_many(f);
-        Array3::from_shape_fn((ny, nu, nf), |(i, j, k)| g[k][(i, j)])
+        // an entry at a pole is inf (`mark_poles`), not what rounding makes of it
+        let mut g = ev.eval_many_flat(f);
+        ev.mark_poles(f, &mut g);
+        Array3::from_shape_fn((ny, nu, nf), |(i, j, k)| g[(k * nu + j) * ny + i])
     });
     Ok((out.into_pyarray(py), path))
 }

@@ -254,3 +254,96 @@ pub fn robust_intersample(
         slow_margin,
     })
 }
+
+/// The slow loop's robust-stability margin on the fast bound's own lines beside the weight's
+/// ([`slow_margin_on_lines`]).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct LinesMargin {
+    /// `1/max |K S_d|·a_T` over the slow lines, `a_T` the fast bound downsampled
+    /// ([`crate::downsample`]): what `sdctl analyze --uncertainty` reports on the downsampled
+    /// bound (> 1 robustly stable on the lines).
+    pub margin: f64,
+    /// Where that maximum is (Hz).
+    pub worst_hz: f64,
+    /// How many slow lines (those whose folds are all fast lines).
+    pub lines: usize,
+    /// `max w_d/a_T` over those lines: how far the weight's downsampled bound lies above the
+    /// lines' (the weight overbounds every line and fills the gaps between them, so ≥ 1 up to
+    /// fit tolerance); the margin with the weight is lower by up to this factor.
+    pub weight_over_bound: f64,
+    /// Where (Hz).
+    pub weight_over_bound_hz: f64,
+}
+
+/// The slow loop's margin on the lines of `bound` (the fast-rate bound the weight overbounds)
+/// and how conservative `weight` is there: the reason [`RobustIntersample::slow_margin`] (with
+/// the weight, between the lines too) can say "not robustly stable" where the lines say
+/// "robustly stable". The slow lines are the fast lines below the slow Nyquist frequency whose
+/// `factor` folds are all lines; `|K S_d|` with `S_d = 1/(1 + K P_d)`, `P_d` the downsampled
+/// nominal.
+///
+/// # Errors
+/// As [`robust_intersample`]; a bound at another period than the plant's; no slow line whose
+/// folds are all lines.
+pub fn slow_margin_on_lines(
+    p_fast: &StateSpace,
+    k: &StateSpace,
+    factor: usize,
+    bound: &crate::Bound,
+    weight: &StateSpace,
+) -> Result<LinesMargin> {
+    let h = check(p_fast, k, weight)?;
+    if (bound.ts - h).abs() > 1e-9 * h {
+        return Err(UncertaintyError::Input(format!(
+            "the bound is at period {} s and the fast plant at {h} s: give the fast-rate bound",
+            bound.ts
+        )));
+    }
+    let slow_nyq = 0.5 / (h * factor as f64);
+    let slow: Vec<f64> = bound
+        .freq_hz
+        .iter()
+        .copied()
+        .filter(|&f| f > 0.0 && f < slow_nyq * (1.0 - 1e-9))
+        .collect();
+    let d = crate::downsample(bound, factor, &slow)?;
+    let ev = Eval {
+        p: FreqRespEvaluator::new(p_fast)?,
+        k: FreqRespEvaluator::new(k)?,
+        w: FreqRespEvaluator::new(weight)?,
+        form: bound.form,
+        factor,
+        h,
+    };
+    let t = h * factor as f64;
+    let (mut load, mut worst_hz, mut over, mut over_hz) = (0.0f64, f64::NAN, 0.0f64, f64::NAN);
+    for ((&f, &a), &pd) in d
+        .bound
+        .freq_hz
+        .iter()
+        .zip(&d.bound.additive)
+        .zip(&d.bound.nominal)
+    {
+        let kk = ev.k.eval_hz(f)[(0, 0)];
+        let ks = (kk / (C::new(1.0, 0.0) + kk * pd)).norm();
+        if ks * a > load {
+            (load, worst_hz) = (ks * a, f);
+        }
+        let wd: f64 = (0..factor)
+            .map(|q| {
+                let fk = f - q as f64 / t;
+                hold_weight(TAU * fk * h, factor).norm() * ev.w(fk)
+            })
+            .sum();
+        if a > 0.0 && wd / a > over {
+            (over, over_hz) = (wd / a, f);
+        }
+    }
+    Ok(LinesMargin {
+        margin: 1.0 / load.max(f64::MIN_POSITIVE),
+        worst_hz,
+        lines: d.bound.freq_hz.len(),
+        weight_over_bound: over,
+        weight_over_bound_hz: over_hz,
+    })
+}

@@ -38,7 +38,7 @@ pub use bound::{coverage, from_data, per_line_confidence, sigma_factor, Bound, C
 pub use downsample::{downsample, downsample_nonideal, Downsampled};
 pub use error::{Result, UncertaintyError};
 pub use gap::{chordal, chordal_gap, ChordalGap};
-pub use intersample::{robust_intersample, RobustIntersample};
+pub use intersample::{robust_intersample, slow_margin_on_lines, LinesMargin, RobustIntersample};
 pub use json::{carries, embed, from_json_str, to_json_string, weight_from_json_str};
 pub use robust::{
     destabilising, loading_per_line, robust_stability, worst_case_plant, Destabilising, Robust,

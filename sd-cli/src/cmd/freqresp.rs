@@ -48,7 +48,8 @@ impl Args {
         );
         // one flat buffer evaluated in parallel, formatted in parallel chunks and written
         // chunk by chunk (no matrix per point, no single copy of the document)
-        let flat = ev.eval_many_flat(&f);
+        let mut flat = ev.eval_many_flat(&f);
+        ev.mark_poles(&f, &mut flat);
         // a point at a pole has an infinite response ([`sd_model::FreqRespEvaluator::eval_at`]),
         // which JSON cannot hold
         let m = (sys.ny() * sys.nu()).max(1);

@@ -95,6 +95,10 @@ impl Args {
             argmax(&r.slow_hz, &r.slow_psd),
             argmax(&r.slow_hz, &r.control_sensitivity),
         );
+        let (robust, lines) = match robust {
+            Some((r, l)) => (Some(r), l),
+            None => (None, None),
+        };
         if json {
             let v = json!({
                 "factor": factor,
@@ -105,6 +109,7 @@ impl Args {
                 "slow_hz": r.slow_hz, "slow_psd": r.slow_psd,
                 "control_sensitivity": r.control_sensitivity,
                 "robust": robust,
+                "robust_lines": lines,
             });
             emit(&v.to_string(), None)
         } else {
@@ -114,7 +119,7 @@ impl Args {
             );
             if let Some(rb) = &robust {
                 text.push('\n');
-                text.push_str(&robust_text(rb));
+                text.push_str(&robust_text(rb, lines.as_ref()));
             }
             emit(&text, None)
         }
@@ -130,7 +135,13 @@ fn robust(
     (path, weight_order): (&str, Option<usize>),
     (pd, pn): (f64, f64),
     points: usize,
-) -> Result<sd_uncertainty::RobustIntersample, CliError> {
+) -> Result<
+    (
+        sd_uncertainty::RobustIntersample,
+        Option<sd_uncertainty::LinesMargin>,
+    ),
+    CliError,
+> {
     let (bound, weight) = read_bound_and_weight(path, weight_order)?;
     let weight = weight.ok_or_else(|| {
         CliError::input(format!(
@@ -138,7 +149,10 @@ fn robust(
              the lines: give --weight-order N (4 to 8 is typical)"
         ))
     })?;
-    sd_uncertainty::robust_intersample(
+    // the margin on the bound's own lines beside the weight's: why the two verdicts can
+    // differ (none when no slow line has all its folds on the fast lines)
+    let lines = sd_uncertainty::slow_margin_on_lines(p, k, factor, &bound, &weight).ok();
+    let r = sd_uncertainty::robust_intersample(
         p,
         k,
         factor,
@@ -147,20 +161,46 @@ fn robust(
         &|_| pn,
         points,
     )
-    .map_err(|e| from_unc(path, e))
+    .map_err(|e| from_unc(path, e))?;
+    Ok((r, lines))
 }
 
-/// The robust lines of the text output.
-fn robust_text(r: &sd_uncertainty::RobustIntersample) -> String {
-    let head = format!(
-        "uncertainty ({}): slow-loop robust stability margin {:.3} (> 1: every plant inside the \
-         weight is stabilised)",
+/// The robust lines of the text output: the margin with the weight, and beside it the margin
+/// on the bound's own lines with the weight's conservatism there (why `analyze --uncertainty`
+/// on the downsampled bound can say "robustly stable" where the weight does not).
+fn robust_text(
+    r: &sd_uncertainty::RobustIntersample,
+    lines: Option<&sd_uncertainty::LinesMargin>,
+) -> String {
+    let mut head = format!(
+        "uncertainty ({}): slow-loop robust stability margin {:.3} with the weight, between the \
+         lines too (> 1: every plant inside the weight is stabilised)",
         match r.form {
             sd_uncertainty::Form::Additive => "additive",
             sd_uncertainty::Form::Multiplicative => "multiplicative",
         },
         r.slow_margin
     );
+    if let Some(l) = lines {
+        head += &format!(
+            "
+on the bound's {} slow lines (as `sdctl analyze --uncertainty` on the downsampled \
+             bound): margin {:.3} (worst at {:.2} Hz); the weight's downsampled bound is up to \
+             {:.2}× the lines' (at {:.2} Hz){}",
+            l.lines,
+            l.margin,
+            l.worst_hz,
+            l.weight_over_bound,
+            l.weight_over_bound_hz,
+            if l.margin > 1.0 && r.slow_margin <= 1.0 {
+                ": the lines are robustly stable, the weight's conservatism between or at the \
+                 lines is what fails — refit it tighter (a higher --weight-order) before \
+                 changing the controller"
+            } else {
+                ""
+            }
+        );
+    }
     match (r.rms_bound, r.worst_hz, r.worst_ratio) {
         (Some(b), Some(f), Some(x)) => format!(
             "{head}\nfast error rms over every plant inside the weight: at most {b:.4e} (nominal \
