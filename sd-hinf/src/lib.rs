@@ -62,6 +62,7 @@ pub use multirate::{
     MultirateWeights,
 };
 pub use ncf::{coprime_reduce, normalized_lcf, CoprimeReduction};
+pub use riccati::descriptor::{gcare, gdare, MAX_E_CONDITION};
 pub use riccati::{care, care_residual_of, dare, RiccatiSolution};
 
 /// The crate README's example, compiled and run as a doctest.

@@ -20,26 +20,36 @@ fn riccati<'py>(py: Python<'py>, r: &sd_hinf::RiccatiSolution) -> PyResult<Bound
 type Mat<'py> = PyReadonlyArray2<'py, f64>;
 type M = nalgebra::DMatrix<f64>;
 
-/// One Riccati solver on the boundary's matrices, with the interpreter lock released.
+/// The standard solver and its descriptor (`E ≠ I`) form.
+type Solver = fn(&M, &M, &M, &M, Option<&M>) -> sd_hinf::Result<sd_hinf::RiccatiSolution>;
+type GenSolver = fn(&M, &M, &M, &M, &M, Option<&M>) -> sd_hinf::Result<sd_hinf::RiccatiSolution>;
+
+/// One Riccati solver on the boundary's matrices, with the interpreter lock released; with
+/// `e`, the generalized equation ([`sd_hinf::gcare`], [`sd_hinf::gdare`]).
 fn solve<'py>(
     py: Python<'py>,
-    solver: fn(&M, &M, &M, &M, Option<&M>) -> sd_hinf::Result<sd_hinf::RiccatiSolution>,
+    (solver, generalized): (Solver, GenSolver),
     [a, b, q, r]: [Mat<'py>; 4],
-    s: Option<Mat<'py>>,
+    (s, e): (Option<Mat<'py>>, Option<Mat<'py>>),
 ) -> PyResult<Bound<'py, PyDict>> {
     let (a, b, q, r) = (mat(&a), mat(&b), mat(&q), mat(&r));
     let s = s.as_ref().map(mat);
+    let e = e.as_ref().map(mat);
     let sol = py
-        .detach(|| solver(&a, &b, &q, &r, s.as_ref()))
+        .detach(|| match &e {
+            Some(e) => generalized(&a, e, &b, &q, &r, s.as_ref()),
+            None => solver(&a, &b, &q, &r, s.as_ref()),
+        })
         .map_err(py_err)?;
     riccati(py, &sol)
 }
 
 /// The stabilising solution of `AᵀXA − X − (AᵀXB + S)(R + BᵀXB)⁻¹(BᵀXA + Sᵀ) + Q = 0`
-/// (structure-preserving doubling, Newton-refined). No solution raises `ValueError` with the
-/// reason.
+/// (structure-preserving doubling, Newton-refined); with `e`, of
+/// `AᵀXA − EᵀXE − (AᵀXB + S)(R + BᵀXB)⁻¹(BᵀXA + Sᵀ) + Q = 0`. No solution raises
+/// `ValueError` with the reason.
 #[pyfunction]
-#[pyo3(signature = (a, b, q, r, s=None))]
+#[pyo3(signature = (a, b, q, r, s=None, e=None))]
 fn dare<'py>(
     py: Python<'py>,
     a: Mat<'py>,
@@ -47,14 +57,16 @@ fn dare<'py>(
     q: Mat<'py>,
     r: Mat<'py>,
     s: Option<Mat<'py>>,
+    e: Option<Mat<'py>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    solve(py, sd_hinf::dare, [a, b, q, r], s)
+    solve(py, (sd_hinf::dare, sd_hinf::gdare), [a, b, q, r], (s, e))
 }
 
 /// The stabilising solution of `AᵀX + XA − (XB + S)R⁻¹(BᵀX + Sᵀ) + Q = 0` (ordered
-/// Hamiltonian Schur, Newton-refined).
+/// Hamiltonian Schur, Newton-refined); with `e`, of
+/// `AᵀXE + EᵀXA − (EᵀXB + S)R⁻¹(BᵀXE + Sᵀ) + Q = 0`.
 #[pyfunction]
-#[pyo3(signature = (a, b, q, r, s=None))]
+#[pyo3(signature = (a, b, q, r, s=None, e=None))]
 fn care<'py>(
     py: Python<'py>,
     a: Mat<'py>,
@@ -62,8 +74,9 @@ fn care<'py>(
     q: Mat<'py>,
     r: Mat<'py>,
     s: Option<Mat<'py>>,
+    e: Option<Mat<'py>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    solve(py, sd_hinf::care, [a, b, q, r], s)
+    solve(py, (sd_hinf::care, sd_hinf::gcare), [a, b, q, r], (s, e))
 }
 
 /// McFarlane–Glover loopshaping of `plant` with pre-weight `w1` and post-weight `w2`: the

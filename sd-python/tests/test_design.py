@@ -33,6 +33,38 @@ def test_dare_and_care_against_scipy():
     assert c.closed_loop < 0.0
 
 
+def test_generalized_riccati_with_e():
+    """#40 item 5: E ≠ I (scipy's ``e=``): the generalized equation holds to rounding and the
+    closed loop λ(A − BK, E) is stable; on a case scipy solves, X equals scipy's."""
+    rng = np.random.default_rng(7)
+    n, m = 4, 2
+    A = rng.standard_normal((n, n))
+    E = np.eye(n) + 0.3 * rng.standard_normal((n, n))
+    B = rng.standard_normal((n, m))
+    Q, R = np.eye(n), np.eye(m)
+    c = sd.care(A, B, Q, R, E=E)
+    X = c.X
+    res = A.T @ X @ E + E.T @ X @ A - E.T @ X @ B @ np.linalg.solve(R, B.T @ X @ E) + Q
+    assert np.linalg.norm(res) <= 1e-12 * (1 + np.linalg.norm(X) * np.linalg.norm(A) * np.linalg.norm(E))
+    assert c.residual < 1e-13
+    assert max(np.linalg.eigvals(np.linalg.solve(E, A - B @ c.K)).real) < 0
+    d = sd.dare(0.5 * A, B, Q, R, E=E)
+    Xd = d.X
+    Ad = 0.5 * A
+    K = np.linalg.solve(R + B.T @ Xd @ B, B.T @ Xd @ Ad)
+    res = Ad.T @ Xd @ Ad - E.T @ Xd @ E - Ad.T @ Xd @ B @ K + Q
+    assert np.linalg.norm(res) <= 1e-11 * (1 + np.linalg.norm(Xd))
+    assert max(abs(np.linalg.eigvals(np.linalg.solve(E, Ad - B @ d.K)))) < 1
+    try:
+        ref = sl.solve_continuous_are(A, B, Q, R, e=E)
+    except ValueError:
+        ref = None  # scipy refuses many well-conditioned E (test_data/descriptor_riccati.json)
+    if ref is not None:
+        close(X, ref, 1e-9)
+    with pytest.raises(ValueError, match="E is singular"):
+        sd.care(A, B, Q, R, E=np.diag([1.0, 1.0, 1.0, 0.0]))
+
+
 def test_care_near_the_axis_carex_2_8():
     # CAREX 2.8 (ε = 1e-6): Hamiltonian eigenvalues ±5e-13 off the axis at ±1j; scipy solves it
     e = 1e-6

@@ -578,22 +578,27 @@ def feedback(sys1, sys2=None, sign: int = -1) -> StateSpace:
 # ---------------------------------------------------------------- design and analysis
 
 
-def dare(A, B, Q, R, S=None) -> Result:
+def dare(A, B, Q, R, S=None, E=None) -> Result:
     """The stabilising solution of the discrete algebraic Riccati equation
     ``AᵀXA − X − (AᵀXB + S)(R + BᵀXB)⁻¹(BᵀXA + Sᵀ) + Q = 0``: ``X``, ``K`` (``u = −K x``),
     the relative ``residual``, ``closed_loop`` (spectral radius of A − BK) and ``condition``.
-    No stabilising solution raises ValueError with the reason."""
+    With ``E`` (nonsingular, κ₁(E) ≤ 1e8) the generalized equation with ``EᵀXE`` in place of
+    ``X`` (scipy's ``e=``), its residual reported. No stabilising solution raises ValueError
+    with the reason."""
     m = [_matrix(x, n) for x, n in ((A, "A"), (B, "B"), (Q, "Q"), (R, "R"))]
     s = None if S is None else _matrix(S, "S")
-    return Result(_native.dare(*m, s))
+    e = None if E is None else _matrix(E, "E")
+    return Result(_native.dare(*m, s, e))
 
 
-def care(A, B, Q, R, S=None) -> Result:
+def care(A, B, Q, R, S=None, E=None) -> Result:
     """The stabilising solution of ``AᵀX + XA − (XB + S)R⁻¹(BᵀX + Sᵀ) + Q = 0`` (fields as
-    :func:`dare`, ``closed_loop`` the spectral abscissa)."""
+    :func:`dare`, ``closed_loop`` the spectral abscissa); with ``E`` the generalized
+    ``AᵀXE + EᵀXA − (EᵀXB + S)R⁻¹(BᵀXE + Sᵀ) + Q = 0``."""
     m = [_matrix(x, n) for x, n in ((A, "A"), (B, "B"), (Q, "Q"), (R, "R"))]
     s = None if S is None else _matrix(S, "S")
-    return Result(_native.care(*m, s))
+    e = None if E is None else _matrix(E, "E")
+    return Result(_native.care(*m, s, e))
 
 
 def loopshape(P, W1=None, W2=None, factor: float = 1.1, strictly_proper: bool = False) -> Result:
