@@ -31,6 +31,8 @@ enum Cmd {
     Alias(crate::cmd::alias::Args),
     /// Frequency response on a grid `FMIN:FMAX:N[:log]` (Hz) as FRD JSON.
     Freqresp(crate::cmd::freqresp::Args),
+    /// Bode plot (SVG) of models and measured FRDs: dB re 1 unit, unwrapped phase.
+    Bode(crate::cmd::bode::Args),
     /// Poles with frequency (Hz) and damping.
     Poles(crate::cmd::roots::Args),
     /// Invariant zeros.
@@ -126,6 +128,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Cmd::D2c(a) => a.run(),
         Cmd::Alias(a) => a.run(),
         Cmd::Freqresp(a) => a.run(),
+        Cmd::Bode(a) => a.run(),
         Cmd::Poles(a) => a.run(true),
         Cmd::Zeros(a) => a.run(false),
         Cmd::Norm(a) => a.run(),

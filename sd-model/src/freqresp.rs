@@ -232,8 +232,9 @@ impl FreqRespEvaluator {
         let eig: Vec<(C, usize)> = bd
             .blocks
             .iter()
-            .flat_map(|&(st, sz)| (st..st + sz).map(move |i| (i, sz)))
-            .map(|(i, sz)| (bd.t[(i, i)], sz))
+            .enumerate()
+            .flat_map(|(k, &(st, sz))| (st..st + sz).map(move |i| (i, k)))
+            .map(|(i, k)| (bd.t[(i, i)], k))
             .collect();
         let mut ev = FreqRespEvaluator {
             poles: pole_sum(&bd),

@@ -74,12 +74,12 @@ pub fn magnitude_plot(
     }
     let root = SVGBackend::new(path, (900, 560)).into_drawing_area();
     root.fill(&WHITE).map_err(crate::plot_err)?;
-    draw_magnitude(&root, title, curves, fmin, fmax, marks)?;
+    draw_magnitude(&root, title, curves, (fmin, fmax), marks, "magnitude [dB]")?;
     root.present().map_err(crate::plot_err)?;
     Ok(())
 }
 
-/// Bode plot: magnitude (dB) above, phase (degrees, wrapped to ±180°) below, on one logarithmic
+/// Bode plot: magnitude (dB) above, phase (degrees, unwrapped) below, on one logarithmic
 /// frequency axis; `phase_deg[i]` is curve `i`'s phase (`None` for curves without one, such as
 /// a noise level). A band narrower than a factor 3 falls back to [`magnitude_plot`] (a log axis
 /// has no ticks there).
@@ -95,18 +95,86 @@ pub fn bode_plot(
     fmax: f64,
     marks: &[(f64, &str)],
 ) -> crate::Result<()> {
+    bode_plot_in(path, title, curves, phase_deg, (fmin, fmax), marks, "")
+}
+
+/// The phase unwrapped: a jump of more than 180° between neighbouring points is taken as a
+/// wrap and removed (multiples of 360°), so the curve runs continuously; non-finite points
+/// are kept and skipped over.
+pub fn unwrap_deg(phase_deg: &[f64]) -> Vec<f64> {
+    let mut out = Vec::with_capacity(phase_deg.len());
+    let (mut shift, mut last) = (0.0f64, None::<f64>);
+    for &p in phase_deg {
+        if !p.is_finite() {
+            out.push(p);
+            continue;
+        }
+        if let Some(q) = last {
+            shift -= 360.0 * ((p + shift - q) / 360.0).round();
+        }
+        last = Some(p + shift);
+        out.push(p + shift);
+    }
+    out
+}
+
+/// [`bode_plot`] with the magnitude's unit named on its axis (`dB re 1 unit`; empty: `dB`).
+///
+/// # Errors
+/// As [`bode_plot`].
+pub fn bode_plot_in(
+    path: &str,
+    title: &str,
+    curves: &[Curve<'_>],
+    phase_deg: &[Option<&[f64]>],
+    (fmin, fmax): (f64, f64),
+    marks: &[(f64, &str)],
+    unit: &str,
+) -> crate::Result<()> {
     if fmax / fmin < 3.0 {
         return magnitude_plot(path, title, curves, fmin, fmax, marks);
     }
+    let in_band = |c: &Curve<'_>, ph: &[f64]| -> Vec<(f64, f64)> {
+        c.freq_hz
+            .iter()
+            .zip(unwrap_deg(ph))
+            .filter(|(f, p)| **f >= fmin && **f <= fmax && p.is_finite())
+            .map(|(f, p)| (*f, p))
+            .collect()
+    };
+    let phases: Vec<Vec<(f64, f64)>> = curves
+        .iter()
+        .zip(phase_deg)
+        .map(|(c, ph)| ph.map_or_else(Vec::new, |ph| in_band(c, ph)))
+        .collect();
+    let (lo, hi) = phases
+        .iter()
+        .flatten()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), (_, p)| {
+            (lo.min(*p), hi.max(*p))
+        });
+    let (lo, hi) = if lo.is_finite() {
+        (
+            (lo / 45.0).floor() * 45.0 - 15.0,
+            (hi / 45.0).ceil() * 45.0 + 15.0,
+        )
+    } else {
+        (-180.0, 180.0)
+    };
     let root = SVGBackend::new(path, (900, 780)).into_drawing_area();
     root.fill(&WHITE).map_err(crate::plot_err)?;
     let (top, bottom) = root.split_vertically(520);
-    draw_magnitude(&top, title, curves, fmin, fmax, marks)?;
+    let y = if unit.is_empty() {
+        "magnitude [dB]".to_string()
+    } else {
+        format!("magnitude [dB re 1 {unit}]")
+    };
+    draw_magnitude(&top, title, curves, (fmin, fmax), marks, &y)?;
     let mut chart = ChartBuilder::on(&bottom)
         .margin(12)
         .x_label_area_size(45)
         .y_label_area_size(60)
-        .build_cartesian_2d((fmin..fmax).log_scale(), -180.0..180.0)
+        .build_cartesian_2d((fmin..fmax).log_scale(), lo..hi)
         .map_err(crate::plot_err)?;
     chart
         .configure_mesh()
@@ -116,27 +184,10 @@ pub fn bode_plot(
         .x_label_formatter(&|v| format!("{v:.0}"))
         .draw()
         .map_err(crate::plot_err)?;
-    for (c, ph) in curves.iter().zip(phase_deg) {
-        let Some(ph) = ph else { continue };
-        // a wrap from +180° to −180° starts a new segment instead of a vertical stroke
-        let mut segments: Vec<Vec<(f64, f64)>> = vec![Vec::new()];
-        let mut last: Option<f64> = None;
-        for (f, p) in c.freq_hz.iter().zip(ph.iter()) {
-            if !(*f >= fmin && *f <= fmax && p.is_finite()) {
-                continue;
-            }
-            let p = (p + 180.0).rem_euclid(360.0) - 180.0;
-            if last.is_some_and(|q| (p - q).abs() > 180.0) {
-                segments.push(Vec::new());
-            }
-            if let Some(seg) = segments.last_mut() {
-                seg.push((*f, p));
-            }
-            last = Some(p);
-        }
-        for seg in segments.into_iter().filter(|s| s.len() > 1) {
+    for (c, pts) in curves.iter().zip(phases) {
+        if pts.len() > 1 {
             chart
-                .draw_series(LineSeries::new(seg, c.color.stroke_width(2)))
+                .draw_series(LineSeries::new(pts, c.color.stroke_width(2)))
                 .map_err(crate::plot_err)?;
         }
     }
@@ -149,9 +200,9 @@ fn draw_magnitude<DB: DrawingBackend>(
     root: &DrawingArea<DB, plotters::coord::Shift>,
     title: &str,
     curves: &[Curve<'_>],
-    fmin: f64,
-    fmax: f64,
+    (fmin, fmax): (f64, f64),
     marks: &[(f64, &str)],
+    y_desc: &str,
 ) -> crate::Result<()> {
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     for c in curves {
@@ -181,7 +232,7 @@ fn draw_magnitude<DB: DrawingBackend>(
     chart
         .configure_mesh()
         .x_desc("frequency [Hz]")
-        .y_desc("magnitude [dB]")
+        .y_desc(y_desc)
         .x_label_formatter(&|v| format!("{v:.0}"))
         .draw()
         .map_err(crate::plot_err)?;
@@ -575,4 +626,28 @@ fn series_panel(
     }
     legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
     Ok(())
+}
+
+#[cfg(test)]
+mod unwrap_tests {
+    use super::unwrap_deg;
+
+    /// A phase that falls steadily through −180° (a resonance and a delay) comes back
+    /// continuous; NaN points are skipped over.
+    #[test]
+    fn a_falling_phase_runs_on_past_minus_180() {
+        let truth: Vec<f64> = (0..200).map(|k| -3.0 * k as f64).collect();
+        let wrapped: Vec<f64> = truth
+            .iter()
+            .map(|p| (p + 180.0).rem_euclid(360.0) - 180.0)
+            .collect();
+        let mut w = wrapped.clone();
+        w[50] = f64::NAN;
+        let u = unwrap_deg(&w);
+        for (k, (a, b)) in u.iter().zip(&truth).enumerate() {
+            if k != 50 {
+                assert!((a - b).abs() < 1e-9, "{k}: {a} vs {b}");
+            }
+        }
+    }
 }

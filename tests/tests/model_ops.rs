@@ -306,6 +306,9 @@ fn freqresp_of_a_series_with_coincident_defective_poles() {
             * k.freqresp(&[f]).unwrap().response()[0][(0, 0)];
         assert!((g - pk).norm() <= 1e-8 * pk.norm(), "f {f}: {g} vs {pk}");
     }
+    // at z = 1 itself the loop's response is infinite: refused, naming the frequency
+    let e = l.freqresp(&[0.0, 1.0]).unwrap_err().to_string();
+    assert!(e.contains("0 Hz is a pole"), "{e}");
 }
 
 /// One frequency for a discrete pole: `d2c`'s principal mode and `poles` (the natural frequency

@@ -2,6 +2,7 @@
 
 pub(crate) mod alias;
 pub(crate) mod analyze;
+pub(crate) mod bode;
 pub(crate) mod c2d;
 pub(crate) mod connect;
 pub(crate) mod d2c;

@@ -1,0 +1,141 @@
+//! `sdctl bode` (issue #43 item 3): a model and its measured FRF in one SVG with the unit on the
+//! magnitude axis and unwrapped phase; `--csv` writes the plotted numbers; bad input exits 2.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use std::process::Command;
+
+fn sdctl(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_sdctl"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// A lightly damped mode behind a sampled double integrator (phase from −180° down through
+/// −360°: an unwrapped curve keeps falling).
+const MODEL: &str =
+    r#"{"type":"tf","ts":0.001,"num":[0.0, 1e-6, 1e-6],"den":[1.0, -2.9, 2.85, -0.95]}"#;
+
+#[test]
+fn a_model_and_its_frf_in_one_figure() {
+    let d = std::env::temp_dir().join(format!("sdctl-bode-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    let p = |n: &str| d.join(n).to_string_lossy().into_owned();
+    std::fs::write(p("m.json"), MODEL).unwrap();
+    let o = sdctl(&[
+        "freqresp",
+        &p("m.json"),
+        "--grid",
+        "0.5:450:400:log",
+        "-o",
+        &p("frd.json"),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = sdctl(&[
+        "bode",
+        &p("m.json"),
+        &p("frd.json"),
+        "--unit",
+        "m/N",
+        "--csv",
+        &p("b.csv"),
+        "-o",
+        &p("b.svg"),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let svg = std::fs::read_to_string(p("b.svg")).unwrap();
+    assert!(
+        svg.contains("dB re 1 m/N") && svg.contains("(measured)"),
+        "labels"
+    );
+    // no temporary file left beside the figure
+    let left: Vec<_> = std::fs::read_dir(&d)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().contains(".tmp-"))
+        .collect();
+    assert!(left.is_empty());
+    // the CSV: per curve, the phase is continuous (no jump above 180°) and the measured
+    // curve equals the model at the FRF's lines
+    let csv = std::fs::read_to_string(p("b.csv")).unwrap();
+    let mut rows: std::collections::BTreeMap<String, Vec<(f64, f64, f64)>> = Default::default();
+    for line in csv.lines().skip(1) {
+        let v: Vec<&str> = line.split(',').collect();
+        let x: Vec<f64> = v[1..].iter().map(|t| t.parse().unwrap()).collect();
+        rows.entry(v[0].to_string())
+            .or_default()
+            .push((x[0], x[1], x[2]));
+    }
+    assert_eq!(rows.len(), 2, "{:?}", rows.keys());
+    for (name, r) in &rows {
+        assert!(
+            r.windows(2).all(|w| (w[1].2 - w[0].2).abs() < 180.0),
+            "{name}: phase jumps"
+        );
+        // the unwrapped phase passes below −360° (a wrapped one never would)
+        assert!(
+            r.iter().any(|x| x.2 < -360.0),
+            "{name}: phase not unwrapped"
+        );
+    }
+    let model = &rows["m"];
+    let measured = &rows["frd (measured)"];
+    for (f, db, ph) in measured {
+        // the model's grid differs: compare at the nearest model point only where it is close
+        let near = model
+            .iter()
+            .min_by(|a, b| (a.0 - f).abs().total_cmp(&(b.0 - f).abs()))
+            .unwrap();
+        if (near.0 / f - 1.0).abs() < 1e-9 {
+            assert!((near.1 - db).abs() < 1e-9 && (near.2 - ph).abs() < 1e-7);
+        }
+    }
+}
+
+#[test]
+fn bad_input_is_named() {
+    let d = std::env::temp_dir().join(format!("sdctl-bode-bad-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    let p = |n: &str| d.join(n).to_string_lossy().into_owned();
+    std::fs::write(p("m.json"), MODEL).unwrap();
+    let o = sdctl(&["bode", &p("m.json"), "-o", &p("x.svg")]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--grid"));
+    std::fs::write(
+        p("mimo.json"),
+        r#"{"type":"ss","ts":0.001,"a":[[0.5]],"b":[[1,1]],"c":[[1],[2]],"d":[[0,0],[0,0]]}"#,
+    )
+    .unwrap();
+    let o = sdctl(&[
+        "bode",
+        &p("mimo.json"),
+        "--grid",
+        "1:100:10",
+        "-o",
+        &p("x.svg"),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--entry"));
+    let o = sdctl(&[
+        "bode",
+        &p("mimo.json"),
+        "--grid",
+        "1:100:10",
+        "--entry",
+        "2,1",
+        "-o",
+        &p("x.svg"),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = sdctl(&[
+        "bode",
+        &p("mimo.json"),
+        "--grid",
+        "1:100:10",
+        "--entry",
+        "3,1",
+        "-o",
+        &p("x.svg"),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+}
