@@ -342,7 +342,7 @@ impl FreqRespEvaluator {
 
     /// The entries of `flat` (as [`FreqRespEvaluator::eval_many_flat`] wrote them for
     /// `freq_hz`) at a pole of the model set to `+∞`: `sI − A` singular within `10·n·ε·‖A‖_F`
-    /// and the mode reaching that entry's input and output ([`crate::pole_guard`]; an
+    /// and the mode reaching that entry's input and output (`pole_guard.rs`; an
     /// uncontrollable or unobservable mode's entry is evaluated around the point instead).
     /// Returns whether any point was at an eigenvalue.
     pub fn mark_poles(&self, freq_hz: &[f64], flat: &mut [C]) -> bool {
@@ -358,7 +358,7 @@ impl FreqRespEvaluator {
     }
 
     /// Marks the entries of `g` at `s` that `s` is a pole of as `+∞`, and evaluates the others
-    /// around an eigenvalue that is no pole of theirs ([`crate::pole_guard`]).
+    /// around an eigenvalue that is no pole of theirs (`pole_guard.rs`).
     fn guarded(&self, s: C, g: &mut [C], on_axis: bool) -> bool {
         if self.guard.mark(s, g, on_axis) == AtPole::No {
             return false;

@@ -146,7 +146,13 @@ mod tests {
             120.0,
             vec![point("a", 120.1, 0.012), point("c", 117.5, 0.02)],
         );
-        let n = on_tracks(&basis, &cand, &mut fits, &["a", "b", "c"], &[tr.clone()]);
+        let n = on_tracks(
+            &basis,
+            &cand,
+            &mut fits,
+            &["a", "b", "c"],
+            std::slice::from_ref(&tr),
+        );
         assert_eq!(n, 1);
         assert_eq!(fits[0].modal[2], (120.1, 0.012, 0.01, 1e-4));
         assert_eq!(fits[0].fit_of[2], PointFit::Local);
