@@ -16,6 +16,7 @@
 mod data;
 mod design;
 mod model;
+mod ops;
 mod physical;
 mod synthesis;
 
@@ -130,6 +131,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("NumericalError", m.py().get_type::<NumericalError>())?;
     m.add("DEFAULT_TESTBED_CONFIG", sd_testbed::DEFAULT_CONFIG)?;
     model::register(m)?;
+    ops::register(m)?;
     design::register(m)?;
     synthesis::register(m)?;
     data::register(m)?;

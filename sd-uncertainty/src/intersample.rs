@@ -260,7 +260,7 @@ pub fn robust_intersample(
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct LinesMargin {
     /// `1/max |K S_d|·a_T` over the slow lines, `a_T` the fast bound downsampled
-    /// ([`crate::downsample`]): what `sdctl analyze --uncertainty` reports on the downsampled
+    /// ([`crate::downsample()`]): what `sdctl analyze --uncertainty` reports on the downsampled
     /// bound (> 1 robustly stable on the lines).
     pub margin: f64,
     /// Where that maximum is (Hz).

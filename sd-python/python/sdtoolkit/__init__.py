@@ -58,6 +58,9 @@ __all__ = [
     "freqresp",
     "poles",
     "zeros",
+    "tf",
+    "norm",
+    "balred",
     "dare",
     "care",
     "loopshape",
@@ -187,6 +190,10 @@ class StateSpace:
     def freqresp(self, f_hz: Any, squeeze: bool = True):
         """:func:`freqresp` of this model at ``f_hz`` (Hz)."""
         return freqresp(self, f_hz, squeeze=squeeze)
+
+    def norm(self, p: Any = 2):
+        """:func:`norm` of this model."""
+        return norm(self, p)
 
     def feedback(self, other: Any = None, sign: int = -1) -> "StateSpace":
         """:func:`feedback` of this model with ``other`` in the feedback path."""
@@ -450,6 +457,42 @@ def freqresp(sys, f_hz: Any, squeeze: bool = True, return_path: bool = False):
 def poles(sys) -> np.ndarray:
     """The poles (eigenvalues of A), complex, sorted by modulus then argument."""
     return _native.poles(_ss(sys)._tuple())
+
+
+def tf(num: Any, den: Any, dt: Optional[float] = None) -> "StateSpace":
+    """A SISO transfer function ``num/den`` (descending powers, as python-control's ``tf``;
+    ``dt`` the sample time, None continuous) as a :class:`StateSpace`. An improper function or
+    a zero leading denominator coefficient raises ValueError."""
+    n = _real(np.atleast_1d(num), "num").ravel()
+    d = _real(np.atleast_1d(den), "den").ravel()
+    return StateSpace(*_native.tf(n, d, dt))
+
+
+def norm(sys, p: Any = 2, return_peak: bool = False):
+    """The H2 norm (``p=2``; stable models, a continuous one needs D = 0) or the H∞ norm
+    (``p="inf"`` or ``np.inf``: the peak gain over frequency, by Hamiltonian level sets),
+    as python-control's ``norm``. With ``return_peak`` the H∞ norm comes with the peak's
+    frequency in Hz. An unstable model's H∞ value is its L∞ norm (python-control returns inf
+    for it): a UserWarning says so."""
+    if isinstance(p, str):
+        if p.lower() not in ("inf", "infinity"):
+            raise ValueError(f"p = {p!r}: the norm is 2 or 'inf'")
+        p = np.inf
+    value, peak, stable = _native.norm(_ss(sys)._tuple(), float(p))
+    if not stable:
+        import warnings
+        warnings.warn("the model is not stable: this is its L∞ norm, not an H∞ norm", UserWarning)
+    return (value, peak) if (return_peak and peak is not None) else value
+
+
+def balred(sys, order: int) -> Result:
+    """Balanced truncation to ``order`` states: ``model`` (the stable part reduced, unstable
+    and marginal poles kept exactly), ``hankel_sv`` (of the stable part, descending) and
+    ``error_bound`` (``2Σ`` of the discarded ones, the a-priori bound on ‖G − G_r‖∞)."""
+    if isinstance(order, bool) or not isinstance(order, (int, np.integer)):
+        raise TypeError(f"order must be an int, not {type(order).__name__}")
+    m, hsv, bound = _native.balred(_ss(sys)._tuple(), int(order))
+    return Result({"model": StateSpace(*m), "hankel_sv": np.asarray(hsv), "error_bound": bound})
 
 
 def zeros(sys) -> np.ndarray:
