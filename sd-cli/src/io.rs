@@ -214,3 +214,21 @@ pub fn warnings_json<W: serde::Serialize + std::fmt::Display>(ws: &[W]) -> serde
         .collect::<Vec<_>>()
         .into()
 }
+
+/// Writes an SVG through a temporary file renamed into place (atomic).
+pub fn atomic_svg(
+    path: &str,
+    draw: impl FnOnce(&str) -> Result<(), sd_report::ReportError>,
+) -> Result<(), CliError> {
+    let target = std::path::Path::new(path);
+    let partial = target.with_extension(format!("partial{}.svg", std::process::id()));
+    let tmp = partial.to_string_lossy().into_owned();
+    draw(&tmp).map_err(|e| {
+        let _ = std::fs::remove_file(&partial);
+        CliError::input(format!("cannot write {path}: {e}"))
+    })?;
+    std::fs::rename(&partial, target).map_err(|e| {
+        let _ = std::fs::remove_file(&partial);
+        CliError::input(format!("cannot write {path}: {e}"))
+    })
+}

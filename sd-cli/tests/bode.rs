@@ -52,7 +52,7 @@ fn a_model_and_its_frf_in_one_figure() {
     let left: Vec<_> = std::fs::read_dir(&d)
         .unwrap()
         .filter_map(|e| e.ok())
-        .filter(|e| e.file_name().to_string_lossy().contains(".tmp-"))
+        .filter(|e| e.file_name().to_string_lossy().contains("partial"))
         .collect();
     assert!(left.is_empty());
     // the CSV: per curve, the phase is continuous (no jump above 180°) and the measured
@@ -138,4 +138,62 @@ fn bad_input_is_named() {
         &p("x.svg"),
     ]);
     assert_eq!(o.status.code(), Some(2));
+}
+
+/// `sdctl analyze --loop-svg`: the loop gain's Bode figure with both margins marked at the
+/// frequencies the summary reports; a MIMO plant is refused with exit 2.
+#[test]
+fn the_loop_figure_marks_the_margins() {
+    let d = std::env::temp_dir().join(format!("sdctl-loop-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    let p = |n: &str| d.join(n).to_string_lossy().into_owned();
+    // 1/(20 s²) sampled at 1 kHz (ZOH)
+    let h = 1e-3f64;
+    std::fs::write(
+        p("plant.json"),
+        format!(
+            r#"{{"type":"ss","ts":{h},"a":[[1,{h}],[0,1]],"b":[[{}],[{}]],"c":[[1,0]],"d":[[0]]}}"#,
+            h * h / 40.0,
+            h / 20.0
+        ),
+    )
+    .unwrap();
+    #[rustfmt::skip]
+    let o = sdctl(&["weight", "pid", "--bandwidth-hz", "10", "--mass", "20", "--ts", "0.001", "-o", &p("k.json")]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    #[rustfmt::skip]
+    let o = sdctl(&["analyze", "--plant", &p("plant.json"), "--controller", &p("k.json"), "--loop-svg", &p("loop.svg"), "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let svg = std::fs::read_to_string(p("loop.svg")).unwrap();
+    let pm = format!(
+        "PM {:.1}° @ {:.2} Hz",
+        v["phase_margin_deg"].as_f64().unwrap(),
+        v["phase_margin_hz"].as_f64().unwrap()
+    );
+    assert!(svg.contains(&pm), "{pm} not in the figure");
+    let gm = format!(
+        "GM {:.1} dB @ {:.2} Hz",
+        v["gain_margin_db"].as_f64().unwrap(),
+        v["gain_margin_hz"].as_f64().unwrap()
+    );
+    assert!(svg.contains(&gm), "{gm} not in the figure");
+    std::fs::write(
+        p("mimo.json"),
+        r#"{"type":"ss","ts":0.001,"a":[[0.5]],"b":[[1,1]],"c":[[1],[2]],"d":[[0,0],[0,0]]}"#,
+    )
+    .unwrap();
+    std::fs::write(
+        p("k2.json"),
+        r#"{"type":"ss","ts":0.001,"a":[[0.1]],"b":[[1,0]],"c":[[0.01],[0.01]],"d":[[0,0],[0,0]]}"#,
+    )
+    .unwrap();
+    #[rustfmt::skip]
+    let o = sdctl(&["analyze", "--plant", &p("mimo.json"), "--controller", &p("k2.json"), "--loop-svg", &p("l2.svg")]);
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
 }

@@ -100,8 +100,22 @@ pub fn bode_plot(
 
 /// The phase unwrapped: a jump of more than 180° between neighbouring points is taken as a
 /// wrap and removed (multiples of 360°), so the curve runs continuously; non-finite points
-/// are kept and skipped over.
+/// are kept and skipped over. The branch is the one whose first finite value lies in
+/// (−300°, 60°]: an integrator starts at −90°, a double integrator at −180°, a PID around a
+/// double integrator at −270° + its lead, as a control engineer reads them.
 pub fn unwrap_deg(phase_deg: &[f64]) -> Vec<f64> {
+    let mut out = unwrap_continuous(phase_deg);
+    if let Some(first) = out.iter().copied().find(|p| p.is_finite()) {
+        let k = ((first - 60.0) / 360.0).ceil();
+        for p in &mut out {
+            *p -= 360.0 * k;
+        }
+    }
+    out
+}
+
+/// [`unwrap_deg`] before the branch is chosen.
+fn unwrap_continuous(phase_deg: &[f64]) -> Vec<f64> {
     let mut out = Vec::with_capacity(phase_deg.len());
     let (mut shift, mut last) = (0.0f64, None::<f64>);
     for &p in phase_deg {
@@ -637,6 +651,10 @@ mod unwrap_tests {
     #[test]
     fn a_falling_phase_runs_on_past_minus_180() {
         let truth: Vec<f64> = (0..200).map(|k| -3.0 * k as f64).collect();
+        // the branch: the first value in (−300°, 60°]
+        assert_eq!(unwrap_deg(&[120.0, 100.0])[0], -240.0);
+        assert_eq!(unwrap_deg(&[-400.0])[0], -40.0);
+        assert_eq!(unwrap_deg(&[60.0])[0], 60.0);
         let wrapped: Vec<f64> = truth
             .iter()
             .map(|p| (p + 180.0).rem_euclid(360.0) - 180.0)

@@ -1,7 +1,7 @@
 //! `sdctl analyze`.
 
 use crate::cmd::uncertainty::{from_unc, read_bound_and_weight};
-use crate::io::{emit, from_analysis, read_model, read_text, CliError};
+use crate::io::{atomic_svg, emit, from_analysis, read_model, read_text, CliError};
 use serde_json::json;
 
 /// Arguments of `sdctl analyze`.
@@ -33,6 +33,10 @@ pub(crate) struct Args {
     /// compressed radius log10(1 + |λ|)) with the critical point −1 to this SVG file.
     #[arg(long)]
     pub(crate) nyquist_svg: Option<String>,
+    /// Write the loop gain L = PK (SISO) as a Bode figure with the gain and phase margins
+    /// marked where they occur to this SVG file.
+    #[arg(long)]
+    pub(crate) loop_svg: Option<String>,
     #[arg(help = crate::commands::JSON_HELP, long)]
     pub(crate) json: bool,
 }
@@ -48,6 +52,7 @@ impl Args {
             destabilising_out,
             sigma_svg,
             nyquist_svg,
+            loop_svg,
             json,
         } = self;
         let p = read_model(&plant)?;
@@ -67,6 +72,9 @@ impl Args {
         }
         if let Some(path) = &nyquist_svg {
             loci_plot(&cl, &p, path)?;
+        }
+        if let Some(path) = &loop_svg {
+            loop_plot((&p, &k), &s, path)?;
         }
         // a plant file that carries its bound is judged against it unless another is given
         let uncertainty = uncertainty.or_else(|| {
@@ -271,24 +279,6 @@ fn channels_text(m: &sd_analysis::MimoMargins) -> String {
     out
 }
 
-/// Writes an SVG through a temporary file renamed into place (atomic).
-fn atomic_svg(
-    path: &str,
-    draw: impl FnOnce(&str) -> Result<(), sd_report::ReportError>,
-) -> Result<(), CliError> {
-    let target = std::path::Path::new(path);
-    let partial = target.with_extension(format!("partial{}.svg", std::process::id()));
-    let tmp = partial.to_string_lossy().into_owned();
-    draw(&tmp).map_err(|e| {
-        let _ = std::fs::remove_file(&partial);
-        CliError::input(format!("cannot write {path}: {e}"))
-    })?;
-    std::fs::rename(&partial, target).map_err(|e| {
-        let _ = std::fs::remove_file(&partial);
-        CliError::input(format!("cannot write {path}: {e}"))
-    })
-}
-
 /// The analysis grid (Hz): up to Nyquist for a discrete loop.
 fn analysis_grid(p: &sd_model::StateSpace, n: usize) -> Result<(Vec<f64>, f64, f64), CliError> {
     let (lo, hi) = match p.time() {
@@ -450,5 +440,62 @@ fn sigma_plot(
     );
     atomic_svg(path, |tmp| {
         sd_report::plot::magnitude_plot(tmp, &title, &curves, lo, hi, &[])
+    })
+}
+
+/// The loop gain `L = PK` of a SISO loop as a Bode figure, with the gain and phase margins
+/// marked at their frequencies (the summary's), written atomically.
+fn loop_plot(
+    (p, k): (&sd_model::StateSpace, &sd_model::StateSpace),
+    s: &sd_analysis::Summary,
+    path: &str,
+) -> Result<(), CliError> {
+    if (p.ny(), p.nu()) != (1, 1) {
+        return Err(CliError::input(format!(
+            "--loop-svg draws a SISO loop; the plant is {}x{} (use --sigma-svg or --nyquist-svg)",
+            p.ny(),
+            p.nu()
+        )));
+    }
+    let (f, lo, hi) = analysis_grid(p, 2000)?;
+    let ev = |m: &sd_model::StateSpace| {
+        sd_model::FreqRespEvaluator::new(m)
+            .map(|e| e.eval_many_flat(&f))
+            .map_err(|e| crate::io::from_model("analyze", e))
+    };
+    let l: Vec<num_complex::Complex64> = ev(p)?.iter().zip(ev(k)?).map(|(a, b)| a * b).collect();
+    let db: Vec<f64> = l.iter().map(|g| 20.0 * g.norm().log10()).collect();
+    let ph =
+        sd_report::plot::unwrap_deg(&l.iter().map(|g| g.arg().to_degrees()).collect::<Vec<_>>());
+    let mut marks: Vec<(f64, String)> = Vec::new();
+    if s.phase_margin_hz.is_finite() && s.phase_margin_hz > 0.0 {
+        marks.push((
+            s.phase_margin_hz,
+            format!(
+                "PM {:.1}° @ {:.2} Hz",
+                s.phase_margin_deg, s.phase_margin_hz
+            ),
+        ));
+    }
+    if s.gain_margin_hz.is_finite() && s.gain_margin_hz > 0.0 {
+        marks.push((
+            s.gain_margin_hz,
+            format!("GM {:.1} dB @ {:.2} Hz", s.gain_margin_db, s.gain_margin_hz),
+        ));
+    }
+    let mark_refs: Vec<(f64, &str)> = marks.iter().map(|(f, t)| (*f, t.as_str())).collect();
+    use sd_report::plot::{Curve, RGBColor};
+    let curves = [Curve {
+        label: "L = PK",
+        freq_hz: &f,
+        db: &db,
+        color: RGBColor(31, 119, 180),
+    }];
+    let title = format!(
+        "loop gain: phase margin {:.1}°, gain margin {:.1} dB, |S| peak {:.1} dB",
+        s.phase_margin_deg, s.gain_margin_db, s.sensitivity_peak_db
+    );
+    atomic_svg(path, |tmp| {
+        sd_report::plot::bode_plot_in(tmp, &title, &curves, &[Some(&ph)], (lo, hi), &mark_refs, "")
     })
 }

@@ -3,7 +3,7 @@
 //! plotted numbers.
 
 use crate::commands::parse_grid;
-use crate::io::{from_model, read_text, CliError};
+use crate::io::{atomic_svg, from_model, read_text, CliError};
 use num_complex::Complex64 as C;
 use sd_report::plot::{bode_plot_in, unwrap_deg, Curve, RGBColor};
 
@@ -206,22 +206,17 @@ impl Args {
         if !(fmin.is_finite() && fmax > fmin) {
             return Err(CliError::input("nothing to plot: no positive frequency"));
         }
-        let tmp = format!("{}.tmp-{}.svg", self.output, std::process::id());
-        bode_plot_in(
-            &tmp,
-            &self.title,
-            &curves,
-            &phases,
-            (fmin, fmax),
-            &[],
-            self.unit.as_deref().unwrap_or(""),
-        )
-        .map_err(|e| {
-            let _ = std::fs::remove_file(&tmp);
-            CliError::numerical(format!("{}: {e}", self.output))
+        atomic_svg(&self.output, |tmp| {
+            bode_plot_in(
+                tmp,
+                &self.title,
+                &curves,
+                &phases,
+                (fmin, fmax),
+                &[],
+                self.unit.as_deref().unwrap_or(""),
+            )
         })?;
-        std::fs::rename(&tmp, &self.output)
-            .map_err(|e| CliError::input(format!("{}: {e}", self.output)))?;
         if let Some(csv) = &self.csv {
             let mut text = String::from("curve,freq_hz,magnitude_db,phase_deg\n");
             for (k, s) in series.iter().enumerate() {
