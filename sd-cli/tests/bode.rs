@@ -11,6 +11,13 @@ fn sdctl(args: &[&str]) -> std::process::Output {
         .unwrap()
 }
 
+/// A fresh folder for one test's files.
+fn scratch(name: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join(format!("{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
 /// A lightly damped mode behind a sampled double integrator (phase from −180° down through
 /// −360°: an unwrapped curve keeps falling).
 const MODEL: &str =
@@ -18,8 +25,7 @@ const MODEL: &str =
 
 #[test]
 fn a_model_and_its_frf_in_one_figure() {
-    let d = std::env::temp_dir().join(format!("sdctl-bode-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
+    let d = scratch("sdctl-bode");
     let p = |n: &str| d.join(n).to_string_lossy().into_owned();
     std::fs::write(p("m.json"), MODEL).unwrap();
     let o = sdctl(&[
@@ -94,8 +100,7 @@ fn a_model_and_its_frf_in_one_figure() {
 
 #[test]
 fn bad_input_is_named() {
-    let d = std::env::temp_dir().join(format!("sdctl-bode-bad-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
+    let d = scratch("sdctl-bode-bad");
     let p = |n: &str| d.join(n).to_string_lossy().into_owned();
     std::fs::write(p("m.json"), MODEL).unwrap();
     let o = sdctl(&["bode", &p("m.json"), "-o", &p("x.svg")]);
@@ -144,8 +149,7 @@ fn bad_input_is_named() {
 /// frequencies the summary reports; a MIMO plant is refused with exit 2.
 #[test]
 fn the_loop_figure_marks_the_margins() {
-    let d = std::env::temp_dir().join(format!("sdctl-loop-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
+    let d = scratch("sdctl-loop");
     let p = |n: &str| d.join(n).to_string_lossy().into_owned();
     // 1/(20 s²) sampled at 1 kHz (ZOH)
     let h = 1e-3f64;

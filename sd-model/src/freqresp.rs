@@ -337,51 +337,6 @@ impl FreqRespEvaluator {
     /// internal computations take limits through it (a type-2 loop's sensitivity at DC);
     /// [`FreqRespEvaluator::mark_poles`] turns the entries at a pole into `+∞` for a user.
     pub fn eval_at(&self, s: C) -> DMatrix<C> {
-        self.eval_at_unguarded(s)
-    }
-
-    /// The entries of `flat` (as [`FreqRespEvaluator::eval_many_flat`] wrote them for
-    /// `freq_hz`) at a pole of the model set to `+∞`: `sI − A` singular within `10·n·ε·‖A‖_F`
-    /// and the mode reaching that entry's input and output (`pole_guard.rs`; an
-    /// uncontrollable or unobservable mode's entry is evaluated around the point instead).
-    /// Returns whether any point was at an eigenvalue.
-    pub fn mark_poles(&self, freq_hz: &[f64], flat: &mut [C]) -> bool {
-        let m = self.d.nrows() * self.d.ncols();
-        if m == 0 {
-            return false;
-        }
-        let mut any = false;
-        for (o, &f) in flat.chunks_mut(m).zip(freq_hz) {
-            any |= self.guarded(self.point(f), o, true);
-        }
-        any
-    }
-
-    /// Marks the entries of `g` at `s` that `s` is a pole of as `+∞`, and evaluates the others
-    /// around an eigenvalue that is no pole of theirs (`pole_guard.rs`).
-    fn guarded(&self, s: C, g: &mut [C], on_axis: bool) -> bool {
-        if self.guard.mark(s, g, on_axis) == AtPole::No {
-            return false;
-        }
-        let d = self.guard.circle(s);
-        let around: Vec<DMatrix<C>> = [
-            C::new(d, 0.0),
-            C::new(0.0, d),
-            C::new(-d, 0.0),
-            C::new(0.0, -d),
-        ]
-        .iter()
-        .map(|&o| self.eval_at_unguarded(s + o))
-        .collect();
-        for (e, v) in g.iter_mut().enumerate() {
-            if !v.re.is_infinite() {
-                *v = around.iter().map(|m| m.as_slice()[e]).sum::<C>() / 4.0;
-            }
-        }
-        true
-    }
-
-    fn eval_at_unguarded(&self, s: C) -> DMatrix<C> {
         if let Some((a, b, c)) = &self.dense {
             return match dense_solve(a, b, s) {
                 Some(x) => c * x + &self.d,
@@ -404,6 +359,48 @@ impl FreqRespEvaluator {
         g
     }
 
+    /// The entries of `flat` (as [`FreqRespEvaluator::eval_many_flat`] wrote them for
+    /// `freq_hz`) at a pole of the model set to `+∞`: the point within `100·n·ε·max(|λ|, ‖T‖)`
+    /// of a computed eigenvalue (a defective one's copies as their mean) and the mode reaching
+    /// that entry's input and output (`pole_guard.rs`; an
+    /// uncontrollable or unobservable mode's entry is evaluated around the point instead).
+    /// Returns whether any point was at an eigenvalue.
+    pub fn mark_poles(&self, freq_hz: &[f64], flat: &mut [C]) -> bool {
+        let m = self.d.nrows() * self.d.ncols();
+        if m == 0 {
+            return false;
+        }
+        let mut any = false;
+        for (o, &f) in flat.chunks_mut(m).zip(freq_hz) {
+            any |= self.guarded(self.point(f), o);
+        }
+        any
+    }
+
+    /// Marks the entries of `g` at `s` that `s` is a pole of as `+∞`, and evaluates the others
+    /// around an eigenvalue that is no pole of theirs (`pole_guard.rs`).
+    fn guarded(&self, s: C, g: &mut [C]) -> bool {
+        if self.guard.mark(s, g) == AtPole::No {
+            return false;
+        }
+        let d = self.guard.circle(s);
+        let around: Vec<DMatrix<C>> = [
+            C::new(d, 0.0),
+            C::new(0.0, d),
+            C::new(-d, 0.0),
+            C::new(0.0, -d),
+        ]
+        .iter()
+        .map(|&o| self.eval_at(s + o))
+        .collect();
+        for (e, v) in g.iter_mut().enumerate() {
+            if !v.re.is_infinite() {
+                *v = around.iter().map(|m| m.as_slice()[e]).sum::<C>() / 4.0;
+            }
+        }
+        true
+    }
+
     /// The point of the complex plane for a frequency in Hz.
     pub fn point(&self, f_hz: f64) -> C {
         match self.time {
@@ -416,12 +413,8 @@ impl FreqRespEvaluator {
     /// allocating where the reduced form has simple poles only.
     pub fn eval_hz_into(&self, f_hz: f64, out: &mut [C]) {
         let s = self.point(f_hz);
-        self.eval_into_unguarded(s, out);
-    }
-
-    fn eval_into_unguarded(&self, s: C, out: &mut [C]) {
         if self.dense.is_some() {
-            let g = self.eval_at_unguarded(s);
+            let g = self.eval_at(s);
             out.copy_from_slice(g.as_slice());
             return;
         }

@@ -131,13 +131,7 @@ impl Args {
         if let Some(g) = &self.grid {
             return parse_grid(g);
         }
-        let (lo, hi) = measured
-            .iter()
-            .flat_map(|s| s.freq_hz.iter().copied())
-            .filter(|f| *f > 0.0)
-            .fold((f64::INFINITY, 0.0f64), |(lo, hi), f| {
-                (lo.min(f), hi.max(f))
-            });
+        let (lo, hi) = band(measured);
         if !(lo.is_finite() && hi > lo) {
             return Err(CliError::input(
                 "no FRD with a positive band among the inputs: give --grid FMIN:FMAX:N[:log] for the models",
@@ -196,13 +190,7 @@ impl Args {
             })
             .collect();
         let phases: Vec<Option<&[f64]>> = ph.iter().map(|p| Some(p.as_slice())).collect();
-        let (fmin, fmax) = series
-            .iter()
-            .flat_map(|s| s.freq_hz.iter().copied())
-            .filter(|f| *f > 0.0)
-            .fold((f64::INFINITY, 0.0f64), |(lo, hi), f| {
-                (lo.min(f), hi.max(f))
-            });
+        let (fmin, fmax) = band(series);
         if !(fmin.is_finite() && fmax > fmin) {
             return Err(CliError::input("nothing to plot: no positive frequency"));
         }
@@ -237,4 +225,15 @@ fn name_of(path: &str) -> String {
     std::path::Path::new(path)
         .file_stem()
         .map_or_else(|| path.to_string(), |s| s.to_string_lossy().into_owned())
+}
+
+/// The lowest and highest positive frequency of the curves (`(∞, 0)` when there is none).
+fn band(series: &[Series]) -> (f64, f64) {
+    series
+        .iter()
+        .flat_map(|s| s.freq_hz.iter().copied())
+        .filter(|f| *f > 0.0)
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), f| {
+            (lo.min(f), hi.max(f))
+        })
 }

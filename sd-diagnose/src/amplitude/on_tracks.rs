@@ -18,11 +18,12 @@
 //! **Levels without a point.** A level where the track has no local fit keeps its level fit
 //! ([`PointFit::Level`]). That is mostly the highest level: the band's SNR gate drops a level
 //! whose distortion buries the resonance, and the level that moves the mode furthest is the
-//! one the trend most needs. On the level suite's development seeds 0..10 leaving such levels
-//! out of the trend (rather than mixing the two estimators) raised the held-out levels'
-//! predicted-shift error from a median 0.07 to 0.20 of the shift, mostly where three levels
-//! leave two to train on; the two fits of one level agree within their standard errors where
-//! both exist.
+//! one the trend most needs. With the tracks forced on every case (exploratory builds, not in
+//! the repository), the held-out levels' predicted-shift error on the level suite's
+//! development seeds 0..10 was a median 0.20 of the shift when such levels were left out of
+//! the trend and 0.16 when they kept their level fits (0.07 without the tracks), mostly where
+//! three levels leave two to train on; the two fits of one level agreed within their standard
+//! errors where both existed.
 
 use super::*;
 use crate::tracks::{ModeTrack, TrackPoint};

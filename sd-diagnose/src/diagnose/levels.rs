@@ -328,18 +328,8 @@ pub(super) fn nonlinearity(
         }
     }
     progress("modal fit of every level");
-    // the damped rigid body without the slow poles the model experiment does not need, then
-    // with them; if its fits fail, the model's own basis; a mode the model split into two
-    // close pairs as one pair
-    let mut bases = vec![without_unneeded_slow_poles(
-        &damped, data.h, &levels[0], alpha,
-    )?];
-    if damped.is_damped() {
-        bases.push(damped.clone());
-        bases.push(j.modal.basis.clone());
-    }
-    bases.extend(damped.without_close_pairs()?);
-    bases.dedup_by(|a, b| a.poles() == b.poles() && a.is_damped() == b.is_damped());
+    // the bases in the order tried; the first whose level fits all succeed
+    let bases = candidate_bases(&damped, &j.modal.basis, data.h, &levels[0], alpha)?;
     let tried = bases
         .iter()
         .find_map(|b| level_fits(b, data, &levels).map(|x| (b, x)));
@@ -360,18 +350,7 @@ pub(super) fn nonlinearity(
     }
     progress("every physical mode tracked over the levels by local fits");
     let tracks = tracked(data, &levels, &at, alpha);
-    // each variant also with the pairs the tracks follow on their local fits
-    // ([`crate::amplitude::on_tracks`]); [`choose`] takes the one that describes the training
-    // levels best
-    let names: Vec<&str> = levels.iter().map(|l| l.name.as_str()).collect();
-    let on_local: Vec<Variant> = variants
-        .iter()
-        .filter_map(|v| {
-            let mut t = v.clone();
-            (on_tracks(&t.basis, &t.cand, &mut t.fits, &names, &tracks) > 0).then_some(t)
-        })
-        .collect();
-    variants.extend(on_local);
+    with_local_fits(&mut variants, &levels, &tracks);
     let every: Vec<usize> = (0..levels.len()).collect();
     let chosen = choose(&variants, &levels, &every, data.h, alpha);
     let Variant { basis, cand, fits } = &variants[chosen];
@@ -415,6 +394,45 @@ pub(super) fn nonlinearity(
         held,
         amplitude: Some(Box::new(model)),
     })
+}
+
+/// The bases the levels are fitted on, in the order tried: the damped rigid body without
+/// the slow poles the model experiment `reference` does not need, then with them, then the
+/// model's own basis `own`; a mode the model split into two close pairs as one pair.
+fn candidate_bases(
+    damped: &ModalBasis,
+    own: &ModalBasis,
+    h: f64,
+    reference: &Level<'_>,
+    alpha: f64,
+) -> Result<Vec<ModalBasis>> {
+    let mut bases = vec![without_unneeded_slow_poles(damped, h, reference, alpha)?];
+    if damped.is_damped() {
+        bases.push(damped.clone());
+        bases.push(own.clone());
+    }
+    bases.extend(damped.without_close_pairs()?);
+    bases.dedup_by(|a, b| a.poles() == b.poles() && a.is_damped() == b.is_damped());
+    Ok(bases)
+}
+
+/// Each variant also with the pairs the tracks follow on their local fits
+/// ([`crate::amplitude::on_tracks`]); [`choose`] takes the one that describes the training
+/// levels best.
+fn with_local_fits(
+    variants: &mut Vec<Variant>,
+    levels: &[Level<'_>],
+    tracks: &[crate::tracks::ModeTrack],
+) {
+    let names: Vec<&str> = levels.iter().map(|l| l.name.as_str()).collect();
+    let on_local: Vec<Variant> = variants
+        .iter()
+        .filter_map(|v| {
+            let mut t = v.clone();
+            (on_tracks(&t.basis, &t.cand, &mut t.fits, &names, tracks) > 0).then_some(t)
+        })
+        .collect();
+    variants.extend(on_local);
 }
 
 /// The physical modes tracked over `levels` ([`crate::tracks`]), the model experiment's
