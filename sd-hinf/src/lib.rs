@@ -62,6 +62,9 @@ pub use multirate::{
     MultirateWeights,
 };
 pub use ncf::{coprime_reduce, normalized_lcf, CoprimeReduction};
+pub use riccati::complex::{
+    care_complex, dare_complex, CMatrix, ComplexRiccatiData, ComplexRiccatiSolution,
+};
 pub use riccati::descriptor::{gcare, gdare, MAX_E_CONDITION};
 pub use riccati::{care, care_residual_of, dare, RiccatiSolution};
 

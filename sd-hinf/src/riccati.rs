@@ -54,6 +54,7 @@ use sd_model::linalg::schur::to_complex;
 use sd_model::ModelError;
 
 mod care;
+pub mod complex;
 pub mod descriptor;
 use care::care_residual;
 pub(crate) use care::care_separated;

@@ -192,6 +192,52 @@ fn checked_object<'a>(
     }
 }
 
+/// The first entry of the numeric arrays under `keys` that is not a number, named with its
+/// position — a complex entry (`{"re", "im"}`, `"1+2j"`, `[re, im]`) said to be one: a model
+/// has real coefficients, and an imaginary part is never dropped.
+fn non_real_entry(
+    obj: &serde_json::Map<String, serde_json::Value>,
+    keys: &[&str],
+) -> Option<String> {
+    fn walk(v: &serde_json::Value, path: &mut Vec<usize>, depth: usize) -> Option<String> {
+        match v {
+            serde_json::Value::Number(_) => None,
+            serde_json::Value::Array(items) if depth > 0 => {
+                items.iter().enumerate().find_map(|(i, item)| {
+                    path.push(i);
+                    let found = walk(item, path, depth - 1);
+                    path.pop();
+                    found
+                })
+            }
+            other => {
+                let complex = match other {
+                    serde_json::Value::Object(m) => m.contains_key("re") || m.contains_key("im"),
+                    serde_json::Value::String(t) => t.contains('j') || t.contains('i'),
+                    serde_json::Value::Array(p) => p.len() == 2 && p.iter().all(|x| x.is_number()),
+                    _ => false,
+                };
+                let at: Vec<String> = path.iter().map(|i| format!("[{i}]")).collect();
+                Some(format!(
+                    "{} is {other}{}",
+                    at.join(""),
+                    if complex {
+                        ", a complex number: a model's coefficients must be real (refused, not \
+                         made real by dropping the imaginary part)"
+                    } else {
+                        ", not a number"
+                    }
+                ))
+            }
+        }
+    }
+    keys.iter().find_map(|k| {
+        let v = obj.get(*k)?;
+        let depth = if matches!(*k, "num" | "den") { 1 } else { 2 };
+        walk(v, &mut Vec::new(), depth).map(|m| format!("`{k}`{m}"))
+    })
+}
+
 /// Reads a model (state space, or SISO transfer function) from JSON text.
 ///
 /// # Errors
@@ -208,7 +254,10 @@ pub fn model_from_json_str(text: &str) -> Result<StateSpace> {
     };
     match kind {
         "ss" => {
-            checked_object(&v, "state-space model JSON", SS_KEYS)?;
+            let obj = checked_object(&v, "state-space model JSON", SS_KEYS)?;
+            if let Some(m) = non_real_entry(obj, &["a", "b", "c", "d"]) {
+                return Err(parse_err("state-space model JSON", m));
+            }
             let s: SsJson =
                 serde_json::from_value(v).map_err(|e| parse_err("state-space model JSON", e))?;
             // D fixes the shape; an empty D (`[]`: no outputs, or `[[], …]`: no inputs) leaves
@@ -231,7 +280,10 @@ pub fn model_from_json_str(text: &str) -> Result<StateSpace> {
             sys.with_signal_names(s.inputs, s.outputs)
         }
         "tf" => {
-            checked_object(&v, "transfer-function JSON", TF_KEYS)?;
+            let obj = checked_object(&v, "transfer-function JSON", TF_KEYS)?;
+            if let Some(m) = non_real_entry(obj, &["num", "den"]) {
+                return Err(parse_err("transfer-function JSON", m));
+            }
             let t: TfJson =
                 serde_json::from_value(v).map_err(|e| parse_err("transfer-function JSON", e))?;
             let sys =
@@ -535,6 +587,30 @@ mod tests {
         )
         .unwrap();
         assert_eq!((s.nu(), s.ny()), (0, 1));
+    }
+
+    #[test]
+    fn complex_entries_are_refused_by_name() {
+        for (entry, at) in [
+            (r#"{"re": 1.0, "im": 0.5}"#, "`a`[0][1]"),
+            (r#""1+0.5j""#, "`a`[0][1]"),
+            ("[1.0, 0.5]", "`a`[0][1]"),
+        ] {
+            let txt = format!(
+                r#"{{"ts": null, "a": [[0.0, {entry}], [1.0, 0.0]], "b": [[1], [0]], "c": [[1, 0]], "d": [[0]]}}"#
+            );
+            let e = model_from_json_str(&txt).unwrap_err().to_string();
+            assert!(e.contains(at) && e.contains("a complex number"), "{e}");
+        }
+        let e =
+            model_from_json_str(r#"{"type":"tf","ts":null,"num":[1],"den":[1,{"re":1,"im":2}]}"#)
+                .unwrap_err()
+                .to_string();
+        assert!(e.contains("`den`[1]") && e.contains("complex"), "{e}");
+        let e = model_from_json_str(r#"{"ts":null,"a":[[null]],"b":[[1]],"c":[[1]],"d":[[0]]}"#)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`a`[0][0] is null, not a number"), "{e}");
     }
 
     #[test]

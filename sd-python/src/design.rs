@@ -1,7 +1,7 @@
 //! Design and analysis: `dare`, `care`, `loopshape`, `weight_pid`, `analyze`.
 
 use crate::{mat, np, py_err, sys_in, sys_out, value_err, SysIn, SysOut};
-use numpy::PyReadonlyArray2;
+use numpy::{IntoPyArray, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -77,6 +77,69 @@ fn care<'py>(
     e: Option<Mat<'py>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     solve(py, (sd_hinf::care, sd_hinf::gcare), [a, b, q, r], (s, e))
+}
+
+type CMat<'py> = PyReadonlyArray2<'py, numpy::Complex64>;
+
+/// A complex numpy matrix as the solver's complex matrix (copied once).
+fn cmat(a: &CMat<'_>) -> sd_hinf::CMatrix {
+    let v = a.as_array();
+    sd_hinf::CMatrix::from_fn(v.nrows(), v.ncols(), |i, j| v[[i, j]])
+}
+
+/// A complex Riccati solution as the dict of [`riccati`], `X` and `K` complex.
+fn complex_riccati<'py>(
+    py: Python<'py>,
+    r: &sd_hinf::ComplexRiccatiSolution,
+) -> PyResult<Bound<'py, PyDict>> {
+    let arr = |m: &sd_hinf::CMatrix| {
+        numpy::ndarray::Array2::from_shape_fn(m.shape(), |(i, j)| m[(i, j)]).into_pyarray(py)
+    };
+    let d = PyDict::new(py);
+    d.set_item("X", arr(&r.x))?;
+    d.set_item("K", arr(&r.gain))?;
+    d.set_item("residual", r.residual)?;
+    d.set_item("closed_loop", r.closed_loop)?;
+    d.set_item("condition", r.condition)?;
+    Ok(d)
+}
+
+/// `care` / `dare` on complex data (`continuous` chooses), the interpreter lock released
+/// ([`sd_hinf::care_complex`], [`sd_hinf::dare_complex`]: conjugate transposes in place of
+/// transposes; the imaginary parts are solved for, never dropped).
+#[pyfunction]
+#[pyo3(signature = (continuous, a, b, q, r, s=None, e=None))]
+#[allow(clippy::too_many_arguments)]
+fn riccati_complex<'py>(
+    py: Python<'py>,
+    continuous: bool,
+    a: CMat<'py>,
+    b: CMat<'py>,
+    q: CMat<'py>,
+    r: CMat<'py>,
+    s: Option<CMat<'py>>,
+    e: Option<CMat<'py>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let (a, b, q, r) = (cmat(&a), cmat(&b), cmat(&q), cmat(&r));
+    let (s, e) = (s.as_ref().map(cmat), e.as_ref().map(cmat));
+    let data = sd_hinf::ComplexRiccatiData {
+        a: &a,
+        b: &b,
+        q: &q,
+        r: &r,
+        s: s.as_ref(),
+        e: e.as_ref(),
+    };
+    let sol = py
+        .detach(|| {
+            if continuous {
+                sd_hinf::care_complex(&data)
+            } else {
+                sd_hinf::dare_complex(&data)
+            }
+        })
+        .map_err(py_err)?;
+    complex_riccati(py, &sol)
 }
 
 /// McFarlane–Glover loopshaping of `plant` with pre-weight `w1` and post-weight `w2`: the
@@ -196,6 +259,7 @@ pub(crate) fn summary_into(d: &Bound<'_, PyDict>, s: &sd_analysis::Summary) -> P
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(dare, m)?)?;
     m.add_function(wrap_pyfunction!(care, m)?)?;
+    m.add_function(wrap_pyfunction!(riccati_complex, m)?)?;
     m.add_function(wrap_pyfunction!(loopshape, m)?)?;
     m.add_function(wrap_pyfunction!(weight_pid, m)?)?;
     m.add_function(wrap_pyfunction!(analyze, m)?)?;

@@ -65,6 +65,43 @@ def test_generalized_riccati_with_e():
         sd.care(A, B, Q, R, E=np.diag([1.0, 1.0, 1.0, 0.0]))
 
 
+def test_complex_riccati_keeps_the_imaginary_parts():
+    """#40 item 1: complex A, B, Q, R (and only a complex B) solve the equation with conjugate
+    transposes — its residual to rounding, the closed loop stable, X Hermitian and complex —
+    and X equals scipy's complex solution."""
+    rng = np.random.default_rng(11)
+    n, m = 4, 2
+    cr = lambda *s: rng.standard_normal(s) + 1j * rng.standard_normal(s)  # noqa: E731
+    A, B, C = cr(n, n) / 2, cr(n, m), cr(n, n)
+    Q = C.conj().T @ C + 0.1 * np.eye(n)
+    R = np.eye(m) + 0.2 * (lambda r: r @ r.conj().T)(cr(m, m))
+    H = lambda x: x.conj().T  # noqa: E731
+    c = sd.care(A, B, Q, R)
+    X = c.X
+    assert np.iscomplexobj(X) and np.linalg.norm(X.imag) > 0.1 * np.linalg.norm(X)
+    assert np.array_equal(X, H(X))
+    res = H(A) @ X + X @ A - X @ B @ np.linalg.solve(R, H(B) @ X) + Q
+    assert np.linalg.norm(res) <= 1e-13 * (np.linalg.norm(Q) + np.linalg.norm(X) * np.linalg.norm(A)
+                                           + np.linalg.norm(X @ B) ** 2)
+    assert max(np.linalg.eigvals(A - B @ c.K).real) < 0
+    close(X, sl.solve_continuous_are(A, B, Q, R), 1e-9)
+    Ad = 1.1 * A / max(abs(np.linalg.eigvals(A)))
+    d = sd.dare(Ad, B, Q, R)
+    K = np.linalg.solve(R + H(B) @ d.X @ B, H(B) @ d.X @ Ad)
+    close(d.K, K, 1e-10)
+    res = H(Ad) @ d.X @ Ad - d.X - H(Ad) @ d.X @ B @ K + Q
+    assert np.linalg.norm(res) <= 1e-12 * np.linalg.norm(d.X)
+    assert max(abs(np.linalg.eigvals(Ad - B @ d.K))) < 1
+    close(d.X, sl.solve_discrete_are(Ad, B, Q, R), 1e-9)
+    # only B complex: the real parts alone would be a different equation
+    Br = B.real + 1j * B.imag
+    e = sd.dare(Ad.real, Br, Q.real, R.real)
+    close(e.X, sl.solve_discrete_are(Ad.real, Br, Q.real, R.real), 1e-9)
+    assert np.linalg.norm(e.X - sd.dare(Ad.real, Br.real, Q.real, R.real).X) > 1e-3
+    with pytest.raises(ValueError, match="Q must be Hermitian"):
+        sd.care(A, B, Q + 1j * np.eye(n), R)
+
+
 def test_care_near_the_axis_carex_2_8():
     # CAREX 2.8 (ε = 1e-6): Hamiltonian eigenvalues ±5e-13 off the axis at ±1j; scipy solves it
     e = 1e-6

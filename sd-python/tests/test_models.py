@@ -189,7 +189,7 @@ def test_zeros_of_known_systems():
 def test_complex_input_is_refused_not_made_real():
     a = np.array([[1.0 + 0.5j]])
     with pytest.raises(TypeError, match="A is complex"):
-        sd.dare(a, [[1.0]], [[1.0]], [[1.0]])
+        sd.StateSpace(a, [[1.0]], [[1.0]], [[0.0]], 0.001)
     with pytest.raises(TypeError, match="B is complex"):
         sd.StateSpace([[0.0]], [[1j]], [[1.0]], [[0.0]])
     with pytest.raises(TypeError, match="u is complex"):

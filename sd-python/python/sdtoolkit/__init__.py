@@ -86,6 +86,21 @@ def _real(x: Any, name: str) -> np.ndarray:
     return np.asarray(a, dtype=np.float64)
 
 
+def _cmatrix(x: Any, name: str) -> np.ndarray:
+    """A complex128 2-D array (scalars and vectors promoted as :func:`_matrix` does)."""
+    a = np.asarray(x)
+    if a.dtype.kind not in "biufc":
+        raise TypeError(f"{name} must be a numeric array, not {a.dtype}")
+    a = np.asarray(a, dtype=np.complex128)
+    if a.ndim == 0:
+        a = a.reshape(1, 1)
+    elif a.ndim == 1:
+        a = a.reshape(-1, 1)
+    elif a.ndim != 2:
+        raise ValueError(f"{name} must be a matrix (2-D array), got {a.ndim} dimensions")
+    return np.ascontiguousarray(a)
+
+
 def _matrix(x: Any, name: str, rows: Optional[int] = None, cols: Optional[int] = None) -> np.ndarray:
     """A float64 2-D array (scalars and vectors promoted); ``TypeError`` for complex input.
     An empty input keeps its own 2-D shape; ``[]`` takes the shape ``(rows, cols)`` only where
@@ -621,27 +636,37 @@ def feedback(sys1, sys2=None, sign: int = -1) -> StateSpace:
 # ---------------------------------------------------------------- design and analysis
 
 
+def _riccati(continuous: bool, A, B, Q, R, S, E) -> Result:
+    """One Riccati solver: real data to the real solver; when any argument is complex, all of
+    them as complex to the complex solver (never an imaginary part dropped)."""
+    args = [(A, "A"), (B, "B"), (Q, "Q"), (R, "R")] + [(x, n) for x, n in ((S, "S"), (E, "E"))
+                                                         if x is not None]
+    if any(np.iscomplexobj(np.asarray(x)) for x, _ in args):
+        m = {n: _cmatrix(x, n) for x, n in args}
+        return Result(_native.riccati_complex(continuous, m["A"], m["B"], m["Q"], m["R"],
+                                              m.get("S"), m.get("E")))
+    m = [_matrix(x, n) for x, n in ((A, "A"), (B, "B"), (Q, "Q"), (R, "R"))]
+    s = None if S is None else _matrix(S, "S")
+    e = None if E is None else _matrix(E, "E")
+    return Result((_native.care if continuous else _native.dare)(*m, s, e))
+
+
 def dare(A, B, Q, R, S=None, E=None) -> Result:
     """The stabilising solution of the discrete algebraic Riccati equation
     ``AᵀXA − X − (AᵀXB + S)(R + BᵀXB)⁻¹(BᵀXA + Sᵀ) + Q = 0``: ``X``, ``K`` (``u = −K x``),
     the relative ``residual``, ``closed_loop`` (spectral radius of A − BK) and ``condition``.
     With ``E`` (nonsingular, κ₁(E) ≤ 1e8) the generalized equation with ``EᵀXE`` in place of
-    ``X`` (scipy's ``e=``), its residual reported. No stabilising solution raises ValueError
-    with the reason."""
-    m = [_matrix(x, n) for x, n in ((A, "A"), (B, "B"), (Q, "Q"), (R, "R"))]
-    s = None if S is None else _matrix(S, "S")
-    e = None if E is None else _matrix(E, "E")
-    return Result(_native.dare(*m, s, e))
+    ``X`` (scipy's ``e=``), its residual reported. Complex data (any argument complex) solves
+    the equation with conjugate transposes ``ᴴ`` (Q, R Hermitian) for the Hermitian ``X``,
+    returned complex. No stabilising solution raises ValueError with the reason."""
+    return _riccati(False, A, B, Q, R, S, E)
 
 
 def care(A, B, Q, R, S=None, E=None) -> Result:
     """The stabilising solution of ``AᵀX + XA − (XB + S)R⁻¹(BᵀX + Sᵀ) + Q = 0`` (fields as
     :func:`dare`, ``closed_loop`` the spectral abscissa); with ``E`` the generalized
-    ``AᵀXE + EᵀXA − (EᵀXB + S)R⁻¹(BᵀXE + Sᵀ) + Q = 0``."""
-    m = [_matrix(x, n) for x, n in ((A, "A"), (B, "B"), (Q, "Q"), (R, "R"))]
-    s = None if S is None else _matrix(S, "S")
-    e = None if E is None else _matrix(E, "E")
-    return Result(_native.care(*m, s, e))
+    ``AᵀXE + EᵀXA − (EᵀXB + S)R⁻¹(BᵀXE + Sᵀ) + Q = 0``; complex data as in :func:`dare`."""
+    return _riccati(True, A, B, Q, R, S, E)
 
 
 def loopshape(P, W1=None, W2=None, factor: float = 1.1, strictly_proper: bool = False) -> Result:
