@@ -6,6 +6,7 @@
 //! - [`c2d_nonideal`], [`downsample_nonideal`]: rate-tied non-idealities — a hold that switches a
 //!   fraction α of the period late, a sampler that averages over the last fraction β — exactly,
 //!   from a continuous model (block exponentials) or from a fast discrete one (lifted).
+//! - [`downsample_frd`]: Lemma 6 on a measured fast FRF (the fold sum), no model needed.
 //! - [`fold_map`], [`appears_at()`]: which frequencies alias onto which, with the slow hold's
 //!   weights `|H_F|/F`.
 //! - [`lift()`], [`PeriodicSystem`]: lifting a fast model to an F-input/F-output slow LTI model
@@ -29,6 +30,7 @@ pub mod alias_map;
 pub mod closed_loop;
 pub mod downsample;
 pub mod error;
+pub mod frd_fold;
 pub mod lift;
 pub mod nonideal;
 pub mod tol;
@@ -37,6 +39,7 @@ pub use alias_map::{appears_at, fold_map, hold_weight, FoldTerm};
 pub use closed_loop::{HarmonicTransfer, MultirateLoop, MultirateSimulation};
 pub use downsample::downsample;
 pub use error::{MultirateError, Result};
+pub use frd_fold::{downsample_frd, DownsampledFrd};
 pub use lift::{lift, stack, unstack, PeriodicSystem, Phase};
 pub use nonideal::{c2d_nonideal, downsample_nonideal, NonIdeal, MAX_HOLD_DELAY};
 
