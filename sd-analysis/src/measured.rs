@@ -26,7 +26,7 @@
 //! no model), then this analysis at the slow rate.
 
 use crate::error::{AnalysisError, Result};
-use crate::measured_nyquist::{count, Ends, MeasuredNyquist};
+use crate::measured_nyquist::{count, low_extension, Ends, MeasuredNyquist};
 use nalgebra::DMatrix;
 use num_complex::Complex64 as C;
 use sd_model::{Frd, SampleTime, StateSpace};
@@ -120,19 +120,23 @@ pub fn analyze_measured(
         .map(|l| (DMatrix::identity(l.nrows(), l.nrows()) + l).determinant())
         .collect();
     let top_gain = resp.l.response().last().map_or(0.0, sigma_max);
-    let nyquist = count(
-        f,
-        &det,
-        Ends {
-            integrators: p_int + k_int,
-            open_loop_unstable: plant.unstable_poles + k_unstable,
-            nyquist_hz: match p.time() {
-                SampleTime::Discrete { ts } => Some(0.5 / ts),
-                SampleTime::Continuous => None,
-            },
-            top_gain,
-        },
-    );
+    let nyquist = match low_extension(&p.response()[0], f[0], p_int, k)? {
+        Err(reason) => MeasuredNyquist::Undetermined { reason },
+        Ok((mut ext_f, mut ext_det)) => {
+            ext_f.extend_from_slice(f);
+            ext_det.extend(det);
+            let ends = Ends {
+                integrators: p_int + k_int,
+                open_loop_unstable: plant.unstable_poles + k_unstable,
+                nyquist_hz: match p.time() {
+                    SampleTime::Discrete { ts } => Some(0.5 / ts),
+                    SampleTime::Continuous => None,
+                },
+                top_gain,
+            };
+            count(&ext_f, &ext_det, ends)
+        }
+    };
     let peak = |m: &Frd| {
         m.response()
             .iter()

@@ -8,11 +8,16 @@
 //!
 //! **From lines.** Only `0 < f_min ≤ f ≤ f_max` is measured, so the contour is closed with
 //! what physics fixes at its ends:
-//! - *low end*: with `N` loop poles at `z = 1` (`s = 0`) — the plant's integrators (a rigid
-//!   body is two) and the controller's — `det L ~ c·(jω)^{−N}` as `ω → 0⁺` with `c` real, so
-//!   `arg det(I + L)` tends to `−Nπ/2 + mπ`; the lowest line must already be within 45° of
-//!   such a value (else the verdict is undetermined: measure lower, or state `N`). The detour
-//!   around the `N` poles turns the argument by `−Nπ`.
+//! - *low end*: below the lowest line `f_min` the plant is extended by its low-frequency
+//!   asymptote with `N_P` integrators — `P(f) = P(f_min)·(f_min/f)^{N_P}`, for a SISO plant
+//!   with its phase moved (linearly in `log f`) to the nearest `−N_P·90° + k·180°` — and the
+//!   controller is evaluated from its model, on a log grid from `f_0` (a thousandth of the
+//!   lowest of `f_min` and the controller's pole and zero frequencies) up to `f_min`. The loop
+//!   gain must stay above 2 there (else the count would rest on the extension: measure
+//!   lower). With `N` loop poles at `z = 1` (`s = 0`) — the plant's integrators (a rigid body
+//!   is two) and the controller's — `det L ~ c·(jω)^{−N}` as `ω → 0⁺` with `c` real, so at
+//!   `f_0` the argument of `det(I + L)` must be within 45° of some `−Nπ/2 + mπ`; the detour
+//!   around the `N` poles turns it by `−Nπ`.
 //! - *high end*: discrete time, `det(I + L)` is real at the Nyquist frequency, so its
 //!   argument is a multiple of `π`; continuous time, a strictly proper plant makes
 //!   `det(I + L) → 1`, a multiple of `2π`. The top line must be within 45° of that value and
@@ -25,7 +30,10 @@
 //! The mirror half (negative frequencies) turns the argument by the same amount, so
 //! `W = (2·(φ_end − φ_0) − Nπ)/2π`, an integer by construction.
 
+use nalgebra::DMatrix;
 use num_complex::Complex64 as C;
+use sd_model::poles::natural_frequency;
+use sd_model::StateSpace;
 use std::f64::consts::PI;
 
 /// Largest argument step between adjacent lines that the unwrapping trusts (radians).
@@ -166,6 +174,68 @@ pub(crate) fn count(freq_hz: &[f64], det: &[C], ends: Ends) -> MeasuredNyquist {
     }
 }
 
+/// Points of the extension grid below the lowest line.
+const EXTENSION_POINTS: usize = 400;
+/// Least loop gain `σ_min(L)` accepted on the extension.
+pub const MIN_EXTENSION_GAIN: f64 = 2.0;
+
+/// The extension's frequencies and `det(I + L)` there, or why the count cannot rest on it.
+pub(crate) type Extension = std::result::Result<(Vec<f64>, Vec<C>), String>;
+
+/// The loop below the lowest line (module documentation): frequencies from `f_0` up to (not
+/// including) `f_min`, and `det(I + L)` there; `Err` with the reason when the loop gain
+/// falls below [`MIN_EXTENSION_GAIN`] on it.
+pub(crate) fn low_extension(
+    p_min: &DMatrix<C>,
+    f_min: f64,
+    plant_integrators: usize,
+    k: &StateSpace,
+) -> crate::error::Result<Extension> {
+    let ts = k.ts();
+    let corner = k
+        .poles()?
+        .into_iter()
+        .chain(k.zeros()?)
+        .map(|z| natural_frequency(z, ts).0)
+        .filter(|f| f.is_finite() && *f > 1e-9 * f_min)
+        .fold(f_min, f64::min);
+    let f0 = 1e-3 * corner;
+    let grid: Vec<f64> = (0..EXTENSION_POINTS)
+        .map(|i| f0 * (f_min / f0).powf(i as f64 / EXTENSION_POINTS as f64))
+        .collect();
+    let kr = k.freqresp(&grid)?;
+    let n = plant_integrators as f64;
+    let siso = p_min.len() == 1;
+    let (a_min, lattice) = if siso {
+        let a = p_min[(0, 0)].arg();
+        let m = ((a + n * PI / 2.0) / PI).round();
+        (a, m * PI - n * PI / 2.0)
+    } else {
+        (0.0, 0.0)
+    };
+    let mut det = Vec::with_capacity(grid.len());
+    for (&f, kf) in grid.iter().zip(kr.response()) {
+        let x = (f_min / f).ln() / (f_min / f0).ln();
+        let rot = if siso { x * (lattice - a_min) } else { 0.0 };
+        let pf = p_min.map(|v| v * C::from_polar((f_min / f).powf(n), rot));
+        let l = &pf * kf;
+        let gain = if l.len() == 1 {
+            l[(0, 0)].norm()
+        } else {
+            l.clone().singular_values().min()
+        };
+        if gain < MIN_EXTENSION_GAIN {
+            return Ok(Err(format!(
+                "below the lowest line ({f_min:.4} Hz) the loop gain of the plant's \
+                 {plant_integrators}-integrator asymptote with the controller falls to {gain:.3} \
+                 at {f:.4} Hz: the count would rest on the extension; measure lower frequencies"
+            )));
+        }
+        det.push((DMatrix::identity(l.nrows(), l.nrows()) + l).determinant());
+    }
+    Ok(Ok((grid, det)))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -173,7 +243,7 @@ mod tests {
     /// `L = k/(z − 1)`: closed-loop pole `1 − k`, stable for `0 < k < 2`.
     #[test]
     fn integrator_loop_counts() {
-        let f: Vec<f64> = (1..=500).map(|i| f64::from(i)).collect();
+        let f: Vec<f64> = (1..=500).map(f64::from).collect();
         let ts = 1e-3;
         for (k, unstable) in [(0.5, 0), (1.9, 0), (2.5, 1), (3.0, 1)] {
             let det: Vec<C> = f

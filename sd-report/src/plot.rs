@@ -2,6 +2,7 @@
 //! Hz), line plots and error-bar panels.
 
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 /// The colour of a curve (plotters' RGB colour, re-exported so a user needs no plotters dependency).
 pub use plotters::style::RGBColor;
 
@@ -269,16 +270,24 @@ fn draw_magnitude<DB: DrawingBackend>(
             });
         }
     }
-    for (f, label) in marks {
+    for (i, (f, label)) in marks.iter().enumerate() {
         chart
             .draw_series(LineSeries::new(vec![(*f, lo), (*f, hi)], BLACK.mix(0.35)))
             .map_err(crate::plot_err)?;
+        // a label in the right third of the axis is written to the left of its line (inside
+        // the figure); every second label a line lower, so that neighbours do not overlap
+        let right = (f / fmin).ln() > 0.66 * (fmax / fmin).ln();
+        let (x, anchor) = if right {
+            (*f / 1.02, HPos::Right)
+        } else {
+            (*f * 1.02, HPos::Left)
+        };
+        let y = hi - 4.0 - 0.05 * (hi - lo) * (i % 2) as f64;
+        let style = ("sans-serif", 14)
+            .into_text_style(root)
+            .pos(Pos::new(anchor, VPos::Top));
         chart
-            .draw_series(std::iter::once(Text::new(
-                label.to_string(),
-                (*f * 1.02, hi - 4.0),
-                ("sans-serif", 14),
-            )))
+            .draw_series(std::iter::once(Text::new(label.to_string(), (x, y), style)))
             .map_err(crate::plot_err)?;
     }
     legend(&mut chart, SeriesLabelPosition::LowerLeft)

@@ -159,6 +159,15 @@ fn noisy_lines_keep_the_verdict_and_coarse_lines_say_undetermined() {
         "{:?}",
         a.nyquist
     );
+    // lines from 8 Hz on (a multisine that starts there): the plant's rigid-body asymptote
+    // and the controller's model close the contour below the lowest line
+    let from8 = frd.select(|i| i >= 15).unwrap();
+    let (a, _) = analyze_measured(&from8, &k, MeasuredPlant::default()).unwrap();
+    assert!(
+        matches!(a.nyquist, MeasuredNyquist::Counted { stable: true, .. }),
+        "{:?}",
+        a.nyquist
+    );
     // ten lines from 50 Hz on cannot close the contour at its low end ...
     let plant = MeasuredPlant {
         integrators: Some(2),

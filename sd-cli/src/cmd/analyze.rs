@@ -8,8 +8,18 @@ use serde_json::json;
 #[derive(clap::Args, Debug)]
 pub(crate) struct Args {
     /// Plant model JSON (same sample time as the controller).
+    #[arg(
+        long,
+        required_unless_present = "plant_frd",
+        conflicts_with = "plant_frd"
+    )]
+    pub(crate) plant: Option<String>,
+    /// A *measured* plant instead of a model: FRD JSON (from `sdctl frf`). The loop is
+    /// analysed on its lines: L, S, T, margins between lines, the Nyquist test.
     #[arg(long)]
-    pub(crate) plant: String,
+    pub(crate) plant_frd: Option<String>,
+    #[command(flatten)]
+    pub(crate) measured: crate::cmd::analyze_measured::MeasuredArgs,
     /// Controller model JSON (negative feedback u = −K y).
     #[arg(long)]
     pub(crate) controller: String,
@@ -46,6 +56,8 @@ impl Args {
     pub(crate) fn run(self) -> Result<(), CliError> {
         let Args {
             plant,
+            plant_frd,
+            measured,
             controller,
             uncertainty,
             weight_order,
@@ -55,6 +67,22 @@ impl Args {
             loop_svg,
             json,
         } = self;
+        let plant = match (plant, plant_frd) {
+            (_, Some(frd)) => {
+                if uncertainty.is_some() || sigma_svg.is_some() || destabilising_out.is_some() {
+                    return Err(CliError::input(
+                        "--plant-frd takes --loop-svg, --nyquist-svg, --s-out, --t-out and \
+                         --json; --uncertainty, --sigma-svg and --destabilising-out need a plant \
+                         model (--plant)",
+                    ));
+                }
+                let figures = (loop_svg.as_deref(), nyquist_svg.as_deref());
+                return measured.run(&frd, &controller, figures, json);
+            }
+            (Some(p), None) => p,
+            (None, None) => return Err(CliError::input("give --plant MODEL or --plant-frd FRD")),
+        };
+        measured.refuse_without_frd()?;
         let p = read_model(&plant)?;
         let k = read_model(&controller)?;
         let cl = sd_analysis::ClosedLoop::new(&p, &k).map_err(|e| from_analysis("analyze", e))?;
@@ -298,6 +326,26 @@ fn loci_plot(
 ) -> Result<(), CliError> {
     let (f, _, _) = analysis_grid(p, 2000)?;
     let loci = sd_analysis::characteristic_loci(cl, &f).map_err(|e| from_analysis("analyze", e))?;
+    let title = format!(
+        "characteristic loci of L = PK ({}x{} loop), radius log10(1 + |λ|)",
+        p.ny(),
+        p.ny()
+    );
+    let names: Vec<String> = (0..loci.len())
+        .map(|i| format!("locus {}", i + 1))
+        .collect();
+    loci_figure(&loci, &names, &title, path)
+}
+
+/// Loci in the complex plane on a compressed radius `log10(1 + |λ|)` (phase kept), each with
+/// its mirror image (negative frequencies), the unit circle and the critical point −1, as an
+/// SVG written atomically.
+pub(crate) fn loci_figure(
+    loci: &[Vec<num_complex::Complex64>],
+    names: &[String],
+    title: &str,
+    path: &str,
+) -> Result<(), CliError> {
     let squash = |z: &num_complex::Complex64| {
         let r = z.norm();
         if r > 0.0 {
@@ -308,7 +356,7 @@ fn loci_plot(
     };
     // each locus and its mirror image (negative frequencies)
     let mut xy: Vec<(Vec<f64>, Vec<f64>)> = Vec::new();
-    for l in &loci {
+    for l in loci {
         let pts: Vec<num_complex::Complex64> = l.iter().map(squash).collect();
         xy.push((
             pts.iter().map(|z| z.re).collect(),
@@ -343,14 +391,11 @@ fn loci_plot(
         RGBColor(44, 160, 44),
         RGBColor(148, 103, 189),
     ];
-    let labels: Vec<String> = (0..loci.len())
-        .map(|i| format!("locus {}", i + 1))
-        .collect();
     let mut lines: Vec<Line<'_>> = xy
         .iter()
         .enumerate()
         .map(|(i, (x, y))| Line {
-            label: if i % 2 == 0 { &labels[i / 2] } else { "" },
+            label: if i % 2 == 0 { &names[i / 2] } else { "" },
             x,
             y,
             color: palette[(i / 2) % palette.len()],
@@ -368,15 +413,10 @@ fn loci_plot(
         y: &cy,
         color: RGBColor(0, 0, 0),
     });
-    let title = format!(
-        "characteristic loci of L = PK ({}x{} loop), radius log10(1 + |λ|)",
-        p.ny(),
-        p.ny()
-    );
     atomic_svg(path, |tmp| {
         sd_report::plot::plane_plot(
             tmp,
-            &title,
+            title,
             "real part (compressed)",
             "imaginary part (compressed)",
             &lines,
@@ -464,38 +504,54 @@ fn loop_plot(
             .map_err(|e| crate::io::from_model("analyze", e))
     };
     let l: Vec<num_complex::Complex64> = ev(p)?.iter().zip(ev(k)?).map(|(a, b)| a * b).collect();
+    let m = LoopMarks {
+        phase_margin: (s.phase_margin_deg, s.phase_margin_hz),
+        gain_margin: (s.gain_margin_db, s.gain_margin_hz),
+        sensitivity_peak_db: s.sensitivity_peak_db,
+    };
+    loop_figure((&f, &l, "L = PK"), m, (lo, hi), path)
+}
+
+/// The margins a loop-gain figure marks: `(value, Hz)` each, and the |S| peak for the title.
+pub(crate) struct LoopMarks {
+    pub(crate) phase_margin: (f64, f64),
+    pub(crate) gain_margin: (f64, f64),
+    pub(crate) sensitivity_peak_db: f64,
+}
+
+/// The loop gain `l` at `f` (Hz) as a Bode figure over `band`, the margins marked where they
+/// occur, written atomically to `path`.
+pub(crate) fn loop_figure(
+    (f, l, label): (&[f64], &[num_complex::Complex64], &str),
+    m: LoopMarks,
+    band: (f64, f64),
+    path: &str,
+) -> Result<(), CliError> {
     let db: Vec<f64> = l.iter().map(|g| 20.0 * g.norm().log10()).collect();
     let ph =
         sd_report::plot::unwrap_deg(&l.iter().map(|g| g.arg().to_degrees()).collect::<Vec<_>>());
     let mut marks: Vec<(f64, String)> = Vec::new();
-    if s.phase_margin_hz.is_finite() && s.phase_margin_hz > 0.0 {
-        marks.push((
-            s.phase_margin_hz,
-            format!(
-                "PM {:.1}° @ {:.2} Hz",
-                s.phase_margin_deg, s.phase_margin_hz
-            ),
-        ));
+    let (pm, pm_hz) = m.phase_margin;
+    if pm_hz.is_finite() && pm_hz > 0.0 {
+        marks.push((pm_hz, format!("PM {pm:.1}° @ {pm_hz:.2} Hz")));
     }
-    if s.gain_margin_hz.is_finite() && s.gain_margin_hz > 0.0 {
-        marks.push((
-            s.gain_margin_hz,
-            format!("GM {:.1} dB @ {:.2} Hz", s.gain_margin_db, s.gain_margin_hz),
-        ));
+    let (gm, gm_hz) = m.gain_margin;
+    if gm_hz.is_finite() && gm_hz > 0.0 {
+        marks.push((gm_hz, format!("GM {gm:.1} dB @ {gm_hz:.2} Hz")));
     }
     let mark_refs: Vec<(f64, &str)> = marks.iter().map(|(f, t)| (*f, t.as_str())).collect();
     use sd_report::plot::{Curve, RGBColor};
     let curves = [Curve {
-        label: "L = PK",
-        freq_hz: &f,
+        label,
+        freq_hz: f,
         db: &db,
         color: RGBColor(31, 119, 180),
     }];
     let title = format!(
-        "loop gain: phase margin {:.1}°, gain margin {:.1} dB, |S| peak {:.1} dB",
-        s.phase_margin_deg, s.gain_margin_db, s.sensitivity_peak_db
+        "loop gain: phase margin {pm:.1}°, gain margin {gm:.1} dB, |S| peak {:.1} dB",
+        m.sensitivity_peak_db
     );
     atomic_svg(path, |tmp| {
-        sd_report::plot::bode_plot_in(tmp, &title, &curves, &[Some(&ph)], (lo, hi), &mark_refs, "")
+        sd_report::plot::bode_plot_in(tmp, &title, &curves, &[Some(&ph)], band, &mark_refs, "")
     })
 }

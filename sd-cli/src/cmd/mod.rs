@@ -2,6 +2,7 @@
 
 pub(crate) mod alias;
 pub(crate) mod analyze;
+pub(crate) mod analyze_measured;
 pub(crate) mod bode;
 pub(crate) mod c2d;
 pub(crate) mod connect;
