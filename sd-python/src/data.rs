@@ -12,14 +12,14 @@ use std::path::Path;
 
 /// An FRD as it crosses the boundary: frequencies (Hz), responses `(ny, nu, nf)`, variances
 /// `(ny, nu, nf)` or None, `dt` (None: continuous).
-type FrdOut<'py> = (
+pub(crate) type FrdOut<'py> = (
     Bound<'py, PyArray1<f64>>,
     Bound<'py, PyArray3<Complex64>>,
     Option<Bound<'py, PyArray3<f64>>>,
     Option<f64>,
 );
 
-fn frd_out<'py>(py: Python<'py>, frd: &Frd) -> FrdOut<'py> {
+pub(crate) fn frd_out<'py>(py: Python<'py>, frd: &Frd) -> FrdOut<'py> {
     let (ny, nu) = frd.shape();
     let nf = frd.len();
     let r = frd.response();

@@ -239,6 +239,47 @@ fn analyze<'py>(py: Python<'py>, p: SysIn<'py>, k: SysIn<'py>) -> PyResult<Bound
     Ok(d)
 }
 
+/// A controller on a measured plant, as `sdctl analyze --plant-frd --json`: the FRD's arrays,
+/// the controller, the plant's integrators (None: read from the lowest lines) and unstable
+/// poles, and a Lemma 6 factor to fold a fast FRF to the controller's rate first. Returns the
+/// analysis as JSON text and `S`, `T` on the lines as FRD arrays.
+#[pyfunction]
+#[pyo3(signature = (freq_hz, response, variance, dt, k, integrators, unstable_poles, factor))]
+#[allow(clippy::too_many_arguments)]
+fn analyze_measured<'py>(
+    py: Python<'py>,
+    freq_hz: numpy::PyReadonlyArray1<'py, f64>,
+    response: numpy::PyReadonlyArray3<'py, numpy::Complex64>,
+    variance: Option<numpy::PyReadonlyArray3<'py, f64>>,
+    dt: Option<f64>,
+    k: SysIn<'py>,
+    integrators: Option<usize>,
+    unstable_poles: usize,
+    factor: Option<usize>,
+) -> PyResult<(String, crate::data::FrdOut<'py>, crate::data::FrdOut<'py>)> {
+    let frd = crate::data::frd_in(&freq_hz, &response, variance.as_ref(), dt)?;
+    let k = sys_in(&k)?;
+    let plant = sd_analysis::MeasuredPlant {
+        integrators,
+        unstable_poles,
+    };
+    let (a, resp) = py
+        .detach(|| {
+            let frd = match factor {
+                Some(f) => sd_multirate::downsample_frd(&frd, f, None)?.frd,
+                None => frd,
+            };
+            sd_analysis::analyze_measured(&frd, &k, plant)
+        })
+        .map_err(py_err)?;
+    let text = serde_json::to_string(&a).map_err(|e| value_err(e.to_string()))?;
+    Ok((
+        text,
+        crate::data::frd_out(py, &resp.s),
+        crate::data::frd_out(py, &resp.t),
+    ))
+}
+
 /// A loop's summary (`sd_analysis::Summary`) as items of `d`: the keys of `sdctl analyze
 /// --json` (analyze, reduce_controller's `before` and `after`).
 pub(crate) fn summary_into(d: &Bound<'_, PyDict>, s: &sd_analysis::Summary) -> PyResult<()> {
@@ -263,5 +304,6 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(loopshape, m)?)?;
     m.add_function(wrap_pyfunction!(weight_pid, m)?)?;
     m.add_function(wrap_pyfunction!(analyze, m)?)?;
+    m.add_function(wrap_pyfunction!(analyze_measured, m)?)?;
     Ok(())
 }

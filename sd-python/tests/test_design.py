@@ -175,3 +175,42 @@ def test_c2d_matched_and_impulse_match_scipy_and_the_definition():
     assert abs(dc - 1.0) < 1e-10
     with pytest.raises(ValueError):
         sd.c2d(sd.StateSpace([[-1.0]], [[1.0]], [[1.0]], [[2.0]]), 0.01, method="impulse")
+
+
+def test_analyze_a_measured_plant_against_its_model(stage, sdctl, tmp_path):
+    """#40 item 5: ``analyze(frd, K)`` — the loop on the lines — gives the margins of the model
+    it was measured from (the model-based analysis, bisection on the model, as the reference;
+    python-control's ``stability_margins`` for the gain margin — its phase margin on this
+    60-state loop, 12.7° at 36.8 Hz, is not a crossover of |L|), equals ``sdctl analyze
+    --plant-frd``, and folds a fast FRF by Lemma 6 (``downsample``)."""
+    import control
+    P = sd.c2d(stage, 1e-3)
+    K = sd.weight_pid(30.0, 2.0, dt=1e-3)
+    f = np.arange(1, 1000) * 0.5
+    frd = sd.Frd(f, sd.freqresp(P, f, squeeze=False), None, 1e-3)
+    a = sd.analyze(frd, K)
+    assert a.nyquist["verdict"] == "counted" and a.nyquist["stable"]
+    gm = control.stability_margins(P.to_control() * K.to_control())[0]
+    m = sd.analyze(P, K)
+    pm = m.phase_margin_deg
+    assert a.phase_margin_deg == pytest.approx(pm, abs=0.05)
+    assert a.phase_margin_hz == pytest.approx(m.phase_margin_hz, rel=1e-3)
+    assert a.gain_margin_db == pytest.approx(20 * np.log10(gm), abs=0.05)
+    assert a.gain_margin_hz == pytest.approx(m.gain_margin_hz, rel=1e-2)
+    S = a.S.response[0, 0]
+    L = frd.response[0, 0] * sd.freqresp(K, f)
+    assert np.max(np.abs(S - 1 / (1 + L))) < 1e-12 * np.max(np.abs(S))
+    fp, kp = tmp_path / "f.json", tmp_path / "k.json"
+    fp.write_text(frd.to_json())
+    kp.write_text(K.to_json())
+    cli = json.loads(sdctl("analyze", "--plant-frd", fp, "--controller", kp, "--json"))
+    for k in ("phase_margin_deg", "gain_margin_db", "sensitivity_peak_db"):
+        assert getattr(a, k) == pytest.approx(cli[k], rel=1e-9), k
+    fast = sd.c2d(stage, 2e-4)
+    ff = np.arange(1, 5001) * 0.5
+    b = sd.analyze(sd.Frd(ff, sd.freqresp(fast, ff, squeeze=False), None, 2e-4), K, downsample=5)
+    assert b.phase_margin_deg == pytest.approx(pm, abs=0.05)
+    with pytest.raises(ValueError, match="sample time"):
+        sd.analyze(sd.Frd(ff, sd.freqresp(fast, ff, squeeze=False), None, 2e-4), K)
+    with pytest.raises(ValueError, match="measured plant"):
+        sd.analyze(P, K, integrators=2)

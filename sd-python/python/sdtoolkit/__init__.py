@@ -758,14 +758,39 @@ def weight_pid(bandwidth_hz: float, mass: float, dt: Optional[float] = None, int
                                           float(lead_ratio), float(lowpass_ratio), float(lowpass_zeta)))
 
 
-def analyze(P, K) -> Result:
+def analyze(P, K, *, integrators: Optional[int] = None, unstable_poles: int = 0,
+            downsample: Optional[int] = None) -> Result:
     """The loop of plant ``P`` and controller ``K`` (negative feedback), as ``sdctl analyze``:
     ``stable``, ``closed_loop_radius``, ``bandwidth_hz``, ``crossover_hz``,
     ``sensitivity_peak_db`` / ``_hz``, ``gain_margin_db`` / ``_hz``, ``phase_margin_deg`` / ``_hz``,
     ``modulus_margin``; for a stable loop ``loop_at_a_time`` (per input and output channel the
     classic and disk margins, and the simultaneous disk margins); ``nyquist``: the generalised
     Nyquist criterion (``encirclements`` of the origin by det(I + L), ``open_loop_unstable``,
-    ``closed_loop_unstable``, and whether it ``agrees`` with the closed-loop eigenvalues)."""
+    ``closed_loop_unstable``, and whether it ``agrees`` with the closed-loop eigenvalues).
+
+    A *measured* plant (``P`` an :class:`Frd`) is analysed on its lines, as ``sdctl analyze
+    --plant-frd``: ``S`` and ``T`` (Frd), the peaks over the lines, SISO margins interpolated
+    between lines (``gain_margin_db`` / ``_hz``, ``phase_margin_deg`` / ``_hz``, every crossing
+    in ``all_gain_crossovers`` / ``all_phase_crossovers``), and ``nyquist`` with ``verdict``
+    ``"counted"`` (``stable``, ``closed_loop_unstable``, …) or ``"undetermined"`` with the
+    ``reason`` (what to measure). ``integrators``: the plant's poles at z = 1 / s = 0 (a rigid
+    body: 2; None reads them from the lowest lines, SISO); ``unstable_poles``: its poles in the
+    unstable region; ``downsample=F``: ``P`` is a fast FRF at h and ``K`` runs at T = F·h —
+    the FRF is folded by Lemma 6 first (no model)."""
+    if isinstance(P, Frd):
+        for v, n in ((integrators, "integrators"), (downsample, "downsample")):
+            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 0):
+                raise TypeError(f"analyze: {n} must be a non-negative int or None, not {v!r}")
+        text, s, t = _native.analyze_measured(P.freq_hz, P.response, P.variance, P.dt,
+                                              _ss(K, "K")._tuple(), integrators,
+                                              int(unstable_poles), downsample)
+        d = json.loads(text)
+        d["S"] = _frd_from_native(s, [])
+        d["T"] = _frd_from_native(t, [])
+        return Result(d)
+    if integrators is not None or unstable_poles or downsample is not None:
+        raise ValueError("analyze: integrators, unstable_poles and downsample apply to a measured "
+                         "plant (an Frd); a model's poles are its own")
     d = _native.analyze(_ss(P, "P")._tuple(), _ss(K, "K")._tuple())
     text = d.pop("loop_at_a_time_json", None)
     if text is not None:
