@@ -11,7 +11,8 @@
 //! `f ∈ D(α) = {(1 + δ/2)/(1 − δ/2) : |δ| < α}`, with `α = 1/‖S − I/2‖∞`. Per channel with the
 //! channel's `(S)_jj`; **simultaneously** on every input (or output) channel with the whole
 //! `S`: `1/‖S − I/2‖∞` then bounds the multiloop disk margin from below (it lets the channels'
-//! perturbations couple; the structured value needs μ). A disk margin α gives the gain margin
+//! perturbations couple); the structured value, each channel perturbed on its own, is
+//! `1/sup μ(S − I/2)` ([`crate::mu`]), reported beside it for two or more channels. A disk margin α gives the gain margin
 //! `[(1 − α/2)/(1 + α/2), (1 + α/2)/(1 − α/2)]` (α < 2) and the phase margin `±2·atan(α/2)`.
 //!
 //! **Singular values** of S, T and KS on a frequency grid, from `P(f)` and `K(f)`
@@ -19,6 +20,7 @@
 
 use crate::closed_loop::ClosedLoop;
 use crate::error::{AnalysisError, Result};
+use crate::mu::{structured_disk_margins, StructuredDiskMargin};
 use nalgebra::DMatrix;
 use sd_model::connect::{feedback, series};
 use sd_model::StateSpace;
@@ -62,6 +64,11 @@ pub struct MimoMargins {
     pub simultaneous_input_disk_margin: f64,
     /// `1/‖S_O − I/2‖∞`, on the outputs.
     pub simultaneous_output_disk_margin: f64,
+    /// The structured (μ) simultaneous disk margin of the inputs: the channels perturbed
+    /// independently ([`crate::mu`]); `None` for a single input (it equals the channel's).
+    pub structured_input_disk_margin: Option<StructuredDiskMargin>,
+    /// The same on the outputs.
+    pub structured_output_disk_margin: Option<StructuredDiskMargin>,
 }
 
 /// The singular values of S, T and KS on a grid.
@@ -78,7 +85,7 @@ pub struct SingularValues {
 }
 
 /// `(1 + α/2)/(1 − α/2)` in dB and `2·atan(α/2)` in degrees.
-fn disk_to_classic(alpha: f64) -> (f64, f64) {
+pub(crate) fn disk_to_classic(alpha: f64) -> (f64, f64) {
     let g = if alpha < 2.0 {
         20.0 * ((1.0 + alpha / 2.0) / (1.0 - alpha / 2.0)).log10()
     } else {
@@ -163,10 +170,21 @@ pub fn mimo_margins(cl: &ClosedLoop) -> Result<MimoMargins> {
     for i in 0..p.ny() {
         channels.push(channel(&s_out.select(&[i], &[i])?, Side::Output, i)?);
     }
+    let structured = if p.nu() > 1 || p.ny() > 1 {
+        Some(structured_disk_margins(cl)?)
+    } else {
+        None
+    };
+    let [s_i, s_o] = match structured {
+        Some([i, o]) => [Some(i), Some(o)],
+        None => [None, None],
+    };
     Ok(MimoMargins {
         channels,
         simultaneous_input_disk_margin: disk_margin(&s_in)?,
         simultaneous_output_disk_margin: disk_margin(&s_out)?,
+        structured_input_disk_margin: s_i.filter(|_| p.nu() > 1),
+        structured_output_disk_margin: s_o.filter(|_| p.ny() > 1),
     })
 }
 

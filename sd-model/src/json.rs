@@ -18,7 +18,7 @@ use std::io::{Read, Write};
 
 #[derive(Serialize, Deserialize)]
 struct SsJson {
-    #[serde(rename = "type")]
+    #[serde(rename = "type", default = "ss_kind")]
     kind: String,
     ts: Option<f64>,
     a: Vec<Vec<f64>>,
@@ -31,6 +31,11 @@ struct SsJson {
     inputs: Option<Vec<String>>,
     #[serde(skip_serializing_if = "Option::is_none")]
     outputs: Option<Vec<String>>,
+}
+
+/// A model file without `"type"` is a state-space model.
+fn ss_kind() -> String {
+    "ss".into()
 }
 
 #[derive(Deserialize)]

@@ -300,10 +300,22 @@ fn channels_text(m: &sd_analysis::MimoMargins) -> String {
         ));
     }
     out.push_str(&format!(
-        "\nsimultaneous disk margin (every channel at once, a lower bound): inputs {:.3}, \
-         outputs {:.3}",
+        "\nsimultaneous disk margin, unstructured (every channel at once, coupled; a lower \
+         bound): inputs {:.3}, outputs {:.3}",
         m.simultaneous_input_disk_margin, m.simultaneous_output_disk_margin
     ));
+    for (side, s) in [
+        ("input", &m.structured_input_disk_margin),
+        ("output", &m.structured_output_disk_margin),
+    ] {
+        if let Some(s) = s {
+            out.push_str(&format!(
+                "\nsimultaneous disk margin, structured (μ: each {side} channel on its own, all \
+                 {side}s at once): {:.3} (at most {:.3}) at {:.3} Hz: gain ±{:.2} dB, phase ±{:.2} deg",
+                s.margin, s.margin_upper, s.freq_hz, s.gain_margin_db, s.phase_margin_deg
+            ));
+        }
+    }
     out
 }
 
