@@ -18,7 +18,9 @@ mod design;
 mod model;
 mod ops;
 mod physical;
+mod signals;
 mod synthesis;
+mod uncertainty;
 
 use nalgebra::DMatrix;
 use numpy::ndarray::Array2;
@@ -57,7 +59,8 @@ classified!(
     sd_ident::IdentError,
     sd_analysis::AnalysisError,
     sd_testbed::TestbedError,
-    sd_diagnose::DiagnoseError
+    sd_diagnose::DiagnoseError,
+    sd_uncertainty::UncertaintyError
 );
 
 /// `ValueError` or `NumericalError` with the error's message.
@@ -136,5 +139,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     synthesis::register(m)?;
     data::register(m)?;
     physical::register(m)?;
+    uncertainty::register(m)?;
+    signals::register(m)?;
     Ok(())
 }

@@ -24,3 +24,17 @@ pub enum UncertaintyError {
 
 /// Result with [`UncertaintyError`].
 pub type Result<T> = std::result::Result<T, UncertaintyError>;
+
+impl UncertaintyError {
+    /// A numerical failure on valid input (else: input the caller must fix), by the wrapped
+    /// crate's own classification.
+    pub fn is_numerical(&self) -> bool {
+        match self {
+            UncertaintyError::Model(e) => e.is_numerical(),
+            UncertaintyError::Multirate(e) => e.is_numerical(),
+            UncertaintyError::Analysis(e) => e.is_numerical(),
+            UncertaintyError::Ident(e) => e.is_numerical(),
+            UncertaintyError::Input(_) => false,
+        }
+    }
+}

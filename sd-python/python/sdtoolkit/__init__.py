@@ -37,6 +37,16 @@ def __dir__():
 
 
 __all__ = [
+    "Uncertainty",
+    "uncertainty",
+    "coverage",
+    "downsample_uncertainty",
+    "robust_stability",
+    "intersample",
+    "multisine",
+    "weight_notch",
+    "weight_lowpass",
+    "makeweight",
     "lsim",
     "step_response",
     "series",
@@ -931,3 +941,18 @@ def testbed(config: Union[str, os.PathLike, None] = None, out: Union[str, os.Pat
     exps, truth = _native.testbed(text, o)
     return Result({"experiments": exps, "truth": _from_tuple(truth),
                    "manifest": None if o is None else os.path.join(o, "experiments.toml")})
+
+
+# re-exported from their own module (it imports the definitions above)
+from ._uncertainty import (  # noqa: E402
+    Uncertainty,
+    coverage,
+    downsample_uncertainty,
+    intersample,
+    makeweight,
+    multisine,
+    robust_stability,
+    uncertainty,
+    weight_lowpass,
+    weight_notch,
+)
