@@ -37,6 +37,7 @@ def __dir__():
 
 
 __all__ = [
+    "plot",
     "Uncertainty",
     "uncertainty",
     "coverage",
@@ -956,3 +957,5 @@ from ._uncertainty import (  # noqa: E402
     weight_lowpass,
     weight_notch,
 )
+
+from . import plot  # noqa: E402  (matplotlib is imported only when a figure is drawn)
