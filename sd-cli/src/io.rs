@@ -232,3 +232,41 @@ pub fn atomic_svg(
         CliError::input(format!("cannot write {path}: {e}"))
     })
 }
+
+/// An FRD as CSV, one row per entry and line: `output,input,freq_hz,magnitude_db,phase_deg,
+/// sigma,snr_db` — the phase unwrapped along each entry's lines
+/// ([`sd_report::plot::unwrap_deg`]), `sigma` the standard deviation `√var` of the complex
+/// estimate and `snr_db` = `20·log10(|G|/σ)` (both empty without a variance); outputs and
+/// inputs 1-based.
+pub fn frd_csv(frd: &sd_model::Frd) -> String {
+    let (ny, nu) = frd.shape();
+    let mut text = String::from("output,input,freq_hz,magnitude_db,phase_deg,sigma,snr_db\n");
+    for o in 0..ny {
+        for i in 0..nu {
+            let g: Vec<num_complex::Complex64> = frd.response().iter().map(|m| m[(o, i)]).collect();
+            let ph = sd_report::plot::unwrap_deg(
+                &g.iter().map(|v| v.arg().to_degrees()).collect::<Vec<_>>(),
+            );
+            for (k, f) in frd.freq_hz().iter().enumerate() {
+                let (sigma, snr) = match frd.variance() {
+                    Some(v) => {
+                        let s = v[k][(o, i)].sqrt();
+                        (
+                            format!("{s:e}"),
+                            format!("{}", 20.0 * (g[k].norm() / s).log10()),
+                        )
+                    }
+                    None => (String::new(), String::new()),
+                };
+                text += &format!(
+                    "{},{},{f},{},{},{sigma},{snr}\n",
+                    o + 1,
+                    i + 1,
+                    20.0 * g[k].norm().log10(),
+                    ph[k]
+                );
+            }
+        }
+    }
+    text
+}

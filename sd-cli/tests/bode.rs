@@ -201,3 +201,59 @@ fn the_loop_figure_marks_the_margins() {
         String::from_utf8_lossy(&o.stderr)
     );
 }
+
+/// A measured FRD with variances: `sdctl bode` draws its ±2σ band and a third panel with the
+/// per-line SNR; `freqresp --csv` and `frf --csv` write f, dB, unwrapped phase (and σ, SNR).
+#[test]
+fn measured_variance_band_snr_panel_and_csv() {
+    let d = scratch("sdctl-bode-snr");
+    let p = |n: &str| d.join(n).to_string_lossy().into_owned();
+    std::fs::write(p("m.json"), MODEL).unwrap();
+    // an FRD with σ = 1 % of |G| on every line: SNR 40 dB
+    let frd = r#"{"type":"frd","ts":0.001,"freq_hz":[1.0,2.0,5.0,10.0,20.0,50.0],
+        "re":[[[1.0]],[[0.8]],[[0.5]],[[0.1]],[[-0.2]],[[-0.1]]],
+        "im":[[[0.0]],[[-0.4]],[[-0.6]],[[-0.5]],[[-0.2]],[[0.05]]],
+        "var":[[[1e-4]],[[8e-5]],[[6.1e-5]],[[2.6e-5]],[[8e-6]],[[1.25e-6]]]}"#;
+    std::fs::write(p("f.json"), frd).unwrap();
+    let o = sdctl(&[
+        "bode",
+        &p("m.json"),
+        &p("f.json"),
+        "--unit",
+        "m/N",
+        "-o",
+        &p("b.svg"),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let svg = std::fs::read_to_string(p("b.svg")).unwrap();
+    assert!(
+        svg.contains("SNR |Ĝ|/σ [dB]") && svg.contains("f ±2σ"),
+        "panel and band"
+    );
+    // freqresp --csv: the model's magnitude and unwrapped phase
+    let o = sdctl(&[
+        "freqresp",
+        &p("m.json"),
+        "--grid",
+        "1:400:50:log",
+        "--csv",
+        &p("r.csv"),
+        "-o",
+        &p("r.json"),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let csv = std::fs::read_to_string(p("r.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    assert_eq!(
+        csv.lines().next().unwrap(),
+        "output,input,freq_hz,magnitude_db,phase_deg,sigma,snr_db"
+    );
+    assert_eq!(rows.len(), 50);
+    let ph: Vec<f64> = rows.iter().map(|r| r[4].parse().unwrap()).collect();
+    assert!(ph.windows(2).all(|w| (w[1] - w[0]).abs() < 180.0));
+    assert!(rows.iter().all(|r| r[5].is_empty() && r[6].is_empty()));
+}

@@ -736,6 +736,20 @@ fn frf_and_fit() {
         assert!((a - b).norm() < 1e-9 * b.norm());
     }
     let frd_path = write(&dir, "frd.json", &String::from_utf8_lossy(&o.stdout));
+    // --csv: per line f, dB, unwrapped phase, σ and SNR, equal to the JSON's response
+    let csv_path = dir.join("frf.csv").to_string_lossy().into_owned();
+    sdctl_ok(&["frf", &manifest, "--experiment", "a", "--csv", &csv_path]);
+    let csv = std::fs::read_to_string(&csv_path).unwrap();
+    let rows: Vec<Vec<f64>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|v| v.parse().unwrap_or(f64::NAN)).collect())
+        .collect();
+    assert_eq!(rows.len(), frd.len());
+    for (r, g) in rows.iter().zip(frd.response()) {
+        assert!((r[3] - 20.0 * g[(0, 0)].norm().log10()).abs() < 1e-9);
+    }
+    assert!(rows.windows(2).all(|w| (w[1][4] - w[0][4]).abs() < 180.0));
     let o = sdctl(&[
         "fit",
         &frd_path,

@@ -3,6 +3,9 @@
 
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
+
+mod bode;
+pub use bode::{bode_plot, bode_plot_in, bode_snr_plot_in, unwrap_deg};
 /// The colour of a curve (plotters' RGB colour, re-exported so a user needs no plotters dependency).
 pub use plotters::style::RGBColor;
 
@@ -80,138 +83,8 @@ pub fn magnitude_plot(
     Ok(())
 }
 
-/// Bode plot: magnitude (dB) above, phase (degrees, unwrapped) below, on one logarithmic
-/// frequency axis; `phase_deg[i]` is curve `i`'s phase (`None` for curves without one, such as
-/// a noise level). A band narrower than a factor 3 falls back to [`magnitude_plot`] (a log axis
-/// has no ticks there).
-///
-/// # Errors
-/// Nothing finite to plot; the file cannot be written.
-pub fn bode_plot(
-    path: &str,
-    title: &str,
-    curves: &[Curve<'_>],
-    phase_deg: &[Option<&[f64]>],
-    fmin: f64,
-    fmax: f64,
-    marks: &[(f64, &str)],
-) -> crate::Result<()> {
-    bode_plot_in(path, title, curves, phase_deg, (fmin, fmax), marks, "")
-}
-
-/// The phase unwrapped: a jump of more than 180° between neighbouring points is taken as a
-/// wrap and removed (multiples of 360°), so the curve runs continuously; non-finite points
-/// are kept and skipped over. The branch is the one whose first finite value lies in
-/// (−300°, 60°]: an integrator starts at −90°, a double integrator at −180°, a PID around a
-/// double integrator at −270° + its lead, as a control engineer reads them.
-pub fn unwrap_deg(phase_deg: &[f64]) -> Vec<f64> {
-    let mut out = unwrap_continuous(phase_deg);
-    if let Some(first) = out.iter().copied().find(|p| p.is_finite()) {
-        let k = ((first - 60.0) / 360.0).ceil();
-        for p in &mut out {
-            *p -= 360.0 * k;
-        }
-    }
-    out
-}
-
-/// [`unwrap_deg`] before the branch is chosen.
-fn unwrap_continuous(phase_deg: &[f64]) -> Vec<f64> {
-    let mut out = Vec::with_capacity(phase_deg.len());
-    let (mut shift, mut last) = (0.0f64, None::<f64>);
-    for &p in phase_deg {
-        if !p.is_finite() {
-            out.push(p);
-            continue;
-        }
-        if let Some(q) = last {
-            shift -= 360.0 * ((p + shift - q) / 360.0).round();
-        }
-        last = Some(p + shift);
-        out.push(p + shift);
-    }
-    out
-}
-
-/// [`bode_plot`] with the magnitude's unit named on its axis (`dB re 1 unit`; empty: `dB`).
-///
-/// # Errors
-/// As [`bode_plot`].
-pub fn bode_plot_in(
-    path: &str,
-    title: &str,
-    curves: &[Curve<'_>],
-    phase_deg: &[Option<&[f64]>],
-    (fmin, fmax): (f64, f64),
-    marks: &[(f64, &str)],
-    unit: &str,
-) -> crate::Result<()> {
-    if fmax / fmin < 3.0 {
-        return magnitude_plot(path, title, curves, fmin, fmax, marks);
-    }
-    let in_band = |c: &Curve<'_>, ph: &[f64]| -> Vec<(f64, f64)> {
-        c.freq_hz
-            .iter()
-            .zip(unwrap_deg(ph))
-            .filter(|(f, p)| **f >= fmin && **f <= fmax && p.is_finite())
-            .map(|(f, p)| (*f, p))
-            .collect()
-    };
-    let phases: Vec<Vec<(f64, f64)>> = curves
-        .iter()
-        .zip(phase_deg)
-        .map(|(c, ph)| ph.map_or_else(Vec::new, |ph| in_band(c, ph)))
-        .collect();
-    let (lo, hi) = phases
-        .iter()
-        .flatten()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), (_, p)| {
-            (lo.min(*p), hi.max(*p))
-        });
-    let (lo, hi) = if lo.is_finite() {
-        (
-            (lo / 45.0).floor() * 45.0 - 15.0,
-            (hi / 45.0).ceil() * 45.0 + 15.0,
-        )
-    } else {
-        (-180.0, 180.0)
-    };
-    let root = SVGBackend::new(path, (900, 780)).into_drawing_area();
-    root.fill(&WHITE).map_err(crate::plot_err)?;
-    let (top, bottom) = root.split_vertically(520);
-    let y = if unit.is_empty() {
-        "magnitude [dB]".to_string()
-    } else {
-        format!("magnitude [dB re 1 {unit}]")
-    };
-    draw_magnitude(&top, title, curves, (fmin, fmax), marks, &y)?;
-    let mut chart = ChartBuilder::on(&bottom)
-        .margin(12)
-        .x_label_area_size(45)
-        .y_label_area_size(60)
-        .build_cartesian_2d((fmin..fmax).log_scale(), lo..hi)
-        .map_err(crate::plot_err)?;
-    chart
-        .configure_mesh()
-        .x_desc("frequency [Hz]")
-        .y_desc("phase [°]")
-        .y_labels(9)
-        .x_label_formatter(&|v| format!("{v:.0}"))
-        .draw()
-        .map_err(crate::plot_err)?;
-    for (c, pts) in curves.iter().zip(phases) {
-        if pts.len() > 1 {
-            chart
-                .draw_series(LineSeries::new(pts, c.color.stroke_width(2)))
-                .map_err(crate::plot_err)?;
-        }
-    }
-    root.present().map_err(crate::plot_err)?;
-    Ok(())
-}
-
 /// The magnitude panel of [`magnitude_plot`] and [`bode_plot`].
-fn draw_magnitude<DB: DrawingBackend>(
+pub(crate) fn draw_magnitude<DB: DrawingBackend>(
     root: &DrawingArea<DB, plotters::coord::Shift>,
     title: &str,
     curves: &[Curve<'_>],
@@ -237,8 +110,19 @@ fn draw_magnitude<DB: DrawingBackend>(
         (lo / 10.0).floor() * 10.0 - 5.0,
         (hi / 10.0).ceil() * 10.0 + 5.0,
     );
-    let mut chart = ChartBuilder::on(root)
-        .caption(title, ("sans-serif", 22))
+    // the legend in a strip right of the axes, never over the data
+    let titled = root
+        .titled(title, ("sans-serif", 20))
+        .map_err(crate::plot_err)?;
+    let width = titled.dim_in_pixel().0;
+    let (plot_area, strip) = titled.split_horizontally(width.saturating_sub(LEGEND_WIDTH));
+    let entries: Vec<(&str, RGBColor)> = curves
+        .iter()
+        .filter(|c| !c.label.is_empty())
+        .map(|c| (c.label, c.color))
+        .collect();
+    legend_strip(&strip, &entries)?;
+    let mut chart = ChartBuilder::on(&plot_area)
         .margin(12)
         .x_label_area_size(45)
         .y_label_area_size(60)
@@ -259,16 +143,9 @@ fn draw_magnitude<DB: DrawingBackend>(
             .filter(|(f, d)| **f >= fmin && **f <= fmax && d.is_finite())
             .map(|(f, d)| (*f, *d))
             .collect();
-        let color = c.color;
-        let series = chart
-            .draw_series(LineSeries::new(pts, color.stroke_width(2)))
+        chart
+            .draw_series(LineSeries::new(pts, c.color.stroke_width(2)))
             .map_err(crate::plot_err)?;
-        // an empty label draws without a legend entry (the second edge of a band)
-        if !c.label.is_empty() {
-            series.label(c.label).legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
-            });
-        }
     }
     for (i, (f, label)) in marks.iter().enumerate() {
         chart
@@ -290,7 +167,48 @@ fn draw_magnitude<DB: DrawingBackend>(
             .draw_series(std::iter::once(Text::new(label.to_string(), (x, y), style)))
             .map_err(crate::plot_err)?;
     }
-    legend(&mut chart, SeriesLabelPosition::LowerLeft)
+    Ok(())
+}
+
+/// Width (pixels) of the legend strip right of a magnitude panel.
+pub(crate) const LEGEND_WIDTH: u32 = 230;
+
+/// A legend drawn in its own strip (a line sample and the label, wrapped at 30 characters),
+/// so that it never covers the data.
+pub(crate) fn legend_strip<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    entries: &[(&str, RGBColor)],
+) -> crate::Result<()> {
+    let mut y = 16i32;
+    for (label, color) in entries {
+        area.draw(&PathElement::new(
+            vec![(6, y + 7), (30, y + 7)],
+            color.stroke_width(3),
+        ))
+        .map_err(crate::plot_err)?;
+        for line in wrap(label, 30) {
+            area.draw(&Text::new(line, (36, y), ("sans-serif", 13)))
+                .map_err(crate::plot_err)?;
+            y += 16;
+        }
+        y += 6;
+    }
+    Ok(())
+}
+
+/// `text` broken at spaces into lines of at most `width` characters (a longer word alone).
+fn wrap(text: &str, width: usize) -> Vec<String> {
+    let mut lines: Vec<String> = Vec::new();
+    for word in text.split(' ') {
+        match lines.last_mut() {
+            Some(l) if l.chars().count() + 1 + word.chars().count() <= width => {
+                l.push(' ');
+                l.push_str(word);
+            }
+            _ => lines.push(word.to_string()),
+        }
+    }
+    lines
 }
 
 /// One curve of a generic line plot.
@@ -336,7 +254,11 @@ fn line_plot_in(
     xlog: bool,
     equal: bool,
 ) -> crate::Result<()> {
-    let size = if equal { (760, 760) } else { (900, 560) };
+    let size = if equal {
+        (760 + LEGEND_WIDTH, 760)
+    } else {
+        (900, 560)
+    };
     let root = SVGBackend::new(path, size).into_drawing_area();
     root.fill(&WHITE).map_err(crate::plot_err)?;
     let finite = |v: &f64| v.is_finite();
@@ -373,9 +295,20 @@ fn line_plot_in(
             cy + span / 2.0,
         );
     }
-    let mut builder = ChartBuilder::on(&root);
+    // the title across the figure, the legend in a strip right of the axes (off the data)
+    let titled = root
+        .titled(title, ("sans-serif", 20))
+        .map_err(crate::plot_err)?;
+    let width = titled.dim_in_pixel().0;
+    let (plot_area, strip) = titled.split_horizontally(width.saturating_sub(LEGEND_WIDTH));
+    let entries: Vec<(&str, RGBColor)> = lines
+        .iter()
+        .filter(|l| !l.label.is_empty())
+        .map(|l| (l.label, l.color))
+        .collect();
+    legend_strip(&strip, &entries)?;
+    let mut builder = ChartBuilder::on(&plot_area);
     builder
-        .caption(title, ("sans-serif", 22))
         .margin(12)
         .x_label_area_size(45)
         .y_label_area_size(80);
@@ -402,17 +335,10 @@ fn line_plot_in(
                         .filter(|(x, y)| x.is_finite() && y.is_finite() && (!xlog || **x > 0.0))
                         .map(|(x, y)| (*x, *y))
                         .collect();
-                let color = l.color;
-                let series = chart
-                    .draw_series(LineSeries::new(pts, color.stroke_width(2)))
+                chart
+                    .draw_series(LineSeries::new(pts, l.color.stroke_width(2)))
                     .map_err(crate::plot_err)?;
-                if !l.label.is_empty() {
-                    series.label(l.label).legend(move |(x, y)| {
-                        PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
-                    });
-                }
             }
-            legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
         }};
     }
     if xlog {

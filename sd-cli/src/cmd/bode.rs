@@ -5,7 +5,7 @@
 use crate::commands::parse_grid;
 use crate::io::{atomic_svg, from_model, read_text, CliError};
 use num_complex::Complex64 as C;
-use sd_report::plot::{bode_plot_in, unwrap_deg, Curve, RGBColor};
+use sd_report::plot::{bode_snr_plot_in, unwrap_deg, Curve, RGBColor};
 
 /// Arguments of `sdctl bode`.
 #[derive(clap::Args, Debug)]
@@ -54,6 +54,8 @@ struct Series {
     freq_hz: Vec<f64>,
     response: Vec<C>,
     measured: bool,
+    /// σ of each measured line (`√var`), when the FRD carries variances.
+    sigma: Option<Vec<f64>>,
 }
 
 /// The entry of a `ny×nu` response that `entry` names, or the error saying what to give.
@@ -94,6 +96,9 @@ impl Args {
                     freq_hz: frd.freq_hz().to_vec(),
                     response: frd.response().iter().map(|g| g[(o, i)]).collect(),
                     measured: true,
+                    sigma: frd
+                        .variance()
+                        .map(|v| v.iter().map(|m| m[(o, i)].sqrt()).collect()),
                 });
             } else {
                 let sys = sd_model::read_model(text.as_bytes()).map_err(|e| from_model(path, e))?;
@@ -120,6 +125,7 @@ impl Args {
                     .collect(),
                 freq_hz: f,
                 measured: false,
+                sigma: None,
             });
         }
         series.extend(measured);
@@ -189,17 +195,46 @@ impl Args {
                 },
             })
             .collect();
-        let phases: Vec<Option<&[f64]>> = ph.iter().map(|p| Some(p.as_slice())).collect();
+        let mut phases: Vec<Option<&[f64]>> = ph.iter().map(|p| Some(p.as_slice())).collect();
+        // a measured FRD with variances: its ±2σ band (two unlabelled edges, drawn first) and
+        // its per-line SNR |G|/σ in a third panel
+        let (bands, snr) = sigma_parts(series, &db);
+        let band_labels: Vec<String> = series
+            .iter()
+            .filter(|s| s.sigma.is_some())
+            .flat_map(|s| [format!("{} ±2σ", s.name), String::new()])
+            .collect();
+        let mut all: Vec<Curve<'_>> = bands
+            .iter()
+            .zip(&band_labels)
+            .map(|((f, d), l)| Curve {
+                label: l,
+                freq_hz: f,
+                db: d,
+                color: RGBColor(170, 170, 170),
+            })
+            .collect();
+        phases.splice(0..0, bands.iter().map(|_| None));
+        all.extend(curves);
+        let snr_curves: Vec<Curve<'_>> = snr
+            .iter()
+            .map(|(f, d)| Curve {
+                label: "",
+                freq_hz: f,
+                db: d,
+                color: RGBColor(0, 0, 0),
+            })
+            .collect();
         let (fmin, fmax) = band(series);
         if !(fmin.is_finite() && fmax > fmin) {
             return Err(CliError::input("nothing to plot: no positive frequency"));
         }
         atomic_svg(&self.output, |tmp| {
-            bode_plot_in(
+            bode_snr_plot_in(
                 tmp,
                 &self.title,
-                &curves,
-                &phases,
+                (&all, &phases),
+                &snr_curves,
                 (fmin, fmax),
                 &[],
                 self.unit.as_deref().unwrap_or(""),
@@ -236,4 +271,49 @@ fn band(series: &[Series]) -> (f64, f64) {
         .fold((f64::INFINITY, 0.0f64), |(lo, hi), f| {
             (lo.min(f), hi.max(f))
         })
+}
+
+/// The ±2σ band edges (dB: `20·log10(|G| ± 2σ)`, the lower edge left out where it would be
+/// ≤ 0) and the per-line SNR `20·log10(|G|/σ)` of every measured series with variances.
+#[allow(clippy::type_complexity)]
+fn sigma_parts(
+    series: &[Series],
+    db: &[Vec<f64>],
+) -> (Vec<(Vec<f64>, Vec<f64>)>, Vec<(Vec<f64>, Vec<f64>)>) {
+    let (mut bands, mut snr) = (Vec::new(), Vec::new());
+    for (s, d) in series.iter().zip(db) {
+        let Some(sig) = &s.sigma else { continue };
+        let mag: Vec<f64> = s.response.iter().map(|g| g.norm()).collect();
+        let up: Vec<f64> = mag
+            .iter()
+            .zip(sig)
+            .map(|(m, e)| 20.0 * (m + 2.0 * e).log10())
+            .collect();
+        let lo: Vec<f64> = mag
+            .iter()
+            .zip(sig)
+            .map(|(m, e)| {
+                if m > &(2.0 * e) {
+                    20.0 * (m - 2.0 * e).log10()
+                } else {
+                    f64::NAN
+                }
+            })
+            .collect();
+        bands.push((s.freq_hz.clone(), up));
+        bands.push((s.freq_hz.clone(), lo));
+        let r: Vec<f64> = d
+            .iter()
+            .zip(sig)
+            .map(|(db, e)| {
+                if *e > 0.0 {
+                    db - 20.0 * e.log10()
+                } else {
+                    f64::NAN
+                }
+            })
+            .collect();
+        snr.push((s.freq_hz.clone(), r));
+    }
+    (bands, snr)
 }

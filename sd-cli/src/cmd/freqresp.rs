@@ -11,6 +11,10 @@ pub(crate) struct Args {
     /// Frequencies `FMIN:FMAX:N[:log]` in Hz (at most the Nyquist frequency of a discrete model).
     #[arg(long)]
     pub(crate) grid: String,
+    /// Also write the response as CSV to this file: per entry and frequency the magnitude
+    /// (dB) and unwrapped phase (degrees).
+    #[arg(long)]
+    pub(crate) csv: Option<String>,
     #[arg(help = crate::commands::OUTPUT_HELP, short, long)]
     pub(crate) output: Option<String>,
 }
@@ -21,6 +25,7 @@ impl Args {
         let Args {
             model,
             grid,
+            csv,
             output,
         } = self;
         let sys = read_model(&model)?;
@@ -61,6 +66,15 @@ impl Args {
                 "{model}: {} Hz is a pole of the model (its response is infinite there); leave that frequency out of the grid",
                 f[k / m]
             )));
+        }
+        if let Some(path) = &csv {
+            let (ny, nu) = (sys.ny(), sys.nu());
+            let resp = (0..f.len())
+                .map(|k| nalgebra::DMatrix::from_fn(ny, nu, |o, i| flat[k * ny * nu + i * ny + o]))
+                .collect();
+            let frd = sd_model::Frd::new(f.clone(), resp, None, sys.time())
+                .map_err(|e| from_model(&model, e))?;
+            crate::io::emit(crate::io::frd_csv(&frd).trim_end(), Some(path))?;
         }
         // the FRD object gains `"eval_path"` (informational, ignored by the readers)
         let chunks = sd_model::frd_json_chunks(

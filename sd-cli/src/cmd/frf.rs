@@ -25,6 +25,10 @@ pub(crate) struct Args {
     /// without excitation (refused by default) with a warning.
     #[arg(long)]
     pub(crate) keep_low_snr: bool,
+    /// Also write the FRF as CSV to this file: per entry and line the frequency (Hz),
+    /// magnitude (dB), unwrapped phase (degrees), σ of the estimate and the SNR |G|/σ (dB).
+    #[arg(long)]
+    pub(crate) csv: Option<String>,
     #[arg(help = crate::commands::OUTPUT_HELP, short, long)]
     pub(crate) output: Option<String>,
 }
@@ -38,6 +42,7 @@ impl Args {
             excited_fraction,
             keep_low_snr,
             covariance,
+            csv,
             output,
         } = self;
         let req = sd_ident::FrfRequest {
@@ -66,7 +71,12 @@ impl Args {
             .cloned()
             .collect();
         if chosen.len() > 1 || chosen.iter().any(|e| e.spec.is_mimo()) {
-            return mimo(&chosen, &req, covariance, output.as_deref());
+            return mimo(
+                &chosen,
+                &req,
+                covariance,
+                (output.as_deref(), csv.as_deref()),
+            );
         }
         let Some(target) = exps.iter().position(|e| e.spec.name == experiment[0]) else {
             return Err(CliError::input("no experiment given"));
@@ -85,6 +95,9 @@ impl Args {
         if let Some(bla) = &est.bla {
             eprintln!("[frf] {name}: {}", bla.distortion);
             json = with_bla(&json, bla)?;
+        }
+        if let Some(path) = &csv {
+            emit(crate::io::frd_csv(&est.frd).trim_end(), Some(path))?;
         }
         emit(&json, output.as_deref())
     }
@@ -123,7 +136,7 @@ fn mimo(
     exps: &[sd_ident::Experiment],
     req: &sd_ident::FrfRequest,
     covariance: bool,
-    output: Option<&str>,
+    (output, csv): (Option<&str>, Option<&str>),
 ) -> Result<(), CliError> {
     let refs: Vec<&sd_ident::Experiment> = exps.iter().collect();
     let names: Vec<&str> = exps.iter().map(|e| e.spec.name.as_str()).collect();
@@ -141,6 +154,9 @@ fn mimo(
         }
     );
     let json = sd_model::frd_to_json_string(&est.frd).map_err(|e| from_model("output", e))?;
+    if let Some(path) = csv {
+        emit(crate::io::frd_csv(&est.frd).trim_end(), Some(path))?;
+    }
     if !covariance {
         return emit(&json, output);
     }

@@ -1,7 +1,38 @@
 //! The paper run's figures (Figs. 3–7), each from this run's numbers.
 
 use super::*;
-/// Fig. 3: the measured FRFs at both rates and the fit at 5 kHz.
+/// Phases (degrees) of an FRD's first entry.
+fn frd_deg(f: &Frd) -> Vec<f64> {
+    f.response()
+        .iter()
+        .map(|g| g[(0, 0)].arg().to_degrees())
+        .collect()
+}
+
+/// Phases (degrees) of a model's first entry at `f` (Hz).
+fn model_deg(m: &StateSpace, f: &[f64]) -> Result<Vec<f64>, String> {
+    Ok(frd_deg(&m.freqresp(f).map_err(s)?))
+}
+
+/// Per-line SNR `|Ĝ|/σ` (dB) of an FRD with variances (NaN where the variance is 0 or absent).
+fn frd_snr_db(f: &Frd) -> Vec<f64> {
+    let var = f.variance();
+    f.response()
+        .iter()
+        .enumerate()
+        .map(|(i, g)| {
+            let v = var.map_or(0.0, |v| v[i][(0, 0)]);
+            if v > 0.0 {
+                db(g[(0, 0)].norm() / v.sqrt())
+            } else {
+                f64::NAN
+            }
+        })
+        .collect()
+}
+
+/// Fig. 3: the measured FRFs at both rates and the fit at 5 kHz — magnitude, phase and the
+/// measurements' per-line SNR; the measurements drawn last (on top).
 pub(super) fn fig3(
     out: &str,
     id: &Identified,
@@ -10,49 +41,78 @@ pub(super) fn fig3(
 ) -> Result<&'static str, String> {
     let f_f = id.est_f.frd.freq_hz().to_vec();
     let fit_db = model_db(&fitted.p_fast, &f_f)?;
-    magnitude_plot(
+    let fit_deg = model_deg(&fitted.p_fast, &f_f)?;
+    let (mf_db, mf_deg) = (frd_db(&id.est_f.frd), frd_deg(&id.est_f.frd));
+    let ms_deg = frd_deg(&id.est_s.frd);
+    let (snr_f, snr_s) = (frd_snr_db(&id.est_f.frd), frd_snr_db(&id.est_s.frd));
+    let curves = [
+        Curve {
+            label: "fit at 5 kHz",
+            freq_hz: &f_f,
+            db: &fit_db,
+            color: BLUE,
+        },
+        Curve {
+            label: "measured, 5 kHz",
+            freq_hz: &f_f,
+            db: &mf_db,
+            color: GREY,
+        },
+        Curve {
+            label: "measured, 1 kHz",
+            freq_hz: &pk.f_s,
+            db: &pk.meas_s_db,
+            color: RED,
+        },
+    ];
+    let snr = [
+        Curve {
+            label: "SNR, 5 kHz",
+            freq_hz: &f_f,
+            db: &snr_f,
+            color: GREY,
+        },
+        Curve {
+            label: "SNR, 1 kHz",
+            freq_hz: &pk.f_s,
+            db: &snr_s,
+            color: RED,
+        },
+    ];
+    bode_snr_plot_in(
         &format!("{out}/fig3_frf.svg"),
         "Fig. 3: measured FRFs at 5 kHz and 1 kHz, and the fit at 5 kHz",
-        &[
-            Curve {
-                label: "measured, 5 kHz",
-                freq_hz: &f_f,
-                db: &frd_db(&id.est_f.frd),
-                color: GREY,
-            },
-            Curve {
-                label: "measured, 1 kHz",
-                freq_hz: &pk.f_s,
-                db: &pk.meas_s_db,
-                color: RED,
-            },
-            Curve {
-                label: "fit at 5 kHz",
-                freq_hz: &f_f,
-                db: &fit_db,
-                color: BLUE,
-            },
-        ],
-        1.0,
-        2500.0,
+        (&curves, &[Some(&fit_deg), Some(&mf_deg), Some(&ms_deg)]),
+        &snr,
+        (1.0, 2500.0),
         &[(653.0, "653 Hz"), (347.0, "347 Hz")],
+        "m/N",
     )
     .map_err(s)?;
     Ok("fig3_frf.svg")
 }
 
-/// Fig. 4: the downsampled fit and the design model against the measured 1 kHz FRF.
-pub(super) fn fig4(out: &str, fitted: &Fitted, pk: &Peaks) -> Result<&'static str, String> {
+/// Fig. 4: the downsampled fit and the design model against the measured 1 kHz FRF
+/// (magnitude and phase; the measurement drawn last).
+pub(super) fn fig4(
+    out: &str,
+    id: &Identified,
+    fitted: &Fitted,
+    pk: &Peaks,
+) -> Result<&'static str, String> {
     let design_db = model_db(&fitted.p_design, &pk.f_s)?;
-    magnitude_plot(
+    let design_deg = model_deg(&fitted.p_design, &pk.f_s)?;
+    let down_deg = model_deg(&fitted.p_down, &pk.f_s)?;
+    let meas_deg = frd_deg(&id.est_s.frd);
+    bode_plot_in(
         &format!("{out}/fig4_downsampled.svg"),
         "Fig. 4: the 5 kHz fit downsampled to 1 kHz (Lemma 6) vs the measured 1 kHz FRF",
         &[
             Curve {
-                label: "measured, 1 kHz",
+                label: "design model",
                 freq_hz: &pk.f_s,
-                db: &pk.meas_s_db,
-                color: RED,
+                db: &design_db,
+                color: GREEN,
             },
             Curve {
                 label: "fit downsampled (Lemma 6)",
@@ -61,22 +121,23 @@ pub(super) fn fig4(out: &str, fitted: &Fitted, pk: &Peaks) -> Result<&'static st
                 color: BLUE,
             },
             Curve {
-                label: "design model",
+                label: "measured, 1 kHz",
                 freq_hz: &pk.f_s,
-                db: &design_db,
-                color: GREEN,
+                db: &pk.meas_s_db,
+                color: RED,
             },
         ],
-        1.0,
-        500.0,
+        &[Some(&design_deg), Some(&down_deg), Some(&meas_deg)],
+        (1.0, 500.0),
         &[(347.0, "347 Hz")],
+        "m/N",
     )
     .map_err(s)?;
     Ok("fig4_downsampled.svg")
 }
 
 /// Fig. 4 (detail): the aliased resonance with the model-free Lemma 6 prediction from the
-/// 5 kHz FRF and the model extended with the diagnosed cause.
+/// 5 kHz FRF and the model extended with the diagnosed cause; the measurement drawn last.
 pub(super) fn fig4_detail(
     out: &str,
     id: &Identified,
@@ -107,12 +168,6 @@ pub(super) fn fig4_detail(
         "Fig. 4 (detail): the aliased resonance, with the diagnosis",
         &[
             Curve {
-                label: "measured, 1 kHz",
-                freq_hz: &pk.f_s,
-                db: &pk.meas_s_db,
-                color: RED,
-            },
-            Curve {
                 label: "fit downsampled (Lemma 6)",
                 freq_hz: &pk.fine,
                 db: &pk.fine_db,
@@ -129,6 +184,12 @@ pub(super) fn fig4_detail(
                 freq_hz: &f_ext,
                 db: &pred_ext,
                 color: GREEN,
+            },
+            Curve {
+                label: "measured, 1 kHz",
+                freq_hz: &pk.f_s,
+                db: &pk.meas_s_db,
+                color: RED,
             },
         ],
         300.0,

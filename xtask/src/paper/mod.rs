@@ -33,7 +33,7 @@ use plotters::style::RGBColor;
 use sd_analysis::{cps, welch, ClosedLoop, Window};
 use sd_ident::{frf_periodic, Lines, MultisineSpec, PeriodicOptions, Phases, Role};
 use sd_model::{alias, grid, Frd, StateSpace};
-use sd_report::plot::{line_plot, magnitude_plot, Curve, Line};
+use sd_report::plot::{bode_plot_in, bode_snr_plot_in, line_plot, magnitude_plot, Curve, Line};
 use sd_testbed::{
     run_identification, run_standstill, Identification, Injection, Noise, NonIdealities,
     Standstill, Truth,
@@ -655,7 +655,7 @@ pub fn run(out: &str, quick: bool, averaging: f64) -> Result<(), String> {
     );
     let (stand, with_sensor) = standstills(&truth, &c, quick, averaging)?;
     p.say(6, "figures");
-    let mut figures = vec![fig3(out, &id, &fitted, &pk)?, fig4(out, &fitted, &pk)?];
+    let mut figures = vec![fig3(out, &id, &fitted, &pk)?, fig4(out, &id, &fitted, &pk)?];
     figures.push(fig4_detail(out, &id, &pk, &diag)?);
     figures.push(fig4_uncertainty(out, &pk, &unc)?);
     figures.extend(fig5(out, &c)?);
