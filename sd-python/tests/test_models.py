@@ -301,3 +301,20 @@ def test_lsim_and_step_response_match_python_control():
         sd.lsim(s, rng.normal(size=(n, 3)))
     with pytest.raises(TypeError):
         sd.lsim(s, u + 1j)
+
+
+def test_a_python_control_transfer_function_is_accepted_where_a_model_is():
+    """#43 item 4: a ``control.TransferFunction`` (SISO and MIMO, continuous and discrete) is a
+    model everywhere: its response equals python-control's own evaluation of the fraction."""
+    import control
+    G = control.tf([1.0, 3.0], [1.0, 2.0, 10.0])
+    assert np.allclose(np.sort_complex(sd.poles(G)), np.sort_complex(np.roots([1, 2, 10])))
+    Gd = control.tf([0.5, 0.1], [1.0, -0.9], 0.01)
+    f = np.array([1.0, 10.0])
+    close(sd.freqresp(Gd, f), Gd(np.exp(2j * np.pi * f * 0.01)), 1e-13)
+    M = control.tf([[[1], [2]], [[1, 0], [3]]], [[[1, 1], [1, 2]], [[1, 3], [1, 4]]])
+    got = sd.freqresp(M, f, squeeze=False)
+    for k, fk in enumerate(f):
+        close(got[:, :, k], M(2j * np.pi * fk), 1e-13)
+    a = sd.analyze(control.tf([1.0], [1.0, 1.0, 0.0]), control.tf([2.0], [1.0]))
+    assert a.stable

@@ -189,11 +189,23 @@ class StateSpace:
 
     @classmethod
     def from_control(cls, sys) -> "StateSpace":
-        """A ``control.StateSpace`` (or anything with ``A, B, C, D, dt``) as a StateSpace."""
+        """A python-control model as a StateSpace: a ``control.StateSpace`` (or anything with
+        ``A, B, C, D, dt``) as it is; a ``control.TransferFunction`` through :func:`tf` (SISO:
+        controllable canonical form; MIMO: each entry realized on its own states, stacked — exact,
+        not minimal when entries share poles; reduce with :func:`balred` if needed)."""
         dt = getattr(sys, "dt", None)
         if dt is True:
             raise ValueError("the python-control model has dt=True (unspecified period): give it a period")
-        return cls(sys.A, sys.B, sys.C, sys.D, None if not dt else float(dt))
+        dt = None if not dt else float(dt)
+        if all(hasattr(sys, k) for k in ("A", "B", "C", "D")):
+            return cls(sys.A, sys.B, sys.C, sys.D, dt)
+        if hasattr(sys, "num") and hasattr(sys, "den"):
+            ny, nu = len(sys.num), len(sys.num[0])
+            if (ny, nu) == (1, 1):
+                return tf(np.asarray(sys.num[0][0]), np.asarray(sys.den[0][0]), dt)
+            return _tf_matrix(sys.num, sys.den, dt)
+        raise TypeError(f"not a python-control model: {type(sys).__name__} (give a StateSpace or "
+                        "TransferFunction)")
 
     def to_json(self) -> str:
         """The toolkit's model JSON (docs/formats.md), as ``sdctl`` reads it."""
@@ -230,12 +242,32 @@ class StateSpace:
         return f"StateSpace({self.nstates} states, {self.ninputs} inputs, {self.noutputs} outputs, {t})"
 
 
+def _tf_matrix(num, den, dt) -> StateSpace:
+    """The transfer-function matrix ``num[i][j]/den[i][j]`` as one StateSpace: entry (i, j)
+    realized by :func:`tf` on its own states, driven by input j and read by output i."""
+    ny, nu = len(num), len(num[0])
+    parts = [[tf(np.asarray(num[i][j]), np.asarray(den[i][j]), dt) for j in range(nu)] for i in range(ny)]
+    n = sum(p.nstates for row in parts for p in row)
+    A, B, C, D = np.zeros((n, n)), np.zeros((n, nu)), np.zeros((ny, n)), np.zeros((ny, nu))
+    k = 0
+    for i in range(ny):
+        for j in range(nu):
+            p, m = parts[i][j], parts[i][j].nstates
+            A[k:k + m, k:k + m] = p.A
+            B[k:k + m, j] = p.B[:, 0]
+            C[i, k:k + m] = p.C[0, :]
+            D[i, j] = p.D[0, 0]
+            k += m
+    return StateSpace(A, B, C, D, dt)
+
+
 def _ss(sys: Any, name: str = "sys") -> StateSpace:
     if isinstance(sys, StateSpace):
         return sys
-    if all(hasattr(sys, k) for k in ("A", "B", "C", "D")):
+    if all(hasattr(sys, k) for k in ("A", "B", "C", "D")) or (hasattr(sys, "num") and hasattr(sys, "den")):
         return StateSpace.from_control(sys)
-    raise TypeError(f"{name} must be a sdtoolkit.StateSpace or a control.StateSpace, got {type(sys).__name__}")
+    raise TypeError(f"{name} must be a sdtoolkit.StateSpace or a python-control StateSpace or "
+                    f"TransferFunction, got {type(sys).__name__}")
 
 
 def _from_tuple(t) -> StateSpace:
