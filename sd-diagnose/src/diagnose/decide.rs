@@ -157,9 +157,12 @@ pub(super) fn decide(
         return Ok(not_repeatable(data, ch));
     }
     let (o, _) = rate_tied(data, j, progress)?;
-    let seen = std::iter::once(&data.fast)
+    // distortion over every experiment's tests as one family: one more experiment must not
+    // raise the chance that a linear plant is called nonlinear
+    let all: Vec<&Estimate> = std::iter::once(&data.fast)
         .chain(data.vals.iter().map(|v| &v.whole))
-        .any(|e| distorted(e, a) == Some(true));
+        .collect();
+    let seen = distorted_family(&all, a) == Some(true);
     if seen && matches!(o.causes.first(), Some(Cause::Unexplained)) {
         let one = one_level(data.vals.iter().filter(|v| v.rate_tied()));
         return Ok(Outcome {
@@ -221,6 +224,29 @@ pub(super) fn moves_under_distortion(
 pub(super) fn distorted(est: &Estimate, alpha: f64) -> Option<bool> {
     let ev = distortion_evidence("", est.distortion.as_ref()?, alpha);
     (!ev.is_empty()).then(|| ev.iter().any(|e| !e.passed))
+}
+
+/// Whether any of `ests` shows nonlinear distortion, their odd and even tests taken as one
+/// family at `alpha` (Bonferroni: each of the `m` tests at `alpha/m`), so that the chance of
+/// a false alarm on a linear plant stays at most `alpha` however many experiments there are
+/// (the per-test false-alarm rate is calibrated at every rate and fold pattern:
+/// `tests/tests/distortion_calibration.rs`); `None` where none has lines to look at.
+pub(super) fn distorted_family(ests: &[&Estimate], alpha: f64) -> Option<bool> {
+    let reports: Vec<_> = ests.iter().filter_map(|e| e.distortion.as_ref()).collect();
+    let m: usize = reports
+        .iter()
+        .map(|d| usize::from(d.odd_lines > 0) + usize::from(d.even_lines > 0))
+        .sum();
+    if m == 0 {
+        return None;
+    }
+    let each = alpha / m as f64;
+    Some(
+        reports
+            .iter()
+            .flat_map(|d| distortion_evidence("", d, each))
+            .any(|e| !e.passed),
+    )
 }
 
 /// Other excitation levels at the model experiment's rate that the model-free level test
@@ -378,13 +404,14 @@ pub(super) fn not_repeatable(data: &Data<'_>, ch: &Checks) -> Outcome {
         .filter(|(v, fl)| !statistic([(fl.as_slice(), v.whole.inflation)], a).passes())
         .map(|(v, _)| v)
         .collect();
-    let seen: Vec<Option<bool>> = std::iter::once(&data.fast)
+    let involved: Vec<&Estimate> = std::iter::once(&data.fast)
         .chain(failing.iter().map(|v| &v.whole))
-        .map(|e| distorted(e, a))
         .collect();
-    if seen.contains(&Some(true)) {
+    let family = distorted_family(&involved, a);
+    let every_one_has_lines = involved.iter().all(|e| distorted(e, a).is_some());
+    if family == Some(true) {
         one_level(failing.into_iter())
-    } else if !failing.is_empty() && seen.iter().all(|s| *s == Some(false)) {
+    } else if !failing.is_empty() && every_one_has_lines && family == Some(false) {
         let names = failing.iter().map(|v| v.exp.spec.name.clone()).collect();
         drift_outcome(names, DriftSign::RepeatWithoutDistortion)
     } else {
