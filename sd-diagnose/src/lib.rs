@@ -52,8 +52,9 @@
 //!   trial. Parameters and the family are chosen on the *training* part of the data only
 //!   (earlier periods, or the first part of a record) by a penalised criterion (the sum of
 //!   scores plus ½ ln K per parameter); the chosen extension is named only when its statistic
-//!   on the *held-out* part (later periods, then the earlier ones in turn; or whole left-out
-//!   experiments) passes the naming threshold, and a pair only when its second parameter pays
+//!   on the *held-out* part (later periods of every slower experiment together, then the
+//!   earlier ones in turn; whole left-out experiments when they cannot be split) passes the
+//!   naming threshold, and a pair only when its second parameter pays
 //!   for itself there too; otherwise `unexplained`, with the best partial explanation reported
 //!   as such. Reported parameters are refined on all data (`docs/diagnosis.md`).
 //!

@@ -634,8 +634,9 @@ fn distortion_at_non_excited_lines() {
         .any(|e| e.test.contains("non-excited odd lines of `low`") && !e.passed));
 }
 
-/// Two same-level slower experiments (1 kHz and 2.5 kHz): each is left out in turn, the cause
-/// chosen on the other; `gain.held_out` names the whole experiments.
+/// Two same-level slower experiments (1 kHz and 2.5 kHz): the cause chosen on both their
+/// earlier periods and judged on the later ones; the gain measured on each whole experiment
+/// left out in turn (`gain.held_out` names them).
 #[test]
 fn two_slow_experiments_are_left_out_in_turn() {
     let truth = Truth::default();
