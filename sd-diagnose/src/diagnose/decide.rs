@@ -156,6 +156,18 @@ pub(super) fn decide(
         ));
         return Ok(not_repeatable(data, ch));
     }
+    rate_tied_or_distortion(data, j, a, progress)
+}
+
+/// The model-free check fails at a slower rate: the rate-tied hypotheses; when none explains
+/// the data and the experiments' distortion tests, as one family, show nonlinear distortion,
+/// `nonlinearity` at one level (named, not modelled).
+fn rate_tied_or_distortion(
+    data: &Data<'_>,
+    j: &Judged<'_>,
+    a: f64,
+    progress: &mut dyn FnMut(&str),
+) -> Result<Outcome> {
     let (o, _) = rate_tied(data, j, progress)?;
     // distortion over every experiment's tests as one family: one more experiment must not
     // raise the chance that a linear plant is called nonlinear
