@@ -44,8 +44,8 @@ pub(crate) struct Args {
     #[arg(long)]
     pub(crate) nyquist_svg: Option<String>,
     /// Write the loop gain L = PK (SISO) as a Bode figure with the gain and phase margins
-    /// marked where they occur to this SVG file.
-    #[arg(long)]
+    /// marked where they occur to this SVG file (also spelt --bode-svg).
+    #[arg(long, visible_alias = "bode-svg")]
     pub(crate) loop_svg: Option<String>,
     #[arg(help = crate::commands::JSON_HELP, long)]
     pub(crate) json: bool,
