@@ -230,7 +230,7 @@ pub(super) fn time_figure(
             x.name
         ),
         "time [s]",
-        "output",
+        "output [the sensor's unit]",
         &lines,
         false,
     )?;

@@ -697,6 +697,35 @@ pub fn run(out: &str, quick: bool, averaging: f64) -> Result<(), String> {
 #[cfg(test)]
 #[allow(clippy::unwrap_used, clippy::expect_used)]
 mod tests {
+    /// Every figure: labelled axes with units (`[…]`); in Figs. 3, 4 and 4 (detail) the
+    /// measured 1 kHz FRF (red) drawn after every model curve (blue, green), i.e. on top.
+    fn check_figures(dir: &std::path::Path, figures: &[serde_json::Value]) {
+        for f in figures {
+            let name = f.as_str().expect("name");
+            let svg = std::fs::read_to_string(dir.join(name)).expect("figure");
+            assert!(svg.contains("<svg"), "{name}");
+            let units = svg.matches('[').count();
+            assert!(units >= 2, "{name}: axes without units");
+            if ["fig3_frf.svg", "fig4_downsampled.svg", "fig4_detail.svg"].contains(&name) {
+                let last = |hex: &str| {
+                    svg.match_indices("<polyline")
+                        .filter(|(i, _)| {
+                            svg[*i..].split('>').next().is_some_and(|t| t.contains(hex))
+                        })
+                        .map(|(i, _)| i)
+                        .last()
+                };
+                let red = last("#D22828").expect("the measured curve");
+                for model in ["#1E5AC8", "#14963C"] {
+                    assert!(
+                        last(model).is_none_or(|m| m < red),
+                        "{name}: {model} over the data"
+                    );
+                }
+            }
+        }
+    }
+
     /// `cargo test -p xtask` runs a reduced version of the paper chain.
     #[test]
     fn reduced_paper_run_writes_report_and_figures() {
@@ -719,10 +748,7 @@ mod tests {
         ] {
             assert!(report.get(key).is_some(), "missing {key}");
         }
-        for f in report["figures"].as_array().expect("figures") {
-            let svg = std::fs::read_to_string(dir.join(f.as_str().expect("name"))).expect("figure");
-            assert!(svg.contains("<svg"));
-        }
+        check_figures(&dir, report["figures"].as_array().expect("figures"));
         assert!(std::fs::read_to_string(dir.join("report.md"))
             .expect("report.md")
             .contains("347"));
