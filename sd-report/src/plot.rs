@@ -9,20 +9,6 @@ pub use bode::{bode_plot, bode_plot_in, bode_snr_plot_in, unwrap_deg};
 /// The colour of a curve (plotters' RGB colour, re-exported so a user needs no plotters dependency).
 pub use plotters::style::RGBColor;
 
-/// The legend of every figure: a framed, slightly transparent box at `pos`.
-fn legend<'a, DB: DrawingBackend + 'a, CT: plotters::coord::CoordTranslate>(
-    chart: &mut ChartContext<'a, DB, CT>,
-    pos: SeriesLabelPosition,
-) -> crate::Result<()> {
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .position(pos)
-        .draw()
-        .map_err(crate::plot_err)
-}
-
 /// One curve: label (empty: no legend entry), frequencies (Hz), magnitudes (dB).
 pub struct Curve<'a> {
     /// Legend entry.
@@ -194,6 +180,12 @@ pub(crate) fn legend_strip<DB: DrawingBackend>(
         y += 6;
     }
     Ok(())
+}
+
+/// An area split into its plotting part and the legend strip on its right.
+fn split_strip<'a>(area: &Area<'a>) -> (Area<'a>, Area<'a>) {
+    let width = area.dim_in_pixel().0;
+    area.split_horizontally(width.saturating_sub(LEGEND_WIDTH))
 }
 
 /// `text` broken at spaces into lines of at most `width` characters (a longer word alone).
@@ -477,8 +469,23 @@ fn error_bar_panel(area: &Area<'_>, x_desc: &str, p: &ErrorBarPanel<'_>) -> crat
         .chain(p.curve.iter().flat_map(bar))
         .chain(p.predicted.iter().map(|q| q.1));
     let (y0, y1) = padded(ys).unwrap_or((0.0, 1.0));
-    let mut chart = log_x_chart(area, (x0.exp(), x1.exp()), (y0, y1), (x_desc, p.y_desc))?;
     let blue = RGBColor(31, 119, 180);
+    let red = RGBColor(214, 39, 40);
+    let (plot_area, strip) = split_strip(area);
+    legend_strip(
+        &strip,
+        &[
+            ("fitted trend ± 2σ", blue),
+            ("measured (each experiment) ± 2σ", BLACK),
+            ("predicted with that experiment left out", red),
+        ],
+    )?;
+    let mut chart = log_x_chart(
+        &plot_area,
+        (x0.exp(), x1.exp()),
+        (y0, y1),
+        (x_desc, p.y_desc),
+    )?;
     let lo: Vec<(f64, f64)> = p.curve.iter().map(|q| (q.0, bar(q)[0])).collect();
     let hi: Vec<(f64, f64)> = p.curve.iter().rev().map(|q| (q.0, bar(q)[1])).collect();
     chart
@@ -492,28 +499,18 @@ fn error_bar_panel(area: &Area<'_>, x_desc: &str, p: &ErrorBarPanel<'_>) -> crat
             p.curve.iter().map(|q| (q.0, q.1)),
             blue.stroke_width(2),
         ))
-        .map_err(crate::plot_err)?
-        .label("fitted trend ± 2σ")
-        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], blue.stroke_width(2)));
+        .map_err(crate::plot_err)?;
     chart
         .draw_series(p.points.iter().map(|q| {
             let [a, b] = bar(q);
             ErrorBar::new_vertical(q.0, a, q.1, b, BLACK.filled(), 8)
         }))
-        .map_err(crate::plot_err)?
-        .label("measured (each experiment) ± 2σ")
-        .legend(|(x, y)| Circle::new((x + 10, y), 3, BLACK.filled()));
-    let red = RGBColor(214, 39, 40);
+        .map_err(crate::plot_err)?;
     chart
         .draw_series(p.predicted.iter().map(|q| {
             EmptyElement::at((q.0, q.1)) + Rectangle::new([(-5, -5), (5, 5)], red.stroke_width(2))
         }))
-        .map_err(crate::plot_err)?
-        .label("predicted with that experiment left out")
-        .legend(move |(x, y)| {
-            Rectangle::new([(x + 6, y - 4), (x + 14, y + 4)], red.stroke_width(2))
-        });
-    legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
+        .map_err(crate::plot_err)?;
     Ok(())
 }
 
@@ -553,7 +550,18 @@ fn series_panel(
         )));
     };
     let (y0, y1) = padded(all().flat_map(bar)).unwrap_or((0.0, 1.0));
-    let mut chart = log_x_chart(area, (x0.exp(), x1.exp()), (y0, y1), (x_desc, y_desc))?;
+    let color = |k: usize| {
+        let c = Palette99::pick(k).to_rgba();
+        RGBColor(c.0, c.1, c.2)
+    };
+    let entries: Vec<(&str, RGBColor)> = series
+        .iter()
+        .enumerate()
+        .map(|(k, s)| (s.label, color(k)))
+        .collect();
+    let (plot_area, strip) = split_strip(area);
+    legend_strip(&strip, &entries)?;
+    let mut chart = log_x_chart(&plot_area, (x0.exp(), x1.exp()), (y0, y1), (x_desc, y_desc))?;
     for (k, s) in series.iter().enumerate() {
         let c = Palette99::pick(k).to_rgba();
         let mut pts: Vec<(f64, f64, f64)> = s.points.to_vec();
@@ -563,9 +571,7 @@ fn series_panel(
                 pts.iter().map(|q| (q.0, q.1)),
                 c.stroke_width(1),
             ))
-            .map_err(crate::plot_err)?
-            .label(s.label)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
+            .map_err(crate::plot_err)?;
         chart
             .draw_series(pts.iter().map(|q| {
                 let [a, b] = bar(q);
@@ -573,7 +579,6 @@ fn series_panel(
             }))
             .map_err(crate::plot_err)?;
     }
-    legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
     Ok(())
 }
 

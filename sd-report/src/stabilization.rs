@@ -55,10 +55,36 @@ pub fn stabilization_chart(path: &str, c: &StabilizationChart<'_>) -> crate::Res
     });
     let pad = 0.05 * (dhi - dlo).max(1.0);
     let max_order = c.poles.iter().map(|p| p.1).max().unwrap_or(2).max(c.chosen) + 2;
-    let root = SVGBackend::new(path, (1000, 600)).into_drawing_area();
+    let root = SVGBackend::new(path, (1000 + crate::plot::LEGEND_WIDTH, 600)).into_drawing_area();
     root.fill(&WHITE).map_err(crate::plot_err)?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(c.title, ("sans-serif", 20))
+    // the title across the figure, the legend in a strip right of the axes (off the data)
+    let titled = root
+        .titled(c.title, ("sans-serif", 20))
+        .map_err(crate::plot_err)?;
+    let (plot_area, strip) = titled.split_horizontally(1000);
+    let styles = [
+        (
+            Mark::Stable,
+            "stable (frequency and damping)",
+            RGBColor(0, 140, 60),
+            true,
+        ),
+        (
+            Mark::Frequency,
+            "frequency stable",
+            RGBColor(30, 90, 200),
+            false,
+        ),
+        (Mark::New, "new", RGBColor(200, 40, 40), false),
+    ];
+    let chosen_label = format!("chosen order {}", c.chosen);
+    let mut entries = vec![
+        ("measured |G| (right axis)", RGBColor(150, 150, 150)),
+        (chosen_label.as_str(), BLACK),
+    ];
+    entries.extend(styles.iter().map(|s| (s.1, s.2)));
+    crate::plot::legend_strip(&strip, &entries)?;
+    let mut chart = ChartBuilder::on(&plot_area)
         .margin(12)
         .x_label_area_size(45)
         .y_label_area_size(60)
@@ -81,9 +107,7 @@ pub fn stabilization_chart(path: &str, c: &StabilizationChart<'_>) -> crate::Res
     let grey = RGBColor(150, 150, 150);
     chart
         .draw_secondary_series(LineSeries::new(fin.iter().cloned(), grey.stroke_width(2)))
-        .map_err(crate::plot_err)?
-        .label("measured |G| (right axis)")
-        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], grey.stroke_width(2)));
+        .map_err(crate::plot_err)?;
     let chosen = c.chosen as f64;
     chart
         .draw_series(DashedLineSeries::new(
@@ -92,25 +116,8 @@ pub fn stabilization_chart(path: &str, c: &StabilizationChart<'_>) -> crate::Res
             4,
             BLACK.stroke_width(1),
         ))
-        .map_err(crate::plot_err)?
-        .label(format!("chosen order {}", c.chosen))
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
-    let styles = [
-        (
-            Mark::Stable,
-            "stable (frequency and damping)",
-            RGBColor(0, 140, 60),
-            true,
-        ),
-        (
-            Mark::Frequency,
-            "frequency stable",
-            RGBColor(30, 90, 200),
-            false,
-        ),
-        (Mark::New, "new", RGBColor(200, 40, 40), false),
-    ];
-    for (mark, label, color, filled) in styles {
+        .map_err(crate::plot_err)?;
+    for (mark, _, color, filled) in styles {
         let pts: Vec<(f64, f64)> = c
             .poles
             .iter()
@@ -124,17 +131,8 @@ pub fn stabilization_chart(path: &str, c: &StabilizationChart<'_>) -> crate::Res
         };
         chart
             .draw_series(pts.iter().map(|&p| Circle::new(p, 4, style)))
-            .map_err(crate::plot_err)?
-            .label(label)
-            .legend(move |(x, y)| Circle::new((x + 10, y), 4, style));
+            .map_err(crate::plot_err)?;
     }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperLeft)
-        .draw()
-        .map_err(crate::plot_err)?;
     root.present().map_err(crate::plot_err)?;
     Ok(())
 }
