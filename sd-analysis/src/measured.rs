@@ -25,6 +25,7 @@
 //! **A slow loop on a fast FRF**: [`sd_multirate::downsample_frd`] first (Lemma 6's fold sum,
 //! no model), then this analysis at the slow rate.
 
+use crate::closed_loop::sigma_max;
 use crate::error::{AnalysisError, Result};
 use crate::measured_nyquist::{count, low_extension, Ends, MeasuredNyquist};
 use nalgebra::DMatrix;
@@ -250,13 +251,6 @@ fn responses(p: &Frd, k: &StateSpace) -> Result<MeasuredResponses> {
         s: frd(s)?,
         t: frd(t)?,
     })
-}
-
-fn sigma_max(m: &DMatrix<C>) -> f64 {
-    if m.len() == 1 {
-        return m[(0, 0)].norm();
-    }
-    m.clone().singular_values().max()
 }
 
 /// The controller's poles at `z = 1` / `s = 0` and in the unstable region; other poles on the

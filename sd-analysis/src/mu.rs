@@ -20,7 +20,7 @@
 //! channels. The supremum over frequency is taken on a log grid with points clustered at each
 //! closed-loop pole's frequency, then refined by golden section around the largest value.
 
-use crate::closed_loop::ClosedLoop;
+use crate::closed_loop::{sigma_max, ClosedLoop};
 use crate::error::Result;
 use nalgebra::DMatrix;
 use num_complex::Complex64 as C;
@@ -36,31 +36,11 @@ pub struct MuBounds {
     pub lower: f64,
 }
 
-/// The golden-section minimizer of a unimodal `f` on `[a, b]` to `tol`.
-fn golden_min(f: &dyn Fn(f64) -> f64, (mut a, mut b): (f64, f64), tol: f64) -> (f64, f64) {
-    let g = 0.5 * (5f64.sqrt() - 1.0);
-    let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
-    let (mut fc, mut fd) = (f(c), f(d));
-    while (b - a).abs() > tol {
-        if fc <= fd {
-            (b, d, fd) = (d, c, fc);
-            c = b - g * (b - a);
-            fc = f(c);
-        } else {
-            (a, c, fc) = (c, d, fd);
-            d = a + g * (b - a);
-            fd = f(d);
-        }
-    }
-    if fc <= fd {
-        (c, fc)
-    } else {
-        (d, fd)
-    }
-}
-
-fn sigma_max(m: &DMatrix<C>) -> f64 {
-    m.singular_values().max()
+/// The minimum of a unimodal `f` on `[a, b]` to a bracket of `tol`
+/// ([`sd_model::linalg::golden_min`], as many steps as that takes).
+fn golden_min(f: &dyn Fn(f64) -> f64, (a, b): (f64, f64), tol: f64) -> (f64, f64) {
+    let shrink = (tol / (b - a).abs().max(tol)).ln() / 0.5f64.mul_add(5f64.sqrt(), -0.5).ln();
+    sd_model::linalg::golden_min(f, a, b, shrink.ceil().max(1.0) as usize)
 }
 
 /// `σ̄(e^{x}Me^{−x})` for the diagonal scaling `x` (log scale factors).
@@ -186,14 +166,9 @@ pub struct StructuredDiskMargin {
 }
 
 /// The closed loop's input (`S_I = (I + KP)⁻¹`) or output (`S_O = (I + PK)⁻¹`) sensitivity
-/// minus `I/2` at `f` Hz.
-fn shifted_sensitivity(
-    (ev_p, ev_k): (&FreqRespEvaluator, &FreqRespEvaluator),
-    input: bool,
-    f: f64,
-) -> Option<DMatrix<C>> {
-    let (p, k) = (ev_p.eval_hz(f), ev_k.eval_hz(f));
-    let l = if input { &k * &p } else { &p * &k };
+/// minus `I/2` from `P` and `K` at one frequency.
+fn shifted_sensitivity((p, k): (&DMatrix<C>, &DMatrix<C>), input: bool) -> Option<DMatrix<C>> {
+    let l = if input { k * p } else { p * k };
     let n = l.nrows();
     let s = (DMatrix::identity(n, n) + l).try_inverse()?;
     Some(s - DMatrix::identity(n, n) * C::new(0.5, 0.0))
@@ -244,17 +219,25 @@ pub fn structured_disk_margins(cl: &ClosedLoop) -> Result<[StructuredDiskMargin;
     let ev_p = FreqRespEvaluator::new(cl.plant())?;
     let ev_k = FreqRespEvaluator::new(cl.controller())?;
     let grid = mu_grid(cl)?;
+    // P and K on the grid once, for both sides
+    let pk: Vec<(DMatrix<C>, DMatrix<C>)> = grid
+        .iter()
+        .map(|&f| (ev_p.eval_hz(f), ev_k.eval_hz(f)))
+        .collect();
+    let singular = |f: f64| {
+        crate::AnalysisError::InvalidArgument(format!(
+            "I + L is singular at {f} Hz: a closed-loop pole on the stability boundary"
+        ))
+    };
     let side = |input: bool| -> Result<StructuredDiskMargin> {
         let m_at = |f: f64| {
-            shifted_sensitivity((&ev_p, &ev_k), input, f).ok_or_else(|| {
-                crate::AnalysisError::InvalidArgument(format!(
-                    "I + L is singular at {f} Hz: a closed-loop pole on the stability boundary"
-                ))
-            })
+            let (p, k) = (ev_p.eval_hz(f), ev_k.eval_hz(f));
+            shifted_sensitivity((&p, &k), input).ok_or_else(|| singular(f))
         };
         let mut peak = (0.0, f64::NAN, 0usize);
-        for (i, &f) in grid.iter().enumerate() {
-            let u = mu_upper_to(&m_at(f)?, 1e-6);
+        for (i, (&f, (p, k))) in grid.iter().zip(&pk).enumerate() {
+            let m = shifted_sensitivity((p, k), input).ok_or_else(|| singular(f))?;
+            let u = mu_upper_to(&m, 1e-6);
             if u > peak.0 {
                 peak = (u, f, i);
             }

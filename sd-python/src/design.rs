@@ -8,12 +8,25 @@ use pyo3::types::PyDict;
 /// A Riccati solution as a dict: `X`, `K` (the gain, `u = −K x`), the relative `residual`, the
 /// closed loop's spectral radius (DARE) or abscissa (CARE), the relative `condition` estimate.
 fn riccati<'py>(py: Python<'py>, r: &sd_hinf::RiccatiSolution) -> PyResult<Bound<'py, PyDict>> {
+    riccati_dict(
+        py,
+        (np(py, &r.x), np(py, &r.gain)),
+        [r.residual, r.closed_loop, r.condition],
+    )
+}
+
+/// The dict of a Riccati solution, real or complex: `X`, `K` and its three figures.
+fn riccati_dict<'py, T: IntoPyObject<'py>>(
+    py: Python<'py>,
+    (x, k): (T, T),
+    [residual, closed_loop, condition]: [f64; 3],
+) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
-    d.set_item("X", np(py, &r.x))?;
-    d.set_item("K", np(py, &r.gain))?;
-    d.set_item("residual", r.residual)?;
-    d.set_item("closed_loop", r.closed_loop)?;
-    d.set_item("condition", r.condition)?;
+    d.set_item("X", x)?;
+    d.set_item("K", k)?;
+    d.set_item("residual", residual)?;
+    d.set_item("closed_loop", closed_loop)?;
+    d.set_item("condition", condition)?;
     Ok(d)
 }
 
@@ -95,13 +108,11 @@ fn complex_riccati<'py>(
     let arr = |m: &sd_hinf::CMatrix| {
         numpy::ndarray::Array2::from_shape_fn(m.shape(), |(i, j)| m[(i, j)]).into_pyarray(py)
     };
-    let d = PyDict::new(py);
-    d.set_item("X", arr(&r.x))?;
-    d.set_item("K", arr(&r.gain))?;
-    d.set_item("residual", r.residual)?;
-    d.set_item("closed_loop", r.closed_loop)?;
-    d.set_item("condition", r.condition)?;
-    Ok(d)
+    riccati_dict(
+        py,
+        (arr(&r.x), arr(&r.gain)),
+        [r.residual, r.closed_loop, r.condition],
+    )
 }
 
 /// `care` / `dare` on complex data (`continuous` chooses), the interpreter lock released

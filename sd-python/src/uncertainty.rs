@@ -95,13 +95,11 @@ fn downsample_uncertainty(
     averaging: f64,
 ) -> PyResult<(String, Vec<f64>)> {
     let (b, _) = bound_and_weight(bound, None)?;
-    let nyquist = 0.5 / (b.ts * factor.max(1) as f64);
-    let lines: Vec<f64> = b.freq_hz.iter().copied().filter(|x| *x < nyquist).collect();
     let ni = sd_multirate::NonIdeal {
         hold_delay,
         averaging,
     };
-    let d = sd_uncertainty::downsample_nonideal(&b, factor, ni, &lines).map_err(py_err)?;
+    let d = sd_uncertainty::downsample_nonideal_all(&b, factor, ni).map_err(py_err)?;
     let text = sd_uncertainty::to_json_string(&d.bound, None).map_err(py_err)?;
     Ok((text, d.missing_hz))
 }

@@ -92,35 +92,19 @@ pub(crate) fn draw_magnitude<DB: DrawingBackend>(
             "{title}: nothing to plot"
         )));
     }
-    let (lo, hi) = (
-        (lo / 10.0).floor() * 10.0 - 5.0,
-        (hi / 10.0).ceil() * 10.0 + 5.0,
-    );
+    let (lo, hi) = db_range(lo, hi);
     // the legend in a strip right of the axes, never over the data
     let titled = root
         .titled(title, ("sans-serif", 20))
         .map_err(crate::plot_err)?;
-    let width = titled.dim_in_pixel().0;
-    let (plot_area, strip) = titled.split_horizontally(width.saturating_sub(LEGEND_WIDTH));
+    let (plot_area, strip) = split_strip(&titled);
     let entries: Vec<(&str, RGBColor)> = curves
         .iter()
         .filter(|c| !c.label.is_empty())
         .map(|c| (c.label, c.color))
         .collect();
     legend_strip(&strip, &entries)?;
-    let mut chart = ChartBuilder::on(&plot_area)
-        .margin(12)
-        .x_label_area_size(45)
-        .y_label_area_size(60)
-        .build_cartesian_2d((fmin..fmax).log_scale(), lo..hi)
-        .map_err(crate::plot_err)?;
-    chart
-        .configure_mesh()
-        .x_desc("frequency [Hz]")
-        .y_desc(y_desc)
-        .x_label_formatter(&|v| format!("{v:.0}"))
-        .draw()
-        .map_err(crate::plot_err)?;
+    let mut chart = freq_chart(&plot_area, (fmin, fmax), (lo, hi), (y_desc, 10))?;
     for c in curves {
         let pts: Vec<(f64, f64)> = c
             .freq_hz
@@ -183,9 +167,49 @@ pub(crate) fn legend_strip<DB: DrawingBackend>(
 }
 
 /// An area split into its plotting part and the legend strip on its right.
-fn split_strip<'a>(area: &Area<'a>) -> (Area<'a>, Area<'a>) {
+pub(crate) fn split_strip<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+) -> (
+    DrawingArea<DB, plotters::coord::Shift>,
+    DrawingArea<DB, plotters::coord::Shift>,
+) {
     let width = area.dim_in_pixel().0;
     area.split_horizontally(width.saturating_sub(LEGEND_WIDTH))
+}
+
+/// A panel's axes: logarithmic frequency (Hz) over `(fmin, fmax)`, ordinate `(lo, hi)` described
+/// by `y_desc` with about `y_labels` labels, the mesh drawn (the magnitude, phase and SNR panels).
+pub(crate) fn freq_chart<'a, DB: DrawingBackend>(
+    area: &'a DrawingArea<DB, plotters::coord::Shift>,
+    (fmin, fmax): (f64, f64),
+    (lo, hi): (f64, f64),
+    (y_desc, y_labels): (&str, usize),
+) -> crate::Result<
+    ChartContext<'a, DB, Cartesian2d<LogCoord<f64>, plotters::coord::types::RangedCoordf64>>,
+> {
+    let mut chart = ChartBuilder::on(area)
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(60)
+        .build_cartesian_2d((fmin..fmax).log_scale(), lo..hi)
+        .map_err(crate::plot_err)?;
+    chart
+        .configure_mesh()
+        .x_desc("frequency [Hz]")
+        .y_desc(y_desc)
+        .y_labels(y_labels)
+        .x_label_formatter(&|v| format!("{v:.0}"))
+        .draw()
+        .map_err(crate::plot_err)?;
+    Ok(chart)
+}
+
+/// A dB range widened to whole 10 dB steps with 5 dB to spare.
+pub(crate) fn db_range(lo: f64, hi: f64) -> (f64, f64) {
+    (
+        (lo / 10.0).floor() * 10.0 - 5.0,
+        (hi / 10.0).ceil() * 10.0 + 5.0,
+    )
 }
 
 /// `text` broken at spaces into lines of at most `width` characters (a longer word alone).
@@ -291,8 +315,7 @@ fn line_plot_in(
     let titled = root
         .titled(title, ("sans-serif", 20))
         .map_err(crate::plot_err)?;
-    let width = titled.dim_in_pixel().0;
-    let (plot_area, strip) = titled.split_horizontally(width.saturating_sub(LEGEND_WIDTH));
+    let (plot_area, strip) = split_strip(&titled);
     let entries: Vec<(&str, RGBColor)> = lines
         .iter()
         .filter(|l| !l.label.is_empty())

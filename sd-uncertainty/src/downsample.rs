@@ -39,6 +39,22 @@ pub fn downsample(fast: &Bound, factor: usize, slow_freq_hz: &[f64]) -> Result<D
     downsample_nonideal(fast, factor, NonIdeal::ideal(), slow_freq_hz)
 }
 
+/// [`downsample_nonideal`] on every line of the fast bound below the slow Nyquist frequency
+/// `1/(2·F·h)` (the slow lines a fast bound can give; `sdctl downsample --uncertainty`).
+///
+/// # Errors
+/// As [`downsample_nonideal`].
+pub fn downsample_nonideal_all(fast: &Bound, factor: usize, ni: NonIdeal) -> Result<Downsampled> {
+    let nyquist = 0.5 / (fast.ts * factor.max(1) as f64);
+    let lines: Vec<f64> = fast
+        .freq_hz
+        .iter()
+        .copied()
+        .filter(|x| *x < nyquist)
+        .collect();
+    downsample_nonideal(fast, factor, ni, &lines)
+}
+
 /// [`downsample`] through a slow hold that switches `m = αF` fast samples late and a slow
 /// sampler that averages the last `q = βF` fast outputs (the rate-tied non-idealities a
 /// diagnosis names): each fold's weight becomes

@@ -35,7 +35,7 @@ pub mod robust;
 pub mod weight;
 
 pub use bound::{coverage, from_data, per_line_confidence, sigma_factor, Bound, Coverage, Form};
-pub use downsample::{downsample, downsample_nonideal, Downsampled};
+pub use downsample::{downsample, downsample_nonideal, downsample_nonideal_all, Downsampled};
 pub use error::{Result, UncertaintyError};
 pub use gap::{chordal, chordal_gap, ChordalGap};
 pub use intersample::{robust_intersample, slow_margin_on_lines, LinesMargin, RobustIntersample};

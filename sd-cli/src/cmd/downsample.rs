@@ -103,9 +103,7 @@ fn slow_bound(
              bound belongs to another model"
         )));
     }
-    let nyquist = 0.5 / (b.ts * f as f64);
-    let lines: Vec<f64> = b.freq_hz.iter().copied().filter(|x| *x < nyquist).collect();
-    let d = sd_uncertainty::downsample_nonideal(&b, f, ni, &lines).map_err(|e| from_unc(u, e))?;
+    let d = sd_uncertainty::downsample_nonideal_all(&b, f, ni).map_err(|e| from_unc(u, e))?;
     eprintln!(
         "[downsample] uncertainty: {} slow lines ({} without all their folds on the fast grid)",
         d.bound.freq_hz.len(),

@@ -22,6 +22,13 @@ def _pyplot():
     return plt
 
 
+def _figure(plt, axes):
+    """The figure and its (magnitude, phase) axes: new ones, or those given."""
+    if axes is None:
+        return plt.subplots(2, 1, sharex=True, figsize=(8, 6), gridspec_kw={"height_ratios": [2, 1]})
+    return axes[0].figure, axes
+
+
 def unwrap_deg(phase_deg: np.ndarray) -> np.ndarray:
     """Unwrapped phase (degrees) on the branch whose first value lies in (−300°, 60°] (a double
     integrator starts at −180°), as ``sdctl bode``."""
@@ -58,12 +65,7 @@ def bode(*systems, f_hz=None, labels: Optional[Sequence[str]] = None, unit: str 
         raise ValueError("bode: give at least one model or Frd")
     if labels is not None and len(labels) != len(systems):
         raise ValueError(f"bode: {len(labels)} labels for {len(systems)} systems")
-    if axes is None:
-        fig, axes = plt.subplots(2, 1, sharex=True, figsize=(8, 6),
-                                 gridspec_kw={"height_ratios": [2, 1]})
-    else:
-        fig = axes[0].figure
-    ax_m, ax_p = axes
+    fig, (ax_m, ax_p) = _figure(plt, axes)
     f = _grid(systems, f_hz)
     i, j = entry
     order = sorted(range(len(systems)), key=lambda k: isinstance(systems[k], Frd))
@@ -89,7 +91,7 @@ def bode(*systems, f_hz=None, labels: Optional[Sequence[str]] = None, unit: str 
     ax_m.set_ylabel(f"magnitude [dB re 1 {unit}]" if unit else "magnitude [dB]")
     ax_p.set_ylabel("phase [°]")
     ax_p.set_xlabel("frequency [Hz]")
-    for a in axes:
+    for a in (ax_m, ax_p):
         a.grid(True, which="both", alpha=0.3)
     ax_m.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small")
     fig.tight_layout()
@@ -112,12 +114,7 @@ def loop(P, K, f_hz=None, axes=None):
             raise ValueError("loop: a SISO loop (use analyze for MIMO loops)")
         f = _grid([Pss], f_hz)
         g = freqresp(Pss, f) * freqresp(Kss, f)
-    if axes is None:
-        fig, axes = plt.subplots(2, 1, sharex=True, figsize=(8, 6),
-                                 gridspec_kw={"height_ratios": [2, 1]})
-    else:
-        fig = axes[0].figure
-    ax_m, ax_p = axes
+    fig, (ax_m, ax_p) = _figure(plt, axes)
     ax_m.semilogx(f, 20 * np.log10(np.abs(g)), label="L = PK")
     ax_p.semilogx(f, unwrap_deg(np.angle(g, deg=True)))
     ax_m.axhline(0.0, color="k", lw=0.5)
@@ -125,7 +122,7 @@ def loop(P, K, f_hz=None, axes=None):
              (r.gain_margin_hz, f"GM {r.gain_margin_db:.1f} dB @ {r.gain_margin_hz:.2f} Hz")]
     for at, text in marks:
         if at is not None and np.isfinite(at) and at > 0:
-            for a in axes:
+            for a in (ax_m, ax_p):
                 a.axvline(at, color="0.5", lw=0.8)
             ax_m.annotate(text, (at, 0.98), xycoords=("data", "axes fraction"), ha="left",
                           va="top", fontsize="small")
@@ -134,7 +131,7 @@ def loop(P, K, f_hz=None, axes=None):
     ax_p.set_xlabel("frequency [Hz]")
     ax_m.set_title(f"loop gain: phase margin {r.phase_margin_deg:.1f}°, gain margin "
                    f"{r.gain_margin_db:.1f} dB, |S| peak {r.sensitivity_peak_db:.1f} dB")
-    for a in axes:
+    for a in (ax_m, ax_p):
         a.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
     return fig, (ax_m, ax_p), r

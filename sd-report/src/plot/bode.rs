@@ -1,7 +1,7 @@
 //! Bode figures: magnitude, unwrapped phase and, for measured FRFs, the per-line SNR, on one
 //! logarithmic frequency axis with the legend in a strip on the right.
 
-use super::{draw_magnitude, magnitude_plot, Curve, LEGEND_WIDTH};
+use super::{db_range, draw_magnitude, freq_chart, magnitude_plot, split_strip, Curve};
 use plotters::prelude::*;
 
 /// Bode plot: magnitude (dB) above, phase (degrees, unwrapped) below, on one logarithmic
@@ -111,16 +111,6 @@ pub fn bode_snr_plot_in(
     Ok(())
 }
 
-/// The plotting part of a lower panel: the area less the legend strip (so that every panel's
-/// frequency axis lines up with the magnitude's).
-fn left_of_strip<DB: DrawingBackend>(
-    area: &DrawingArea<DB, plotters::coord::Shift>,
-) -> DrawingArea<DB, plotters::coord::Shift> {
-    let width = area.dim_in_pixel().0;
-    area.split_horizontally(width.saturating_sub(LEGEND_WIDTH))
-        .0
-}
-
 /// The phase panel: each curve's phase unwrapped ([`unwrap_deg`]), on a 45°-aligned axis.
 fn draw_phase<DB: DrawingBackend>(
     area: &DrawingArea<DB, plotters::coord::Shift>,
@@ -156,21 +146,9 @@ fn draw_phase<DB: DrawingBackend>(
     } else {
         (-180.0, 180.0)
     };
-    let plot_area = left_of_strip(area);
-    let mut chart = ChartBuilder::on(&plot_area)
-        .margin(12)
-        .x_label_area_size(45)
-        .y_label_area_size(60)
-        .build_cartesian_2d((fmin..fmax).log_scale(), lo..hi)
-        .map_err(crate::plot_err)?;
-    chart
-        .configure_mesh()
-        .x_desc("frequency [Hz]")
-        .y_desc("phase [°]")
-        .y_labels(9)
-        .x_label_formatter(&|v| format!("{v:.0}"))
-        .draw()
-        .map_err(crate::plot_err)?;
+    // the plotting part left of the legend strip: every panel's frequency axis lines up
+    let (plot_area, _) = split_strip(area);
+    let mut chart = freq_chart(&plot_area, (fmin, fmax), (lo, hi), ("phase [°]", 9))?;
     for (c, pts) in curves.iter().zip(phases) {
         if pts.len() > 1 {
             chart
@@ -239,24 +217,9 @@ fn draw_snr<DB: DrawingBackend>(
         .collect();
     let hi = pts.iter().flatten().map(|p| p.1).fold(20.0f64, f64::max);
     let lo = pts.iter().flatten().map(|p| p.1).fold(0.0f64, f64::min);
-    let (lo, hi) = (
-        (lo / 10.0).floor() * 10.0 - 5.0,
-        (hi / 10.0).ceil() * 10.0 + 5.0,
-    );
-    let plot_area = left_of_strip(area);
-    let mut chart = ChartBuilder::on(&plot_area)
-        .margin(12)
-        .x_label_area_size(45)
-        .y_label_area_size(60)
-        .build_cartesian_2d((fmin..fmax).log_scale(), lo..hi)
-        .map_err(crate::plot_err)?;
-    chart
-        .configure_mesh()
-        .x_desc("frequency [Hz]")
-        .y_desc("SNR |Ĝ|/σ [dB]")
-        .x_label_formatter(&|v| format!("{v:.0}"))
-        .draw()
-        .map_err(crate::plot_err)?;
+    let (lo, hi) = db_range(lo, hi);
+    let (plot_area, _) = split_strip(area);
+    let mut chart = freq_chart(&plot_area, (fmin, fmax), (lo, hi), ("SNR |Ĝ|/σ [dB]", 10))?;
     for level in [0.0, 20.0] {
         chart
             .draw_series(LineSeries::new(
