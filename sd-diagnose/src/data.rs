@@ -2,8 +2,9 @@
 //! held-out (later) parts, with the degrees of freedom of their variances and the correlation
 //! of neighbouring lines ([`crate::stats`]).
 
-use crate::stats::{lpm_inflation, satterthwaite};
+use crate::stats::{lpm_inflation, satterthwaite, VAR_SMOOTHING};
 use crate::{DiagnoseError, Result};
+use sd_ident::moving_mean;
 use sd_ident::{frf_periodic, DistortionReport, Experiment, LpmOptions, PeriodicOptions};
 use sd_model::Frd;
 
@@ -40,6 +41,12 @@ pub(crate) struct Estimate {
     /// The best linear approximation at the estimate's lines: how its distortion was measured
     /// and its noise and distortion per band (`None` for a part of an experiment).
     pub(crate) bla: Option<sd_ident::Bla>,
+    /// Per line of `frd`, the expected size of its variance estimate, where the estimate's
+    /// noise level and design factor are known apart (an open-loop LPM estimate: the design
+    /// factor `[(KᴴK)⁻¹]₀₀` of the line's own window times the moving mean of the local noise
+    /// variances over ±[`VAR_SMOOTHING`] lines); `None` otherwise. What a comparison's
+    /// degrees of freedom are computed from (`lemma6::compare`).
+    pub(crate) expected_var: Option<Vec<f64>>,
 }
 
 /// Most lines a fit sees ([`Estimate::thinned`]).
@@ -59,8 +66,22 @@ impl Estimate {
             return Ok(self.clone());
         }
         Ok(Estimate {
-            frd: self.frd.select(|i| i % s == 0)?,
             inflation: (self.inflation / s as f64).max(1.0),
+            ..self.select(|i| i % s == 0)?
+        })
+    }
+
+    /// The lines `keep` accepts (by index), with their expected variances.
+    pub(crate) fn select(&self, keep: impl Fn(usize) -> bool) -> Result<Estimate> {
+        Ok(Estimate {
+            frd: self.frd.select(&keep)?,
+            expected_var: self.expected_var.as_ref().map(|e| {
+                e.iter()
+                    .enumerate()
+                    .filter(|(i, _)| keep(*i))
+                    .map(|(_, v)| *v)
+                    .collect()
+            }),
             ..self.clone()
         })
     }
@@ -138,6 +159,7 @@ pub(crate) fn estimate(e: &Experiment, part: Part) -> Result<Estimate> {
         distortion: est.distortion,
         local_distortion,
         bla,
+        expected_var: None,
     })
 }
 
@@ -295,11 +317,20 @@ fn estimate_lpm(e: &Experiment, part: Part) -> Result<Estimate> {
     let opt = LpmOptions::default();
     let fs = e.spec.sample_rate_hz;
     let excitation = e.r.as_deref().unwrap_or(&e.u);
-    let (frd, spectra) = match &e.r {
+    let (frd, spectra, expected_var) = match &e.r {
         Some(r) => {
-            let (frd, snr) =
-                sd_ident::lpm_closed_loop_snr(fs, &r[lo..hi], &e.u[lo..hi], &e.y[lo..hi], &opt)?;
-            (sd_ident::trusted(&frd, &snr)?, None)
+            let cl =
+                sd_ident::lpm_closed_loop_full(fs, &r[lo..hi], &e.u[lo..hi], &e.y[lo..hi], &opt)?;
+            let keep = |i: usize| cl.input_snr[i] >= sd_ident::MIN_INPUT_SNR;
+            let expected = (0..cl.expected_var.len())
+                .filter(|&i| keep(i))
+                .map(|i| cl.expected_var[i])
+                .collect();
+            (
+                sd_ident::trusted(&cl.frd, &cl.input_snr)?,
+                None,
+                Some(expected),
+            )
         }
         None => {
             let x = nalgebra::DMatrix::from_column_slice(hi - lo, 1, &e.u[lo..hi]);
@@ -314,7 +345,8 @@ fn estimate_lpm(e: &Experiment, part: Part) -> Result<Estimate> {
                 )?)),
                 _ => None,
             };
-            (est.frd, spectra)
+            let expected = expected_lpm_var(&est);
+            (est.frd, spectra, expected)
         }
     };
     // one excitation (the reference, or the input): q = 2(R + 1) local parameters
@@ -338,7 +370,29 @@ fn estimate_lpm(e: &Experiment, part: Part) -> Result<Estimate> {
             _ => None,
         },
         frd,
+        expected_var,
     })
+}
+
+/// The expected size of an open-loop LPM estimate's variance per line
+/// ([`Estimate::expected_var`]): `var Ĝ_k = σ̂²_k·g_k` with `g_k` the window's design factor,
+/// so `g_k·mean_{|j−k|≤W} σ̂²_j`. `None` for MIMO or where a line's noise variance is zero.
+fn expected_lpm_var(est: &sd_ident::LpmEstimate) -> Option<Vec<f64>> {
+    let var = est.frd.variance()?;
+    let noise: Vec<f64> = est.noise_cov.iter().map(|c| c[(0, 0)].re).collect();
+    if est.frd.response().first()?.len() != 1
+        || noise
+            .iter()
+            .any(|v| v.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater))
+    {
+        return None;
+    }
+    let smooth = moving_mean(&noise, VAR_SMOOTHING);
+    Some(
+        (0..noise.len())
+            .map(|k| var[k][(0, 0)] / noise[k] * smooth[k])
+            .collect(),
+    )
 }
 
 /// Rms of the excitation (reference, or input without one) over the steady periods.

@@ -377,7 +377,7 @@ impl Modal<'_> {
         } else {
             None
         };
-        Ok(compare(&t.est.frd, t.est.dof, |i, _| {
+        Ok(compare(t.est, |i, _| {
             let (value, var) = match &dphi {
                 Some(d) => res.predict_full(&phi[i], &d[i]),
                 None => res.predict(&phi[i]),

@@ -210,6 +210,7 @@ fn entry(frd: &Frd, i: usize, j: usize, dof: f64) -> Result<Estimate> {
         distortion: None,
         local_distortion: Vec::new(),
         bla: None,
+        expected_var: None,
     })
 }
 

@@ -83,7 +83,7 @@ pub(crate) fn model_for(
 /// Mean score of a model on an estimate's lines (no prediction variance; [`crate::stats`]).
 pub(crate) fn own_statistic(m: &StateSpace, est: &Estimate, alpha: f64) -> Result<Statistic> {
     let r = responses(m, est.frd.freq_hz())?;
-    let l = compare(&est.frd, est.dof, |i, _| {
+    let l = compare(est, |i, _| {
         Some(Pred {
             value: r[i],
             var: 0.0,
@@ -136,7 +136,7 @@ fn two_fold(a: &Estimate, b: &Estimate, fo: &FitOptions) -> Option<Vec<f64>> {
         let t = train.thinned().ok()?;
         let model = sd_ident::fit(&t.frd, fo).ok()?.model;
         let r = responses(&model, held.frd.freq_hz()).ok()?;
-        let lines = compare(&held.frd, held.dof, |i, _| {
+        let lines = compare(held, |i, _| {
             Some(Pred {
                 value: r[i],
                 var: 0.0,
@@ -157,10 +157,9 @@ fn interleaved(est: &Estimate) -> Result<(Estimate, Estimate)> {
     let t = est.thinned()?;
     let half = |r: usize| -> Result<Estimate> {
         Ok(Estimate {
-            frd: t.frd.select(|i| i % 2 == r)?,
             inflation: (t.inflation / 2.0).max(1.0),
             correlation: Vec::new(),
-            ..t.clone()
+            ..t.select(|i| i % 2 == r)?
         })
     };
     Ok((half(0)?, half(1)?))

@@ -290,7 +290,7 @@ fn factor_of(h: f64, rate_hz: f64) -> Option<usize> {
 /// Lines of `est` against a model's simulation (no prediction variance: module docs).
 fn lines_of(m: &StateSpace, est: &Estimate) -> Result<Vec<Line>> {
     let r = responses(m, est.frd.freq_hz())?;
-    Ok(compare(&est.frd, est.dof, |i, _| {
+    Ok(compare(est, |i, _| {
         Some(Pred {
             value: r[i],
             var: 0.0,

@@ -63,6 +63,10 @@ impl Line {
     }
 }
 
+/// Half-width (lines) of the moving mean that gives a variance estimate's expected size
+/// (`lemma6::compare`, [`crate::data::Estimate::expected_var`]): sd-ident's, one for both.
+pub(crate) const VAR_SMOOTHING: usize = sd_ident::EXPECTED_VAR_HALF_WIDTH;
+
 /// `(ν/2) ln(1 + 2x/ν)`, `x` for infinite ν.
 pub(crate) fn score(x: f64, dof: f64) -> f64 {
     if dof.is_finite() && dof > 0.0 {

@@ -67,8 +67,9 @@ pub use local_mode::{
     local_mode, local_mode_with, LineNoise, LocalMode, MIN_LINES, MIN_POOLED_LINES,
 };
 pub use lpm::{
-    lpm, lpm_closed_loop, lpm_closed_loop_mimo, lpm_closed_loop_snr, lpm_excitation_correlation,
-    lpm_polynomial_correlation, LpmEstimate, LpmOptions,
+    lpm, lpm_closed_loop, lpm_closed_loop_full, lpm_closed_loop_mimo, lpm_closed_loop_snr,
+    lpm_excitation_correlation, lpm_polynomial_correlation, moving_mean, ClosedLoopLpm,
+    LpmEstimate, LpmOptions, EXPECTED_VAR_HALF_WIDTH,
 };
 pub use multisine::{
     crest_factor, design, orthogonal, write_csv, Lines, Multisine, MultisineSpec, Phases,

@@ -281,6 +281,39 @@ pub fn lpm_closed_loop_snr(
     y: &[f64],
     opt: &LpmOptions,
 ) -> Result<(Frd, Vec<f64>)> {
+    let cl = lpm_closed_loop_full(fs, r, u, y, opt)?;
+    Ok((cl.frd, cl.input_snr))
+}
+
+/// A closed-loop LPM estimate ([`lpm_closed_loop_full`]).
+#[derive(Debug, Clone)]
+pub struct ClosedLoopLpm {
+    /// `Ĝ = (Y/R)/(U/R)` with its first-order variance.
+    pub frd: Frd,
+    /// Input SNR `|U/R|²/var(U/R)` per line, the median over overlapping windows.
+    pub input_snr: Vec<f64>,
+    /// Per line, the variance the line's formula gives with the noise covariance `C_V`
+    /// replaced by its mean over ±[`EXPECTED_VAR_HALF_WIDTH`] lines: the expected size of
+    /// the variance estimate (its design factor `[(KᴴK)⁻¹]₀₀` and the ratios are the line's
+    /// own, only `C_V`'s estimation noise is averaged out; the noise spectrum is smooth).
+    pub expected_var: Vec<f64>,
+}
+
+/// Half-width (lines) of the mean of the noise covariances behind
+/// [`ClosedLoopLpm::expected_var`].
+pub const EXPECTED_VAR_HALF_WIDTH: usize = 16;
+
+/// [`lpm_closed_loop`] with the input SNR and the expected variance of every line.
+///
+/// # Errors
+/// As [`lpm_closed_loop`].
+pub fn lpm_closed_loop_full(
+    fs: f64,
+    r: &[f64],
+    u: &[f64],
+    y: &[f64],
+    opt: &LpmOptions,
+) -> Result<ClosedLoopLpm> {
     let n = r.len();
     if u.len() != n || y.len() != n {
         return Err(IdentError::Data(
@@ -292,8 +325,15 @@ pub fn lpm_closed_loop_snr(
     z.column_mut(0).copy_from_slice(y);
     z.column_mut(1).copy_from_slice(u);
     let est = lpm(fs, &x, &z, opt)?;
+    let mean_of = |f: &dyn Fn(&DMatrix<C>) -> f64| {
+        let v: Vec<f64> = est.noise_cov.iter().map(f).collect();
+        moving_mean(&v, EXPECTED_VAR_HALF_WIDTH)
+    };
+    let (syy, suu) = (mean_of(&|c| c[(0, 0)].re), mean_of(&|c| c[(1, 1)].re));
+    let (syu_re, syu_im) = (mean_of(&|c| c[(0, 1)].re), mean_of(&|c| c[(0, 1)].im));
     let mut resp = Vec::new();
     let mut var = Vec::new();
+    let mut expected = Vec::new();
     let mut snr = Vec::new();
     for (i, g) in est.frd.response().iter().enumerate() {
         let (gy, gu) = (g[(0, 0)], g[(1, 0)]);
@@ -310,29 +350,46 @@ pub fn lpm_closed_loop_snr(
             _ => f64::INFINITY,
         });
         let cv = &est.noise_cov[i];
-        let vv = match v {
-            Some(v) => {
-                // var(Gy), var(Gu) and their covariance share the same (KᴴK)⁻¹ factor
-                let (vy, vu) = (v[(0, 0)], v[(1, 0)]);
-                let factor = if cv[(0, 0)].re > 0.0 {
-                    vy / cv[(0, 0)].re
-                } else {
-                    0.0
-                };
-                let cyu = cv[(0, 1)] * factor;
-                gg.norm_sqr()
-                    * (vy / gy.norm_sqr().max(f64::MIN_POSITIVE) + vu / gu.norm_sqr()
-                        - 2.0 * (cyu / (gy * gu.conj())).re)
-            }
-            None => 0.0,
+        // var(Gy), var(Gu) and their covariance share the same (KᴴK)⁻¹ factor
+        let factor = match v {
+            Some(v) if cv[(0, 0)].re > 0.0 => v[(0, 0)] / cv[(0, 0)].re,
+            _ => 0.0,
+        };
+        let ratio_var = |cyy: f64, cuu: f64, cyu: C| {
+            let (vy, vu, cyu) = (cyy * factor, cuu * factor, cyu * factor);
+            (gg.norm_sqr()
+                * (vy / gy.norm_sqr().max(f64::MIN_POSITIVE) + vu / gu.norm_sqr()
+                    - 2.0 * (cyu / (gy * gu.conj())).re))
+                .max(0.0)
         };
         resp.push(DMatrix::from_element(1, 1, gg));
-        var.push(DMatrix::from_element(1, 1, vv.max(0.0)));
+        var.push(DMatrix::from_element(
+            1,
+            1,
+            ratio_var(cv[(0, 0)].re, cv[(1, 1)].re, cv[(0, 1)]),
+        ));
+        expected.push(ratio_var(syy[i], suu[i], C::new(syu_re[i], syu_im[i])));
     }
-    Ok((
-        Frd::new(est.frd.freq_hz().to_vec(), resp, Some(var), est.frd.time())?,
-        running_median(&snr, 2 * est.half_width),
-    ))
+    Ok(ClosedLoopLpm {
+        frd: Frd::new(est.frd.freq_hz().to_vec(), resp, Some(var), est.frd.time())?,
+        input_snr: running_median(&snr, 2 * est.half_width),
+        expected_var: expected,
+    })
+}
+
+/// The mean of `x` over `±half` neighbours of each entry (fewer at the ends).
+pub fn moving_mean(x: &[f64], half: usize) -> Vec<f64> {
+    let mut cum = Vec::with_capacity(x.len() + 1);
+    cum.push(0.0);
+    for v in x {
+        cum.push(cum[cum.len() - 1] + v);
+    }
+    (0..x.len())
+        .map(|k| {
+            let (lo, hi) = (k.saturating_sub(half), (k + half + 1).min(x.len()));
+            (cum[hi] - cum[lo]) / (hi - lo) as f64
+        })
+        .collect()
 }
 
 /// The median of `x` over `±reach` neighbours of each entry (fewer at the ends).
@@ -591,5 +648,53 @@ mod tests {
             );
         }
         assert!((poly[1] - rho[1]).abs() > 0.05, "{poly:?} vs {rho:?}");
+    }
+
+    /// The closed-loop estimate's expected variance: the raw variance is the one
+    /// [`lpm_closed_loop`] gives, and raw over expected scatters as the noise covariance's
+    /// estimate alone (the design factor, which varies far more from line to line, is
+    /// shared). Static plant `y = u + v`, controller `u = r − 0.5y`, white
+    /// `r` and `v`, 2¹⁴ samples.
+    #[test]
+    fn closed_loop_expected_variance() {
+        let n = 1 << 14;
+        let mut rng = crate::rng::SplitMix::new(5);
+        let r: Vec<f64> = (0..n).map(|_| rng.normal()).collect();
+        let v: Vec<f64> = (0..n).map(|_| 0.2 * rng.normal()).collect();
+        let u: Vec<f64> = r.iter().zip(&v).map(|(r, v)| (r - 0.5 * v) / 1.5).collect();
+        let y: Vec<f64> = u.iter().zip(&v).map(|(u, v)| u + v).collect();
+        let opt = LpmOptions::default();
+        let full = lpm_closed_loop_full(1.0, &r, &u, &y, &opt).unwrap();
+        let plain = lpm_closed_loop(1.0, &r, &u, &y, &opt).unwrap();
+        let raw: Vec<f64> = full
+            .frd
+            .variance()
+            .unwrap()
+            .iter()
+            .map(|m| m[(0, 0)])
+            .collect();
+        let same = plain.variance().unwrap();
+        for (a, b) in raw.iter().zip(same) {
+            assert!((a - b[(0, 0)]).abs() <= 1e-12 * a.abs());
+        }
+        let stats = |x: &[f64]| {
+            let m = x.iter().sum::<f64>() / x.len() as f64;
+            let sd = (x.iter().map(|v| (v - m).powi(2)).sum::<f64>() / x.len() as f64).sqrt();
+            (m, sd / m)
+        };
+        let ratio: Vec<f64> = raw
+            .iter()
+            .zip(&full.expected_var)
+            .map(|(a, b)| a / b)
+            .collect();
+        let (m, cv) = stats(&ratio);
+        // raw/expected is the noise covariance's scatter alone: χ²_ν/ν, ν = 6 (mean 1, CV
+        // √(2/ν) = 0.58; neighbouring windows overlap, so the mean's error is ~1 %)
+        assert!((m - 1.0).abs() < 0.03, "mean ratio {m}");
+        assert!((0.45..0.7).contains(&cv), "ratio's spread {cv}");
+        assert_eq!(
+            moving_mean(&[1.0, 2.0, 3.0, 10.0], 1),
+            vec![1.5, 2.0, 5.0, 6.5]
+        );
     }
 }

@@ -988,3 +988,32 @@ fn a_distorted_repeat_is_not_drift() {
         assert!(*one_level, "a distorted repeat named {cause}: {ran:?}");
     }
 }
+
+/// One case with its evidence, for development: `LEVEL_CASE=2560 LEVEL_ONLY=Linear
+/// LEVEL_REC=rising LEVEL_EVIDENCE=1 cargo test --release -p sd-tests --test diagnose_levels
+/// one_case -- --ignored --nocapture` (the four-level cases of the named effects).
+#[test]
+#[ignore]
+fn one_case() {
+    let seed: u64 = std::env::var("LEVEL_CASE").map_or(0, |s| s.parse().unwrap());
+    let form = match std::env::var("LEVEL_REC").as_deref() {
+        Ok("noise") => Form::Separate(NOISE),
+        Ok("rising") => Form::Rising,
+        Ok("burst") => Form::Burst,
+        _ => Form::Separate(PERIODIC),
+    };
+    let out = cases(seed..seed + 1, form);
+    for o in &out {
+        let t = &o.case.truths[0];
+        println!(
+            "truth: mass {} modes {:?} amplifier {:?} viscous {} coulomb {} sensor filters {}",
+            t.mass,
+            t.modes,
+            t.amplifier_hz,
+            t.viscous,
+            t.coulomb,
+            t.sensor_filters.len()
+        );
+    }
+    summarize(&out);
+}

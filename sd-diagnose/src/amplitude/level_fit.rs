@@ -78,7 +78,7 @@ pub(crate) fn level_floor(
 /// An estimate's lines against the prediction `Σ r_j φ_j` with the residues' variance.
 pub(super) fn predicted_lines(est: &Estimate, phi: &[Vec<C>], res: &Residues) -> Vec<Line> {
     let np = res.n_params();
-    compare(&est.frd, est.dof, |i, _| {
+    compare(est, |i, _| {
         let (value, var) = res.predict(&phi[i]);
         Some(Pred {
             value,

@@ -20,7 +20,7 @@ pub(super) struct Checks {
 }
 
 pub(super) fn free_lines(p: &Pair<'_>, est: &Estimate) -> Vec<Line> {
-    compare(&est.frd, est.dof, |_, f| p.predict(f))
+    compare(est, |_, f| p.predict(f))
 }
 
 pub(super) fn checks(data: &Data<'_>, j: &Judged<'_>, alpha: f64) -> Result<Checks> {

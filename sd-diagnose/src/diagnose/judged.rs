@@ -44,7 +44,7 @@ impl Judged<'_> {
                 b.pole_sensitivities(&self.plain.r, ts, ideal, f)?,
             ))
         };
-        Ok(compare(&est.frd, est.dof, |i, _| {
+        Ok(compare(est, |i, _| {
             let var = phi
                 .as_ref()
                 .map(|(p, d)| self.plain.predict_full(&p[i], &d[i]).1)
