@@ -43,7 +43,10 @@
 //!    diagnosis's `kind` and its damping trend the `damping_trend` ([`decided`]); when no
 //!    tracked mode moves both are `none` (the amplitude model's poles may still move: a
 //!    friction corner is no pair, and a global fit's weak pair is not a physical mode); the
-//!    amplitude model's stand only when no mode could be tracked.
+//!    amplitude model's stand when no mode could be tracked, or when none moves but a mode
+//!    was *buried* at a level above the model experiment's (its band's `|G|²/σ²` fell below
+//!    [`MIN_BAND_SNR`] as the excitation rose: distortion, and the level where it would have
+//!    moved most is missing from its track).
 //!
 //! Judged against each mode's best linear approximation computed apart (the level suite's
 //! `sd_tests::modal_truth`: every mode integrated alone under random-phase forces with each
@@ -111,6 +114,12 @@ pub struct ModeTrack {
     pub dominant: bool,
     /// Every level's local fit (levels whose fit failed are absent).
     pub points: Vec<TrackPoint>,
+    /// Levels above the model experiment's at which the mode, resolved at the model
+    /// experiment, was buried: its band's median `|G|²/σ²` fell below [`MIN_BAND_SNR`] although
+    /// the excitation rose (on a linear structure the ratio rises with it), so the total
+    /// variance there is nonlinear distortion. No point at those levels; [`decided`] then
+    /// takes the amplitude model's trends when no tracked mode moves.
+    pub buried: Vec<String>,
 }
 
 /// One level: its name, relative excitation level and BLA.
@@ -204,18 +213,13 @@ pub fn track_modes(
             let half = width.half(m.freq_hz, m.damping);
             let band = (m.freq_hz - half, m.freq_hz + half);
             let reach = (MAX_STEP * m.freq_hz).min(cap).max(half);
-            let points = follow(levels, (m.freq_hz, m.damping), (width, reach));
+            let (points, buried) = follow(levels, (m.freq_hz, m.damping), (width, reach));
             if points.len() < 2 {
                 return None;
             }
-            Some(track(
-                m.freq_hz,
-                m.damping,
-                m.share,
-                band,
-                points,
-                (alpha, z),
-            ))
+            let mut t = track(m.freq_hz, m.damping, m.share, band, points, (alpha, z));
+            t.buried = buried;
+            Some(t)
         })
         .collect();
     mark_dominant(&mut tracks);
@@ -345,11 +349,12 @@ fn follow(
     levels: &[TrackLevel<'_>],
     start: (f64, f64),
     (width, reach): (Width, f64),
-) -> Vec<TrackPoint> {
+) -> (Vec<TrackPoint>, Vec<String>) {
     let mut order: Vec<usize> = (0..levels.len()).collect();
     order.sort_by(|&a, &b| levels[a].level.total_cmp(&levels[b].level));
     let at = order.iter().position(|&i| i == 0).unwrap_or(0);
     let mut fitted: Vec<Option<TrackPoint>> = vec![None; levels.len()];
+    let mut buried = Vec::new();
     // upwards from the reference (itself included), then downwards from it
     for walk in [
         order[at..].to_vec(),
@@ -364,6 +369,11 @@ fn follow(
             let band = (centre - half, centre + half);
             // a band whose lines are mostly within 2σ of zero holds no measurable resonance
             if band_snr(lv.frd, band).is_none_or(|s| s < MIN_BAND_SNR) {
+                // above a reference that resolved the mode, more excitation buried it: the
+                // total variance there is distortion
+                if fitted[0].is_some() && lv.level > levels[0].level {
+                    buried.push(lv.name.to_string());
+                }
                 continue;
             }
             let Some(fit) = best_local(lv, band, centre, from) else {
@@ -385,7 +395,7 @@ fn follow(
             });
         }
     }
-    fitted.into_iter().flatten().collect()
+    (fitted.into_iter().flatten().collect(), buried)
 }
 
 /// The tests of one mode's points (module documentation, step 4).
@@ -445,12 +455,14 @@ fn track(
         shift_bandwidths: (by_level(true) - by_level(false)) / (2.0 * zeta0 * f0),
         dominant: false,
         points,
+        buried: Vec::new(),
     }
 }
 
 /// `kind` and `damping_trend` from the tracked modes (module documentation, step 5): the
-/// dominant moving mode's frequency and damping trends; none when no tracked mode moves;
-/// `fallback`'s (the amplitude model's) only when no mode could be tracked.
+/// dominant moving mode's frequency and damping trends; none when no tracked mode moves and
+/// none was buried ([`ModeTrack::buried`]); `fallback`'s (the amplitude model's) when no mode
+/// could be tracked, or none moves and one was buried.
 pub fn decided(
     tracks: &[ModeTrack],
     fallback: (FreqTrend, DampingTrend),
@@ -458,12 +470,13 @@ pub fn decided(
     if tracks.is_empty() {
         return fallback;
     }
-    tracks
-        .iter()
-        .find(|t| t.dominant)
-        .map_or((FreqTrend::None, DampingTrend::None), |d| {
-            (d.frequency_trend, d.damping_trend)
-        })
+    match tracks.iter().find(|t| t.dominant) {
+        Some(d) => (d.frequency_trend, d.damping_trend),
+        // the levels where a mode would have moved most are buried in its distortion: the
+        // amplitude model, fitted over every level, speaks for them
+        None if tracks.iter().any(|t| !t.buried.is_empty()) => fallback,
+        None => (FreqTrend::None, DampingTrend::None),
+    }
 }
 
 /// Marks the dominant moving mode (module documentation, step 5).
@@ -535,5 +548,21 @@ mod tests {
         let mut v = vec![t];
         mark_dominant(&mut v);
         assert!(!v[0].dominant);
+    }
+
+    /// No tracked mode moves: `none`, unless a mode was buried at a level above the model
+    /// experiment's, where the amplitude model (the fallback) speaks.
+    #[test]
+    fn a_buried_level_defers_to_the_amplitude_model() {
+        let pts = vec![point(1.0, 7.30, 0.01, 0.010), point(2.0, 7.30, 0.01, 0.010)];
+        let mut t = track(7.3, 0.01, 0.5, (7.0, 7.6), pts, (0.01, 2.576));
+        assert!(!t.frequency_moves && !t.dominant);
+        let fallback = (FreqTrend::Hardening, DampingTrend::Increasing);
+        assert_eq!(
+            decided(std::slice::from_ref(&t), fallback),
+            (FreqTrend::None, DampingTrend::None)
+        );
+        t.buried = vec!["l4".into()];
+        assert_eq!(decided(&[t], fallback), fallback);
     }
 }

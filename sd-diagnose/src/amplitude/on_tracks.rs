@@ -110,6 +110,7 @@ mod tests {
             shift_bandwidths: 1.0,
             dominant: true,
             points,
+            buried: Vec::new(),
         }
     }
 

@@ -193,7 +193,7 @@ pub(super) fn nonlinearity_text(c: &Cause) -> Option<String> {
                     t.freq_hz, t.shift_bandwidths
                 )
             })
-            .unwrap_or_default();
+            .unwrap_or_else(|| buried_note(tracks));
         let moving = tracks
             .iter()
             .filter(|t| t.frequency_moves || t.damping_moves)
@@ -207,6 +207,27 @@ pub(super) fn nonlinearity_text(c: &Cause) -> Option<String> {
             modes.len()
         )
     })
+}
+
+/// Where no tracked mode moves, the tracked modes buried in distortion at higher levels
+/// ([`sd_diagnose::ModeTrack::buried`]): the trend stated is then the amplitude model's.
+fn buried_note(tracks: &[sd_diagnose::ModeTrack]) -> String {
+    let buried: Vec<String> = tracks
+        .iter()
+        .filter(|t| !t.buried.is_empty())
+        .map(|t| {
+            let at: Vec<String> = t.buried.iter().map(|n| format!("`{n}`")).collect();
+            format!("{:.3} Hz at {}", t.freq_hz, at.join(", "))
+        })
+        .collect();
+    if buried.is_empty() {
+        return String::new();
+    }
+    format!(
+        " (by the amplitude model over every level: the tracked mode(s) at {} are buried in \
+         their distortion there, where they would move most)",
+        buried.join("; ")
+    )
 }
 
 /// The sentence of a drift.
