@@ -495,6 +495,14 @@ impl AmplitudeModel {
             .model(&self.res()?.r, self.h, NonIdeal::ideal())
     }
 
+    /// The prediction variance at `freq_hz` of the model at mode amplitudes `amp` and period
+    /// `ts` from the common residues' covariance (the trends' own uncertainty is not in it).
+    pub(crate) fn variances_with(&self, amp: &[f64], ts: f64, freq_hz: &[f64]) -> Result<Vec<f64>> {
+        let basis = self.basis.with_poles(&self.pairs_at(amp))?;
+        self.res()?
+            .variances(&basis, ts, NonIdeal::ideal(), freq_hz)
+    }
+
     /// Natural frequency (Hz) and damping of every candidate predicted at a level's
     /// amplitudes.
     pub(crate) fn predicted(&self, lv: &Level<'_>) -> Vec<(f64, f64)> {

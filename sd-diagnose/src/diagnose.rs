@@ -108,10 +108,21 @@ pub fn diagnose_with_progress(
         x.held_out = outcome.held.get(&x.name).copied();
     }
     let cause = joined(&outcome.causes);
+    let uncertain = |residues: crate::modal::Residues| crate::ModelUncertainty {
+        basis: judged.modal.basis.clone(),
+        residues,
+    };
+    let tied_uncertainty = match &outcome.extension {
+        Extension::RateTied(p) => Some(uncertain(judged.modal.residues_full(p.nonideal())?)),
+        _ => None,
+    };
     let predictor = crate::Predictor::of(
-        &judged.model,
+        (
+            &judged.model,
+            (!judged.given).then(|| uncertain(judged.plain.clone())),
+        ),
         (&outcome.extension, &cause),
-        extended_model.as_ref(),
+        (extended_model.as_ref(), tied_uncertainty),
         outcome.amplitude.as_deref(),
     );
     Ok(Diagnosis {

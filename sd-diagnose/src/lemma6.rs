@@ -135,3 +135,22 @@ pub(crate) fn compare(est: &Estimate, pred: impl Fn(usize, f64) -> Option<Pred>)
         })
         .collect()
 }
+
+/// The lines of `est` against a model's response `resp` (one value per line of `est`) with
+/// its prediction variance `var` per line (`None`: the model is taken as known), the errors
+/// of `params` fitted parameters shared by all lines.
+pub(crate) fn model_lines(
+    est: &Estimate,
+    resp: &[C],
+    var: Option<&[f64]>,
+    params: usize,
+) -> Vec<Line> {
+    compare(est, |i, _| {
+        Some(Pred {
+            value: resp[i],
+            var: var.map_or(0.0, |v| v[i]),
+            dof: f64::INFINITY,
+            params: if var.is_some() { params } else { 0 },
+        })
+    })
+}

@@ -90,7 +90,7 @@ pub use pieces::{Piece, RecordUse};
 pub use prediction::{
     predict_experiments, InBand, ModeAmplitude, PredictedExperiment, Prediction, Unpredictable,
 };
-pub use predictor::{AmplitudePredictor, Predictor, SavedExtension};
+pub use predictor::{AmplitudePredictor, ModelUncertainty, Predictor, SavedExtension};
 pub use sd_ident::{BandLevel, Distortion, Role, Unmeasurable};
 pub use stats::Statistic;
 pub use timedomain::AveragedPeriod;

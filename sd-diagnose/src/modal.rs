@@ -670,6 +670,52 @@ impl Residues {
         self.full.as_ref()
     }
 
+    /// Residues with a saved covariance: `cov` is the residues' own (`r.len()` square) or the
+    /// joint covariance of residues and pole parameters (larger), as [`Residues::with_poles`]
+    /// orders it.
+    pub(crate) fn with_covariance(r: Vec<f64>, cov: DMatrix<f64>) -> Self {
+        let n = r.len();
+        if cov.nrows() > n {
+            Residues {
+                r,
+                cov: cov.view((0, 0), (n, n)).into_owned(),
+                full: Some(cov),
+            }
+        } else {
+            Residues { r, cov, full: None }
+        }
+    }
+
+    /// The covariance to save: the joint one where the poles' is known, else the residues'.
+    pub(crate) fn saved_covariance(&self) -> &DMatrix<f64> {
+        self.full.as_ref().unwrap_or(&self.cov)
+    }
+
+    /// The prediction variance at `freq_hz` of the model `Σ r_j φ_j` on `basis` at period
+    /// `ts` under `ni`: `gᴴΣg` with `g = [φ, ∂φ/∂poles]` where the poles' covariance is
+    /// known ([`Residues::predict_full`]), `φᴴΣ_rφ` otherwise.
+    ///
+    /// # Errors
+    /// A basis that cannot be discretised at `ts`.
+    pub(crate) fn variances(
+        &self,
+        basis: &ModalBasis,
+        ts: f64,
+        ni: NonIdeal,
+        freq_hz: &[f64],
+    ) -> Result<Vec<f64>> {
+        let phi = basis.responses(ts, ni, freq_hz)?;
+        if self.full.is_none() {
+            return Ok(phi.iter().map(|p| self.predict(p).1).collect());
+        }
+        let dphi = basis.pole_sensitivities(&self.r, ts, ni, freq_hz)?;
+        Ok(phi
+            .iter()
+            .zip(&dphi)
+            .map(|(p, d)| self.predict_full(p, d).1)
+            .collect())
+    }
+
     /// Residues taken as known (no covariance): a saved model's.
     pub(crate) fn known(r: Vec<f64>) -> Self {
         let n = r.len();

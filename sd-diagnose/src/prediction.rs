@@ -20,13 +20,18 @@
 //!
 //! Each prediction is judged by the calibrated statistic of the diagnosis ([`crate::stats`]:
 //! the mean score of `|G_meas − G_pred|²/σ²` over the experiment's lines, 1 at the noise
-//! level, `σ²` the measured total variance). The saved models carry no parameter covariance,
-//! so both statistics count the measurement's variance only; `ratio` = plain / extended (> 1:
-//! the extension predicts better).
+//! level, `σ²` the measured total variance plus the model's prediction variance). The
+//! prediction variance comes from the covariance the diagnosis saved with each fitted model
+//! ([`crate::ModelUncertainty`]: residues and poles of the plain model and of a rate-tied
+//! extension, `gᴴΣg` at the experiment's own period; the amplitude model's common residues at
+//! the moved poles); a given model, and the non-idealities' and trends' own uncertainty,
+//! count as known. Without it a new experiment at a higher signal-to-noise ratio than the
+//! model experiment reads the model's own estimation error as a discrepancy. `ratio` = plain
+//! / extended (> 1: the extension predicts better).
 
 use crate::data::{estimate, Estimate, Part};
 use crate::findings::responses;
-use crate::lemma6::{compare, Pred};
+use crate::lemma6::model_lines;
 use crate::pieces::{Piece, RecordUse};
 use crate::predictor::{Predictor, SavedExtension};
 use crate::stats::{in_bands, statistic, Line};
@@ -287,23 +292,23 @@ fn factor_of(h: f64, rate_hz: f64) -> Option<usize> {
     (k >= 1.0 && (f - k).abs() <= 1e-9 * f).then_some(k as usize)
 }
 
-/// Lines of `est` against a model's simulation (no prediction variance: module docs).
-fn lines_of(m: &StateSpace, est: &Estimate) -> Result<Vec<Line>> {
+/// Lines of `est` against a model's simulation with its prediction variance `var` (module
+/// documentation; `None`: the model taken as known).
+fn lines_of(
+    m: &StateSpace,
+    est: &Estimate,
+    (var, params): (Option<&[f64]>, usize),
+) -> Result<Vec<Line>> {
     let r = responses(m, est.frd.freq_hz())?;
-    Ok(compare(est, |i, _| {
-        Some(Pred {
-            value: r[i],
-            var: 0.0,
-            dof: f64::INFINITY,
-            params: 0,
-        })
-    }))
+    Ok(model_lines(est, &r, var, params))
 }
 
 /// The extension's model for one experiment at factor `k` (or why there is none), and the
 /// moving modes' amplitudes.
 struct Extended {
     model: std::result::Result<StateSpace, Unpredictable>,
+    /// Its prediction variance at the experiment's lines (`None`: no covariance saved).
+    variance: Option<Vec<f64>>,
     amplitudes: Vec<ModeAmplitude>,
     /// The moving modes' bands (empty for a rate-tied extension).
     bands: Vec<(f64, f64)>,
@@ -314,6 +319,7 @@ impl Extended {
     fn without(why: Unpredictable) -> Self {
         Extended {
             model: Err(why),
+            variance: None,
             amplitudes: Vec::new(),
             bands: Vec::new(),
             extrapolated: false,
@@ -321,25 +327,36 @@ impl Extended {
     }
 }
 
-fn extended_model(p: &Predictor, h: f64, e: &Experiment, k: usize) -> Result<Extended> {
+fn extended_model(
+    p: &Predictor,
+    h: f64,
+    (e, k): (&Experiment, usize),
+    freq_hz: &[f64],
+) -> Result<Extended> {
     match &p.extension {
         SavedExtension::RateTied {
             continuous,
             hold_delay,
             averaging,
+            uncertainty,
         } => {
             let ni = NonIdeal {
                 hold_delay: *hold_delay,
                 averaging: *averaging,
             };
+            let ts = h * k as f64;
             Ok(Extended {
-                model: Ok(c2d_nonideal(continuous, h * k as f64, ni)?),
+                model: Ok(c2d_nonideal(continuous, ts, ni)?),
+                variance: match uncertainty {
+                    Some(u) => Some(u.variances(ts, ni, freq_hz)?),
+                    None => None,
+                },
                 amplitudes: Vec::new(),
                 bands: Vec::new(),
                 extrapolated: false,
             })
         }
-        SavedExtension::Amplitude(a) => amplitude_model(&a.0, e, k),
+        SavedExtension::Amplitude(a) => amplitude_model(&a.0, (e, k, h), freq_hz),
         other => Ok(Extended::without(Unpredictable::NoExtension {
             kind: other.kind().into(),
             cause: match other {
@@ -353,8 +370,8 @@ fn extended_model(p: &Predictor, h: f64, e: &Experiment, k: usize) -> Result<Ext
 /// The amplitude-dependent model at an experiment's measured mode amplitudes (module docs).
 fn amplitude_model(
     m: &crate::amplitude::AmplitudeModel,
-    e: &Experiment,
-    k: usize,
+    (e, k, h): (&Experiment, usize, f64),
+    freq_hz: &[f64],
 ) -> Result<Extended> {
     let nyquist = 0.5 * e.spec.sample_rate_hz;
     let moving = m.moving();
@@ -394,6 +411,7 @@ fn amplitude_model(
     let model = if k == 1 { at_h } else { downsample(&at_h, k)? };
     Ok(Extended {
         model: Ok(model),
+        variance: Some(m.variances_with(&amp, h * k as f64, freq_hz)?),
         amplitudes: list,
         bands: m.moving_bands_with(&amp),
         extrapolated,
@@ -445,7 +463,18 @@ fn one(p: &Predictor, h: f64, e: &Experiment, alpha: f64) -> Result<PredictedExp
     } else {
         downsample(&p.model, k)?
     };
-    let plain = lines_of(&plain_model, &est)?;
+    let f = est.frd.freq_hz();
+    let plain_var = match &p.uncertainty {
+        Some(u) => Some(u.variances(h * k as f64, NonIdeal::ideal(), f)?),
+        None => None,
+    };
+    let params =
+        |u: Option<&crate::predictor::ModelUncertainty>| u.map_or(0, |u| u.residues.n_params());
+    let plain = lines_of(
+        &plain_model,
+        &est,
+        (plain_var.as_deref(), params(p.uncertainty.as_ref())),
+    )?;
     let s_plain = statistic([(plain.as_slice(), est.inflation)], alpha);
     x.lines = plain.len();
     x.plain = Some(s_plain.value);
@@ -457,13 +486,18 @@ fn one(p: &Predictor, h: f64, e: &Experiment, alpha: f64) -> Result<PredictedExp
         model: plain.iter().map(|l| l.pred).collect(),
         extended: None,
     };
-    let ext = extended_model(p, h, e, k)?;
+    let ext = extended_model(p, h, (e, k), f)?;
     x.amplitudes = ext.amplitudes;
     let model = match ext.model {
         Ok(m) => m,
         Err(why) => return fail(x, why),
     };
-    let lines = lines_of(&model, &est)?;
+    let ext_params = match &p.extension {
+        SavedExtension::RateTied { uncertainty, .. } => params(uncertainty.as_ref()),
+        SavedExtension::Amplitude(a) => a.0.residues.as_ref().map_or(0, |r| r.n_params()),
+        _ => 0,
+    };
+    let lines = lines_of(&model, &est, (ext.variance.as_deref(), ext_params))?;
     let s_ext = statistic([(lines.as_slice(), est.inflation)], alpha);
     x.extended = Some(s_ext.value);
     x.ratio = Some(s_plain.value / s_ext.value.max(f64::MIN_POSITIVE));

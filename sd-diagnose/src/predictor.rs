@@ -8,13 +8,16 @@
 //! is the modal basis (continuous poles), the moving modes' frequency and damping trends in
 //! the relative amplitude, the reference amplitudes and forces that measure a new
 //! experiment's amplitude (`AmplitudeModel::amplitudes_of`), the range of relative amplitudes
-//! it was fitted on and the common residues. Every number is kept at full precision (JSON
+//! it was fitted on and the common residues. Each fitted model carries the covariance of its
+//! parameters ([`ModelUncertainty`]; version 2 — version 1 files, without it, are still read
+//! and predict with the models taken as known). Every number is kept at full precision (JSON
 //! numbers written by `serde_json` round-trip `f64` exactly); an infinite standard error (a
 //! trend the data did not determine) is written as `null`.
 
 use crate::amplitude::AmplitudeModel;
 use crate::modal::{ModalBasis, Residues};
 use crate::{DiagnoseError, Extension, Result, Trend};
+use nalgebra::DMatrix;
 use num_complex::Complex64 as C;
 use sd_model::StateSpace;
 use serde::{Deserialize, Serialize};
@@ -22,7 +25,7 @@ use serde::{Deserialize, Serialize};
 /// Format tag of `predictor.json`.
 pub const PREDICTOR_FORMAT: &str = "sd-predictor";
 /// Version of `predictor.json` this crate writes and reads.
-pub const PREDICTOR_VERSION: u32 = 1;
+pub const PREDICTOR_VERSION: u32 = 2;
 
 /// The plain model and the extension a diagnosis found, as `sdctl predict` reads them.
 #[derive(Debug, Clone)]
@@ -31,6 +34,30 @@ pub struct Predictor {
     pub model: StateSpace,
     /// The extension.
     pub extension: SavedExtension,
+    /// The model's modal form with its parameters' covariance, where the diagnosis fitted it
+    /// (`None` for a given model): the prediction variance of new experiments.
+    pub uncertainty: Option<ModelUncertainty>,
+}
+
+/// A fitted modal model's basis and residues with the covariance of residues and pole
+/// parameters (`predictor.json`'s `uncertainty`; docs/formats.md): a prediction's variance
+/// `gᴴΣg` at any rate ([`Residues::variances`]).
+#[derive(Debug, Clone)]
+pub struct ModelUncertainty {
+    pub(crate) basis: ModalBasis,
+    pub(crate) residues: Residues,
+}
+
+impl ModelUncertainty {
+    /// The prediction variance at `freq_hz` at period `ts` under the non-idealities `ni`.
+    pub(crate) fn variances(
+        &self,
+        ts: f64,
+        ni: sd_multirate::NonIdeal,
+        freq_hz: &[f64],
+    ) -> Result<Vec<f64>> {
+        self.residues.variances(&self.basis, ts, ni, freq_hz)
+    }
 }
 
 /// An extension as written to `predictor.json`.
@@ -49,6 +76,9 @@ pub enum SavedExtension {
         hold_delay: f64,
         /// Averaging window (fraction of the period).
         averaging: f64,
+        /// Its modal form with the covariance of the refitted residues and the poles (the
+        /// delay's and window's own uncertainty is not in it).
+        uncertainty: Option<ModelUncertainty>,
     },
     /// The model experiment's measured FRF at the folding frequencies: not a model, it
     /// predicts nothing new.
@@ -81,9 +111,9 @@ impl Predictor {
     /// The predictor of a diagnosis's outcome: its model, and its extension as found
     /// (`extended` the rate-tied one's continuous model, `amplitude` the amplitude model).
     pub(crate) fn of(
-        model: &StateSpace,
+        (model, uncertainty): (&StateSpace, Option<ModelUncertainty>),
         (extension, cause): (&Extension, &str),
-        extended: Option<&crate::ExtendedModel>,
+        (extended, tied): (Option<&crate::ExtendedModel>, Option<ModelUncertainty>),
         amplitude: Option<&AmplitudeModel>,
     ) -> Self {
         let extension = match (extension, extended, amplitude) {
@@ -91,6 +121,7 @@ impl Predictor {
                 continuous: Box::new(x.continuous.clone()),
                 hold_delay: x.hold_delay,
                 averaging: x.averaging,
+                uncertainty: tied,
             },
             (Extension::Amplitude(_), _, Some(m)) => {
                 SavedExtension::Amplitude(AmplitudePredictor(Box::new(m.clone())))
@@ -104,6 +135,7 @@ impl Predictor {
         Predictor {
             model: model.clone(),
             extension,
+            uncertainty,
         }
     }
 
@@ -116,6 +148,11 @@ impl Predictor {
             format: PREDICTOR_FORMAT.into(),
             version: PREDICTOR_VERSION,
             model: model_value(&self.model)?,
+            uncertainty: self
+                .uncertainty
+                .as_ref()
+                .map(saved_uncertainty)
+                .transpose()?,
             extension: match &self.extension {
                 SavedExtension::None { cause } => Saved::None {
                     cause: cause.clone(),
@@ -124,10 +161,12 @@ impl Predictor {
                     continuous,
                     hold_delay,
                     averaging,
+                    uncertainty,
                 } => Saved::RateTied {
                     continuous: model_value(continuous)?,
                     hold_delay: *hold_delay,
                     averaging: *averaging,
+                    uncertainty: uncertainty.as_ref().map(saved_uncertainty).transpose()?,
                 },
                 SavedExtension::FastFrf => Saved::FastFrf,
                 SavedExtension::PerLevel => Saved::PerLevel,
@@ -145,9 +184,9 @@ impl Predictor {
     pub fn from_json_str(text: &str) -> Result<Self> {
         let bad = |m: String| DiagnoseError::Setup(format!("predictor.json: {m}"));
         let file: File = serde_json::from_str(text).map_err(|e| bad(e.to_string()))?;
-        if file.format != PREDICTOR_FORMAT || file.version != PREDICTOR_VERSION {
+        if file.format != PREDICTOR_FORMAT || !(1..=PREDICTOR_VERSION).contains(&file.version) {
             return Err(bad(format!(
-                "format `{}` version {} is not `{PREDICTOR_FORMAT}` version \
+                "format `{}` version {} is not `{PREDICTOR_FORMAT}` version 1 to \
                  {PREDICTOR_VERSION}: write it again with this version's `sdctl diagnose`",
                 file.format, file.version
             )));
@@ -166,12 +205,18 @@ impl Predictor {
                 model.ny()
             )));
         }
+        let uncertainty = file
+            .uncertainty
+            .map(|u| uncertainty_of(u, h))
+            .transpose()
+            .map_err(|e| bad(format!("uncertainty: {e}")))?;
         let extension = match file.extension {
             Saved::None { cause } => SavedExtension::None { cause },
             Saved::RateTied {
                 continuous,
                 hold_delay,
                 averaging,
+                uncertainty,
             } => {
                 let continuous =
                     model_of(&continuous).map_err(|e| bad(format!("extension: {e}")))?;
@@ -193,6 +238,10 @@ impl Predictor {
                     continuous: Box::new(continuous),
                     hold_delay,
                     averaging,
+                    uncertainty: uncertainty
+                        .map(|u| uncertainty_of(u, h))
+                        .transpose()
+                        .map_err(|e| bad(format!("extension uncertainty: {e}")))?,
                 }
             }
             Saved::FastFrf => SavedExtension::FastFrf,
@@ -201,7 +250,11 @@ impl Predictor {
                 amplitude_of(*a, h).map_err(bad)?,
             ))),
         };
-        Ok(Predictor { model, extension })
+        Ok(Predictor {
+            model,
+            extension,
+            uncertainty,
+        })
     }
 }
 
@@ -212,7 +265,23 @@ struct File {
     format: String,
     version: u32,
     model: serde_json::Value,
+    /// Since version 2; absent for a given model.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    uncertainty: Option<SavedUncertainty>,
     extension: Saved,
+}
+
+/// [`ModelUncertainty`] in the file: the basis as [`SavedAmplitude`]'s, the residues, and the
+/// covariance (rows; the residues' own, or residues then pole parameters).
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SavedUncertainty {
+    rigid_body: usize,
+    rigid_damping: f64,
+    real_poles: Vec<f64>,
+    pairs: Vec<[f64; 2]>,
+    residues: Vec<f64>,
+    covariance: Vec<Vec<f64>>,
 }
 
 /// The extension in the file.
@@ -226,6 +295,9 @@ enum Saved {
         continuous: serde_json::Value,
         hold_delay: f64,
         averaging: f64,
+        /// Since version 2.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        uncertainty: Option<SavedUncertainty>,
     },
     FastFrf,
     PerLevel,
@@ -243,6 +315,9 @@ struct SavedAmplitude {
     pairs: Vec<[f64; 2]>,
     candidates: Vec<SavedCandidate>,
     residues: Vec<f64>,
+    /// The common residues' covariance (rows; since version 2).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    residue_covariance: Option<Vec<Vec<f64>>>,
 }
 
 /// One candidate mode of the amplitude model.
@@ -351,11 +426,16 @@ fn check_finite(a: &SavedAmplitude) -> Result<()> {
 
 fn saved_amplitude(m: &AmplitudeModel) -> Result<SavedAmplitude> {
     let ((rigid_body, rigid_damping), real, pairs) = m.basis.parts();
-    let residues = m
+    let fitted = m
         .residues
         .as_ref()
-        .map(|r| r.r.clone())
         .ok_or_else(|| DiagnoseError::Numerical("amplitude model without residues".into()))?;
+    let residues = fitted.r.clone();
+    let cov = fitted.saved_covariance();
+    let residue_covariance = (cov.nrows() >= residues.len() && !residues.is_empty()).then(|| {
+        let n = residues.len();
+        rows(&cov.view((0, 0), (n, n)).into_owned())
+    });
     let candidates = m
         .cand
         .iter()
@@ -383,46 +463,147 @@ fn saved_amplitude(m: &AmplitudeModel) -> Result<SavedAmplitude> {
         pairs: pairs.iter().map(|p| [p.re, p.im]).collect(),
         candidates,
         residues,
+        residue_covariance,
     };
     check_finite(&saved)?;
     Ok(saved)
 }
 
-/// The amplitude model of the file at the model's period `h`, checked: finite stable poles,
-/// candidates that index them, one residue per basis function.
-fn amplitude_of(a: SavedAmplitude, h: f64) -> std::result::Result<AmplitudeModel, String> {
-    if a.rigid_body > 2 || !(a.rigid_damping >= 0.0 && a.rigid_damping.is_finite()) {
+/// A matrix as rows.
+fn rows(m: &DMatrix<f64>) -> Vec<Vec<f64>> {
+    (0..m.nrows())
+        .map(|i| m.row(i).iter().copied().collect())
+        .collect()
+}
+
+/// The modal basis of a saved model, checked: a rigid body of 0 to 2 poles with a finite
+/// damping ≥ 0, finite real poles, pairs given by their pole with positive imaginary part.
+fn basis_of(
+    (rigid_body, rigid_damping): (usize, f64),
+    real_poles: &[f64],
+    pairs: &[[f64; 2]],
+) -> std::result::Result<ModalBasis, String> {
+    if rigid_body > 2 || !(rigid_damping >= 0.0 && rigid_damping.is_finite()) {
         return Err(format!(
-            "rigid_body {} (0 to 2) or rigid_damping {} (finite, ≥ 0) out of range",
-            a.rigid_body, a.rigid_damping
+            "rigid_body {rigid_body} (0 to 2) or rigid_damping {rigid_damping} (finite, ≥ 0) \
+             out of range"
         ));
     }
-    let pairs: Vec<C> = a.pairs.iter().map(|p| C::new(p[0], p[1])).collect();
-    if a.real_poles.iter().any(|p| !p.is_finite())
+    let pairs: Vec<C> = pairs.iter().map(|p| C::new(p[0], p[1])).collect();
+    if real_poles.iter().any(|p| !p.is_finite())
         || pairs
             .iter()
             .any(|p| !(p.re.is_finite() && p.im.is_finite() && p.im > 0.0))
     {
         return Err(
-            "the amplitude model's poles must be finite, its pairs given by the \
-                    pole with the positive imaginary part"
+            "the poles must be finite, each pair given by the pole with the positive \
+                    imaginary part"
                 .into(),
         );
     }
-    let basis = ModalBasis::build((a.rigid_body, a.rigid_damping), &a.real_poles, &pairs)
-        .map_err(|e| e.to_string())?;
-    let n_poles = basis.poles().len();
-    let n_functions = basis
-        .responses(h, sd_multirate::NonIdeal::ideal(), &[0.0])
+    ModalBasis::build((rigid_body, rigid_damping), real_poles, &pairs).map_err(|e| e.to_string())
+}
+
+/// Basis functions and pole parameters of `basis` at the model period `h`.
+fn basis_sizes(basis: &ModalBasis, h: f64) -> std::result::Result<(usize, usize), String> {
+    let ideal = sd_multirate::NonIdeal::ideal();
+    let nb = basis
+        .responses(h, ideal, &[0.0])
         .map_err(|e| e.to_string())?
         .first()
         .map_or(0, Vec::len);
+    let np = basis
+        .pole_sensitivities(&vec![0.0; nb], h, ideal, &[1.0])
+        .map_err(|e| e.to_string())?
+        .first()
+        .map_or(0, Vec::len);
+    Ok((nb, np))
+}
+
+/// A saved covariance checked: `sizes` rows of as many finite entries, symmetric to 1e-9 of
+/// its largest entry, a non-negative diagonal.
+fn covariance_of(rows: &[Vec<f64>], sizes: &[usize]) -> std::result::Result<DMatrix<f64>, String> {
+    let n = rows.len();
+    if !sizes.contains(&n) || rows.iter().any(|r| r.len() != n) {
+        return Err(format!(
+            "the covariance is {n} rows of {:?} entries; {sizes:?} square expected",
+            rows.iter()
+                .map(Vec::len)
+                .collect::<std::collections::BTreeSet<_>>()
+        ));
+    }
+    let m = DMatrix::from_fn(n, n, |i, j| rows[i][j]);
+    let big = m.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+    let symmetric = (0..n).all(|i| (0..i).all(|j| (m[(i, j)] - m[(j, i)]).abs() <= 1e-9 * big));
+    if m.iter().any(|x| !x.is_finite()) || !symmetric || (0..n).any(|i| m[(i, i)] < 0.0) {
+        return Err(
+            "the covariance must be finite, symmetric, with a non-negative diagonal".into(),
+        );
+    }
+    Ok(m)
+}
+
+fn saved_uncertainty(u: &ModelUncertainty) -> Result<SavedUncertainty> {
+    let ((rigid_body, rigid_damping), real, pairs) = u.basis.parts();
+    let cov = u.residues.saved_covariance();
+    let saved = SavedUncertainty {
+        rigid_body,
+        rigid_damping,
+        real_poles: real.to_vec(),
+        pairs: pairs.iter().map(|p| [p.re, p.im]).collect(),
+        residues: u.residues.r.clone(),
+        covariance: rows(cov),
+    };
+    let all = std::iter::once(rigid_damping)
+        .chain(saved.real_poles.iter().copied())
+        .chain(saved.pairs.iter().flatten().copied())
+        .chain(saved.residues.iter().copied())
+        .chain(saved.covariance.iter().flatten().copied());
+    if let Some(x) = all.into_iter().find(|x| !x.is_finite()) {
+        return Err(DiagnoseError::Numerical(format!(
+            "the model's uncertainty holds {x}: it cannot be saved"
+        )));
+    }
+    Ok(saved)
+}
+
+/// The saved uncertainty at the model's period `h`, checked (basis, one residue per basis
+/// function, a covariance of the residues or of residues and pole parameters).
+fn uncertainty_of(u: SavedUncertainty, h: f64) -> std::result::Result<ModelUncertainty, String> {
+    let basis = basis_of((u.rigid_body, u.rigid_damping), &u.real_poles, &u.pairs)?;
+    let (nb, np) = basis_sizes(&basis, h)?;
+    if u.residues.len() != nb || u.residues.iter().any(|r| !r.is_finite()) {
+        return Err(format!(
+            "{} residues for a basis of {nb} functions (all finite)",
+            u.residues.len()
+        ));
+    }
+    let cov = covariance_of(&u.covariance, &[nb, nb + np])?;
+    Ok(ModelUncertainty {
+        basis,
+        residues: Residues::with_covariance(u.residues, cov),
+    })
+}
+
+/// The amplitude model of the file at the model's period `h`, checked: finite stable poles,
+/// candidates that index them, one residue per basis function.
+fn amplitude_of(a: SavedAmplitude, h: f64) -> std::result::Result<AmplitudeModel, String> {
+    let basis = basis_of((a.rigid_body, a.rigid_damping), &a.real_poles, &a.pairs)?;
+    let n_poles = basis.poles().len();
+    let (n_functions, _) = basis_sizes(&basis, h)?;
     if a.residues.len() != n_functions || a.residues.iter().any(|r| !r.is_finite()) {
         return Err(format!(
             "{} residues for a basis of {n_functions} functions (all finite)",
             a.residues.len()
         ));
     }
+    let residues = match &a.residue_covariance {
+        Some(rows) => Residues::with_covariance(
+            a.residues.clone(),
+            covariance_of(rows, &[n_functions]).map_err(|e| format!("residue_{e}"))?,
+        ),
+        None => Residues::known(a.residues.clone()),
+    };
     let mut m = AmplitudeModel {
         basis,
         h,
@@ -432,7 +613,7 @@ fn amplitude_of(a: SavedAmplitude, h: f64) -> std::result::Result<AmplitudeModel
         reference_force: Vec::new(),
         per_force: Vec::new(),
         range: Vec::new(),
-        residues: Some(Residues::known(a.residues)),
+        residues: Some(residues),
     };
     for c in a.candidates {
         if c.pole >= n_poles {
@@ -514,6 +695,7 @@ mod tests {
                 fitted_range: Some([1.0, 1.9]),
             }],
             residues: vec![1.0; n],
+            residue_covariance: None,
         }
     }
 

@@ -6,7 +6,7 @@ use super::read::*;
 use crate::data::{parts, Estimate};
 use crate::findings::responses;
 use crate::hypotheses::Modal;
-use crate::lemma6::{compare, Pred};
+use crate::lemma6::model_lines;
 use crate::modal::{ModalBasis, Residues};
 use crate::stats::{statistic, Line};
 use crate::{DiagnoseOptions, ModelInfo, OwnFit, Result};
@@ -34,28 +34,20 @@ impl Judged<'_> {
         let f = est.frd.freq_hz();
         let resp = responses(sim, f)?;
         let ts = self.modal.h * factor as f64;
-        let ideal = NonIdeal::ideal();
-        let phi = if self.given {
+        let var = if self.given {
             None
         } else {
-            let b = &self.modal.basis;
-            Some((
-                b.responses(ts, ideal, f)?,
-                b.pole_sensitivities(&self.plain.r, ts, ideal, f)?,
-            ))
+            Some(
+                self.plain
+                    .variances(&self.modal.basis, ts, NonIdeal::ideal(), f)?,
+            )
         };
-        Ok(compare(est, |i, _| {
-            let var = phi
-                .as_ref()
-                .map(|(p, d)| self.plain.predict_full(&p[i], &d[i]).1)
-                .unwrap_or(0.0);
-            Some(Pred {
-                value: resp[i],
-                var,
-                dof: f64::INFINITY,
-                params: if self.given { 0 } else { self.plain.n_params() },
-            })
-        }))
+        Ok(model_lines(
+            est,
+            &resp,
+            var.as_deref(),
+            self.plain.n_params(),
+        ))
     }
 }
 
