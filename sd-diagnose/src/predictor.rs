@@ -41,7 +41,7 @@ pub struct Predictor {
 
 /// A fitted modal model's basis and residues with the covariance of residues and pole
 /// parameters (`predictor.json`'s `uncertainty`; docs/formats.md): a prediction's variance
-/// `gᴴΣg` at any rate ([`Residues::variances`]).
+/// `gᴴΣg` at any rate, `g = [φ, ∂φ/∂poles]` the basis responses and their pole sensitivities.
 #[derive(Debug, Clone)]
 pub struct ModelUncertainty {
     pub(crate) basis: ModalBasis,
