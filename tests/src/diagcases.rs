@@ -101,6 +101,22 @@ pub struct Recording {
     pub periodic: bool,
 }
 
+impl Recording {
+    /// Four steady periods of a periodic multisine, input injection, white sensor noise: the
+    /// level suites' periodic recording.
+    pub const PERIODIC: Recording = Recording {
+        steady: 4,
+        reference: false,
+        drift: false,
+        periodic: true,
+    };
+    /// [`Recording::PERIODIC`] as one non-periodic record as long as its periods (LPM).
+    pub const NOISE: Recording = Recording {
+        periodic: false,
+        ..Recording::PERIODIC
+    };
+}
+
 /// A generated case.
 #[derive(Debug, Clone)]
 pub struct Case {

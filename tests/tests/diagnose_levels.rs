@@ -75,18 +75,10 @@ const REPORT_SEEDS_NOISE: std::ops::Range<u64> = 2600..2616;
 /// The default run's non-periodic subset.
 const CI_SEEDS_NOISE: std::ops::Range<u64> = 50..52;
 
-const PERIODIC: Recording = Recording {
-    steady: 4,
-    reference: false,
-    drift: false,
-    periodic: true,
-};
+const PERIODIC: Recording = Recording::PERIODIC;
 
 /// One non-periodic record of filtered noise per level, as long as four periods (LPM).
-const NOISE: Recording = Recording {
-    periodic: false,
-    ..PERIODIC
-};
+const NOISE: Recording = Recording::NOISE;
 
 struct Outcome {
     case: LevelCase,

@@ -27,16 +27,8 @@ use sd_diagnose::{Cause, EvidenceKind, Verdict};
 use sd_tests::diagcases::{burst_case, level_case, per_seed, rising_case, LevelEffect, Recording};
 use std::collections::BTreeMap;
 
-const PERIODIC: Recording = Recording {
-    steady: 4,
-    reference: false,
-    drift: false,
-    periodic: true,
-};
-const NOISE: Recording = Recording {
-    periodic: false,
-    ..PERIODIC
-};
+const PERIODIC: Recording = Recording::PERIODIC;
+const NOISE: Recording = Recording::NOISE;
 const REPORT_SEEDS: std::ops::Range<u64> = 3300..3400;
 const FORMS: [&str; 4] = ["periodic", "noise", "rising", "burst"];
 

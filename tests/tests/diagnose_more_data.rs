@@ -13,12 +13,7 @@
 
 use sd_tests::diagcases::{per_seed, with_another_rate, Effect, Recording};
 
-const PERIODIC: Recording = Recording {
-    steady: 4,
-    reference: false,
-    drift: false,
-    periodic: true,
-};
+const PERIODIC: Recording = Recording::PERIODIC;
 
 /// The hidden effect of `seed`: a hold delay, an averaging sampler, both, or the 0.6 delay.
 fn effect_of(seed: u64) -> Effect {

@@ -15,12 +15,7 @@ use sd_tests::diagcases::{
     consistent, level_case_sized, per_seed, with_another_rate, Effect, LevelEffect, Recording,
 };
 
-const PERIODIC: Recording = Recording {
-    steady: 4,
-    reference: false,
-    drift: false,
-    periodic: true,
-};
+const PERIODIC: Recording = Recording::PERIODIC;
 
 /// The levels the diagnosis sees (the cubic stiffness sized for the highest, 4).
 const LEVELS: [f64; 3] = [1.0, 2.0, 4.0];
