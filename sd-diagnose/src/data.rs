@@ -2,9 +2,8 @@
 //! held-out (later) parts, with the degrees of freedom of their variances and the correlation
 //! of neighbouring lines ([`crate::stats`]).
 
-use crate::stats::{lpm_inflation, satterthwaite, VAR_SMOOTHING};
+use crate::stats::{lpm_inflation, satterthwaite};
 use crate::{DiagnoseError, Result};
-use sd_ident::moving_mean;
 use sd_ident::{frf_periodic, DistortionReport, Experiment, LpmOptions, PeriodicOptions};
 use sd_model::Frd;
 
@@ -42,10 +41,10 @@ pub(crate) struct Estimate {
     /// and its noise and distortion per band (`None` for a part of an experiment).
     pub(crate) bla: Option<sd_ident::Bla>,
     /// Per line of `frd`, the expected size of its variance estimate, where the estimate's
-    /// noise level and design factor are known apart (an open-loop LPM estimate: the design
-    /// factor `[(KᴴK)⁻¹]₀₀` of the line's own window times the moving mean of the local noise
-    /// variances over ±[`VAR_SMOOTHING`] lines); `None` otherwise. What a comparison's
-    /// degrees of freedom are computed from (`lemma6::compare`).
+    /// noise level and design factor are known apart (an LPM estimate:
+    /// [`sd_ident::LpmEstimate::expected_var`], [`sd_ident::ClosedLoopLpm::expected_var`]);
+    /// `None` otherwise. What a comparison's degrees of freedom are computed from
+    /// (`lemma6::compare`).
     pub(crate) expected_var: Option<Vec<f64>>,
 }
 
@@ -345,7 +344,7 @@ fn estimate_lpm(e: &Experiment, part: Part) -> Result<Estimate> {
                 )?)),
                 _ => None,
             };
-            let expected = expected_lpm_var(&est);
+            let expected = est.expected_var();
             (est.frd, spectra, expected)
         }
     };
@@ -372,27 +371,6 @@ fn estimate_lpm(e: &Experiment, part: Part) -> Result<Estimate> {
         frd,
         expected_var,
     })
-}
-
-/// The expected size of an open-loop LPM estimate's variance per line
-/// ([`Estimate::expected_var`]): `var Ĝ_k = σ̂²_k·g_k` with `g_k` the window's design factor,
-/// so `g_k·mean_{|j−k|≤W} σ̂²_j`. `None` for MIMO or where a line's noise variance is zero.
-fn expected_lpm_var(est: &sd_ident::LpmEstimate) -> Option<Vec<f64>> {
-    let var = est.frd.variance()?;
-    let noise: Vec<f64> = est.noise_cov.iter().map(|c| c[(0, 0)].re).collect();
-    if est.frd.response().first()?.len() != 1
-        || noise
-            .iter()
-            .any(|v| v.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater))
-    {
-        return None;
-    }
-    let smooth = moving_mean(&noise, VAR_SMOOTHING);
-    Some(
-        (0..noise.len())
-            .map(|k| var[k][(0, 0)] / noise[k] * smooth[k])
-            .collect(),
-    )
 }
 
 /// Rms of the excitation (reference, or input without one) over the steady periods.

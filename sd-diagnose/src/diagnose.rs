@@ -92,8 +92,10 @@ pub fn diagnose_with_progress(
     own_fit(&data, &ch, &mut judged.info);
     let outcome = decide(&data, &judged, &mut ch, progress)?;
     progress("reports");
+    // the residues with the poles' covariance: the reports and the continuous model use the
+    // residues, the predictor keeps the covariance
     let tied = match &outcome.extension {
-        Extension::RateTied(p) => Some((judged.modal.residues(p.nonideal())?, p)),
+        Extension::RateTied(p) => Some((judged.modal.residues_full(p.nonideal())?, p)),
         _ => None,
     };
     let mut experiments = reports(
@@ -112,10 +114,7 @@ pub fn diagnose_with_progress(
         basis: judged.modal.basis.clone(),
         residues,
     };
-    let tied_uncertainty = match &outcome.extension {
-        Extension::RateTied(p) => Some(uncertain(judged.modal.residues_full(p.nonideal())?)),
-        _ => None,
-    };
+    let tied_uncertainty = tied.as_ref().map(|(r, _)| uncertain(r.clone()));
     let predictor = crate::Predictor::of(
         (
             &judged.model,

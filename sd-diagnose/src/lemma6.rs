@@ -86,14 +86,15 @@ pub(crate) struct Pred {
 /// default) whose variances differ 16-fold the mean score is 1.016 instead of 1, 0.992 with
 /// the expected ratio; for an estimate (ν = 6) beside a computed prediction variance of 0.1–1
 /// times its size it is 1.015–1.036, 0.98–0.99 with the expected size (Monte Carlo, 2·10⁶
-/// draws each). On rising records of linear stages the level tests averaged 1.013 and two
-/// cases in 40 were called nonlinear (`diagnose_levels_calibration`). The expected sizes:
+/// draws each: `python tools/mc_satterthwaite.py`). On rising records of linear stages the
+/// level tests averaged 1.013 and two cases in 40 were called nonlinear (development seeds
+/// `3000..3040` of `diagnose_levels_calibration`, run at commit e130e6f). The expected sizes:
 /// where both parts are estimates (a measured prediction, finite ν: the model-free tests),
 /// the moving mean of each over ±[`VAR_SMOOTHING`] lines; against a fitted model (computed
 /// variance, infinite ν) the measured part's [`Estimate::expected_var`] where it has one and
 /// the line's own estimate otherwise — not a moving mean of the measured variance itself,
-/// whose design factor `1/|U(k)|²` on a noise record is the line's own (smoothing it raised
-/// the model tests' mean score to 1.05–1.07 on those stages).
+/// whose design factor `1/|U(k)|²` on a noise record is the line's own (an exploratory
+/// version that smoothed it, not kept, gave model-test means of 1.05–1.07 on those stages).
 pub(crate) fn compare(est: &Estimate, pred: impl Fn(usize, f64) -> Option<Pred>) -> Vec<Line> {
     let val = &est.frd;
     let var = val.variance();
@@ -107,16 +108,19 @@ pub(crate) fn compare(est: &Estimate, pred: impl Fn(usize, f64) -> Option<Pred>)
             (vm + p.var > 0.0).then_some((i, f, p, vm))
         })
         .collect();
-    let vm: Vec<f64> = raw.iter().map(|r| r.3).collect();
-    let pv: Vec<f64> = raw.iter().map(|r| r.2.var).collect();
-    let (sm, sp) = (
-        moving_mean(&vm, VAR_SMOOTHING),
-        moving_mean(&pv, VAR_SMOOTHING),
-    );
+    // the moving means only where a prediction is itself an estimate (the model-free tests)
+    let smoothed = raw.iter().any(|r| r.2.dof.is_finite()).then(|| {
+        let vm: Vec<f64> = raw.iter().map(|r| r.3).collect();
+        let pv: Vec<f64> = raw.iter().map(|r| r.2.var).collect();
+        (
+            moving_mean(&vm, VAR_SMOOTHING),
+            moving_mean(&pv, VAR_SMOOTHING),
+        )
+    });
     raw.iter()
         .enumerate()
         .map(|(k, &(i, f, p, vm))| {
-            let parts = if p.dof.is_finite() {
+            let parts = if let (true, Some((sm, sp))) = (p.dof.is_finite(), &smoothed) {
                 [(sm[k], est.dof), (sp[k], p.dof)]
             } else {
                 let expected = est.expected_var.as_ref().and_then(|e| e.get(i));

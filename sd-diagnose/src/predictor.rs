@@ -567,17 +567,23 @@ fn saved_uncertainty(u: &ModelUncertainty) -> Result<SavedUncertainty> {
     Ok(saved)
 }
 
+/// One finite residue per basis function of `functions`.
+fn check_residues(residues: &[f64], functions: usize) -> std::result::Result<(), String> {
+    if residues.len() != functions || residues.iter().any(|r| !r.is_finite()) {
+        return Err(format!(
+            "{} residues for a basis of {functions} functions (all finite)",
+            residues.len()
+        ));
+    }
+    Ok(())
+}
+
 /// The saved uncertainty at the model's period `h`, checked (basis, one residue per basis
 /// function, a covariance of the residues or of residues and pole parameters).
 fn uncertainty_of(u: SavedUncertainty, h: f64) -> std::result::Result<ModelUncertainty, String> {
     let basis = basis_of((u.rigid_body, u.rigid_damping), &u.real_poles, &u.pairs)?;
     let (nb, np) = basis_sizes(&basis, h)?;
-    if u.residues.len() != nb || u.residues.iter().any(|r| !r.is_finite()) {
-        return Err(format!(
-            "{} residues for a basis of {nb} functions (all finite)",
-            u.residues.len()
-        ));
-    }
+    check_residues(&u.residues, nb)?;
     let cov = covariance_of(&u.covariance, &[nb, nb + np])?;
     Ok(ModelUncertainty {
         basis,
@@ -591,12 +597,7 @@ fn amplitude_of(a: SavedAmplitude, h: f64) -> std::result::Result<AmplitudeModel
     let basis = basis_of((a.rigid_body, a.rigid_damping), &a.real_poles, &a.pairs)?;
     let n_poles = basis.poles().len();
     let (n_functions, _) = basis_sizes(&basis, h)?;
-    if a.residues.len() != n_functions || a.residues.iter().any(|r| !r.is_finite()) {
-        return Err(format!(
-            "{} residues for a basis of {n_functions} functions (all finite)",
-            a.residues.len()
-        ));
-    }
+    check_residues(&a.residues, n_functions)?;
     let residues = match &a.residue_covariance {
         Some(rows) => Residues::with_covariance(
             a.residues.clone(),

@@ -61,6 +61,33 @@ pub struct LpmEstimate {
     pub half_width: usize,
 }
 
+impl LpmEstimate {
+    /// Per line of a SISO estimate, the expected size of its variance estimate: the line's
+    /// own design factor `[(KᴴK)⁻¹]₀₀ = var Ĝ_k/σ̂²_k` times the noise variance averaged over
+    /// ±[`EXPECTED_VAR_HALF_WIDTH`] lines (only `σ̂²`'s estimation noise averaged out; the
+    /// noise spectrum is smooth). `None` for MIMO, without variance, or where a line's noise
+    /// variance is not positive.
+    pub fn expected_var(&self) -> Option<Vec<f64>> {
+        let var = self.frd.variance()?;
+        if self.frd.response().first()?.len() != 1 {
+            return None;
+        }
+        let noise: Vec<f64> = self.noise_cov.iter().map(|c| c[(0, 0)].re).collect();
+        if noise
+            .iter()
+            .any(|v| v.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater))
+        {
+            return None;
+        }
+        let smooth = moving_mean(&noise, EXPECTED_VAR_HALF_WIDTH);
+        Some(
+            (0..noise.len())
+                .map(|k| var[k][(0, 0)] / noise[k] * smooth[k])
+                .collect(),
+        )
+    }
+}
+
 pub(crate) fn dft_columns(x: &DMatrix<f64>) -> Vec<Vec<C>> {
     let n = x.nrows();
     let fft = FftPlanner::<f64>::new().plan_fft_forward(n);
@@ -650,7 +677,7 @@ mod tests {
         assert!((poly[1] - rho[1]).abs() > 0.05, "{poly:?} vs {rho:?}");
     }
 
-    /// The closed-loop estimate's expected variance: the raw variance is the one
+    /// The expected variances (closed and open loop): the closed-loop raw variance is the one
     /// [`lpm_closed_loop`] gives, and raw over expected scatters as the noise covariance's
     /// estimate alone (the design factor, which varies far more from line to line, is
     /// shared). Static plant `y = u + v`, controller `u = r − 0.5y`, white
@@ -692,6 +719,26 @@ mod tests {
         // √(2/ν) = 0.58; neighbouring windows overlap, so the mean's error is ~1 %)
         assert!((m - 1.0).abs() < 0.03, "mean ratio {m}");
         assert!((0.45..0.7).contains(&cv), "ratio's spread {cv}");
+        // the open-loop estimate's (input u to output y) likewise
+        let ol = lpm(
+            1.0,
+            &DMatrix::from_column_slice(n, 1, &u),
+            &DMatrix::from_column_slice(n, 1, &y),
+            &opt,
+        )
+        .unwrap();
+        let expected = ol.expected_var().unwrap();
+        let ratio: Vec<f64> = ol
+            .frd
+            .variance()
+            .unwrap()
+            .iter()
+            .zip(&expected)
+            .map(|(a, b)| a[(0, 0)] / b)
+            .collect();
+        let (m, cv) = stats(&ratio);
+        assert!((m - 1.0).abs() < 0.03, "open loop: mean ratio {m}");
+        assert!((0.45..0.7).contains(&cv), "open loop: ratio's spread {cv}");
         assert_eq!(
             moving_mean(&[1.0, 2.0, 3.0, 10.0], 1),
             vec![1.5, 2.0, 5.0, 6.5]

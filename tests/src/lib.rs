@@ -39,6 +39,18 @@ pub fn rel_err(x: &DMatrix<f64>, y: &DMatrix<f64>) -> f64 {
     }
 }
 
+/// The seed range `a..b` in the environment variable `var`, `default` when it is unset; a
+/// value that is not `a..b` with whole numbers stops the test, naming it.
+pub fn env_seeds(var: &str, default: std::ops::Range<u64>) -> std::ops::Range<u64> {
+    let Ok(spec) = std::env::var(var) else {
+        return default;
+    };
+    let parsed = spec
+        .split_once("..")
+        .and_then(|(a, b)| Some(a.trim().parse().ok()?..b.trim().parse().ok()?));
+    parsed.unwrap_or_else(|| panic!("{var}={spec:?} is not a seed range `a..b`"))
+}
+
 pub mod designs;
 pub mod gen;
 

@@ -163,13 +163,7 @@ fn false_alarm_rate_at_one_percent() {
 #[test]
 #[ignore]
 fn development_calibration() {
-    let seeds = std::env::var("CALIB_SEEDS")
-        .ok()
-        .and_then(|s| {
-            let (a, b) = s.split_once("..")?;
-            Some(a.parse().ok()?..b.parse().ok()?)
-        })
-        .unwrap_or(TUNE_SEEDS);
+    let seeds = sd_tests::env_seeds("CALIB_SEEDS", TUNE_SEEDS);
     assert!(
         seeds.end <= REPORT_SEEDS.start || seeds.start >= REPORT_SEEDS.end,
         "development seeds must not touch the reported range"

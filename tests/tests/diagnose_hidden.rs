@@ -437,9 +437,7 @@ fn held_out_confusion_matrix_100() {
 #[test]
 #[ignore]
 fn development_seeds() {
-    let spec = std::env::var("DIAG_SEEDS").unwrap_or_else(|_| "0..16".into());
-    let (a, b) = spec.split_once("..").unwrap();
-    let (a, b): (u64, u64) = (a.parse().unwrap(), b.parse().unwrap());
+    let std::ops::Range { start: a, end: b } = sd_tests::env_seeds("DIAG_SEEDS", 0..16);
     assert!(
         b <= REPORT_SEEDS.start || a >= REPORT_SEEDS.end,
         "development seeds must not touch the reported range"

@@ -704,9 +704,7 @@ fn levels_reported() {
 #[test]
 #[ignore]
 fn development_levels() {
-    let spec = std::env::var("LEVEL_SEEDS").unwrap_or_else(|_| "0..4".into());
-    let (a, b) = spec.split_once("..").unwrap();
-    let (a, b): (u64, u64) = (a.parse().unwrap(), b.parse().unwrap());
+    let std::ops::Range { start: a, end: b } = sd_tests::env_seeds("LEVEL_SEEDS", 0..4);
     for r in [REPORT_SEEDS, REPORT_SEEDS_NOISE] {
         assert!(
             b <= r.start || a >= r.end,
@@ -731,10 +729,7 @@ fn development_levels() {
 #[ignore]
 fn realizations_of_one_stage() {
     let seed: u64 = std::env::var("LEVEL_SEED").map_or(7, |s| s.parse().unwrap());
-    let spec = std::env::var("LEVEL_REALIZATIONS").unwrap_or_else(|_| "1..9".into());
-    let (a, b) = spec.split_once("..").unwrap();
-    let (a, b): (u64, u64) = (a.parse().unwrap(), b.parse().unwrap());
-    let out: Vec<Outcome> = (a..b)
+    let out: Vec<Outcome> = sd_tests::env_seeds("LEVEL_REALIZATIONS", 1..9)
         .filter_map(|r| {
             run(
                 seed,
@@ -800,13 +795,7 @@ fn report_of_a_rising_record() {
 /// (`LEVEL_RATE_SEEDS=0..10`).
 #[test]
 fn level_and_rate_together() {
-    let seeds = std::env::var("LEVEL_RATE_SEEDS")
-        .ok()
-        .and_then(|s| {
-            let (a, b) = s.split_once("..")?;
-            Some(a.parse().ok()?..b.parse().ok()?)
-        })
-        .unwrap_or(50..53);
+    let seeds = sd_tests::env_seeds("LEVEL_RATE_SEEDS", 50..53);
     let out = per_seed(seeds, |s| {
         let mut rows = Vec::new();
         for (effect, delay, want) in [
@@ -942,13 +931,7 @@ fn remove_unless_kept(dir: &std::path::Path) {
 /// a_distorted_repeat -- --nocapture`.
 #[test]
 fn a_distorted_repeat_is_not_drift() {
-    let seeds = std::env::var("DISTORTED_SEEDS")
-        .ok()
-        .and_then(|s| {
-            let (a, b) = s.split_once("..")?;
-            Some(a.parse().ok()?..b.parse().ok()?)
-        })
-        .unwrap_or(0..6);
+    let seeds = sd_tests::env_seeds("DISTORTED_SEEDS", 0..6);
     let out = per_seed(seeds, |s| {
         let c = level_case(s, LevelEffect::Hardening, &[1.0, 1.05], PERIODIC)?;
         let d = sd_diagnose::diagnose(&c.experiments, &Default::default()).unwrap();

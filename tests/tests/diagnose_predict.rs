@@ -337,9 +337,7 @@ fn own_uncertainty_case(seed: u64) -> Option<(f64, f64, f64)> {
 /// without on all 16: 0.86–0.99 against 0.92–1.11).
 #[test]
 fn the_models_own_uncertainty_is_counted() {
-    let spec = std::env::var("PREDICT_SEEDS").unwrap_or_else(|_| "8..10".into());
-    let (a, b) = spec.split_once("..").unwrap();
-    let (a, b): (u64, u64) = (a.parse().unwrap(), b.parse().unwrap());
+    let std::ops::Range { start: a, end: b } = sd_tests::env_seeds("PREDICT_SEEDS", 8..10);
     let mut ran = 0;
     for (s, r) in (a..b).zip(per_seed(a..b, own_uncertainty_case)) {
         let Some((with, without, threshold)) = r else {
