@@ -24,6 +24,7 @@ pub mod mimo;
 pub mod mu;
 pub mod nyquist;
 pub mod reduce_controller;
+pub mod reduce_fit;
 pub mod spectra;
 pub mod standstill;
 pub mod tol;

@@ -174,7 +174,8 @@ fn reduce_controller_keeps_the_loop_or_says_it_cannot() {
     assert!(v["max_delta_s_db"].as_f64().unwrap() <= 0.1, "{v}");
     assert!(v["max_delta_t_db"].as_f64().unwrap() <= 0.1, "{v}");
     assert_eq!(v["after"]["stable"], serde_json::json!(true));
-    assert_eq!(v["method"], serde_json::json!("closed_loop_weighted"));
+    // the default for a SISO discrete loop: the loop-weighted fit
+    assert_eq!(v["method"], serde_json::json!("loop_fit"));
     assert_eq!(v["controller"]["a"].as_array().unwrap().len(), 3);
     // the coprime factors of the loop-scaled controller
     let o = sdctl(&[
@@ -211,6 +212,30 @@ fn reduce_controller_keeps_the_loop_or_says_it_cannot() {
         "optimal",
     ]);
     one_line_error(&o, 2, "coprime");
+    // the loop-weighted rational fit
+    let o = sdctl(&[
+        "reduce",
+        "--controller",
+        &k,
+        "--plant",
+        &p,
+        "--order",
+        "3",
+        "--method",
+        "fit",
+        "--json",
+    ]);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["method"], serde_json::json!("loop_fit"));
+    assert_eq!(v["after"]["stable"], serde_json::json!(true));
+    assert!(v["max_delta_s_db"].as_f64().unwrap() <= 0.1, "{v}");
+    assert!(v["max_delta_t_db"].as_f64().unwrap() <= 0.1, "{v}");
     let o = sdctl(&["reduce", "--controller", &k, "--plant", &p, "--order", "1"]);
     one_line_error(&o, 1, "does not stabilize the loop");
     let o = sdctl(&["reduce", "--controller", &k, "--plant", &p, "--order", "0"]);

@@ -53,6 +53,9 @@ def test_mixsyn_and_reduce_controller():
         sd.reduce_controller(G, K, 3, method="optimal")
     c = sd.reduce_controller(G, K, 3, method="coprime")
     assert c.method == "coprime_factor" and c.after.stable and c.order_after == 3
+    f = sd.reduce_controller(G, K, 3, method="fit")
+    assert f.method == "loop_fit" and f.after.stable and f.order_after == 3
+    assert f.max_delta_s_db <= 0.1 and f.max_delta_t_db <= 0.1
 
 
 def test_multirate_mixsyn_matches_sdctl(sdctl, tmp_path):

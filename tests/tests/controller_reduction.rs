@@ -111,15 +111,18 @@ fn the_stage_controller_keeps_its_loop() {
     assert!(failed.is_some(), "some order should lose the loop");
 }
 
-/// Coprime-factor reduction of the loop-scaled controller on the paper stage's loop and on
-/// the 60-state stage's loopshaping loop (issue #41 item 5): at each order the loop is stable by
-/// its eigenvalues and the generalized Nyquist criterion, or the order is refused as a
-/// numerical failure; the smallest order within 0.5 dB of |S| and |T| below twice the
-/// crossover (every order of the paper stage's 8-state controller, a ladder of orders of the
-/// 60-state stage's 64-state one) is reported beside the closed-loop-weighted method's.
+/// Coprime-factor reduction of the loop-scaled controller, the closed-loop-weighted
+/// truncation and the loop-weighted fit on the paper stage's loop and on the 60-state stage's
+/// loopshaping loop (issue #41 item 5): at each order the loop is stable by its eigenvalues and
+/// the generalized Nyquist criterion, or the order is refused as a numerical failure; the
+/// smallest order within 0.5 dB of |S| and |T| below twice the crossover (every order of the
+/// paper stage's 8-state controller, a ladder of orders of the 60-state stage's 64-state one),
+/// its `‖S‖∞` risen by at most 0.5 dB too (the modulus margin kept above the band as well), is
+/// reported per method. The 60-state stage's controller must come to at most 8 states so
+/// (the issue's acceptance) by the fit.
 #[test]
 fn coprime_factor_reduction_keeps_the_loop() {
-    let ladder: Vec<usize> = vec![24, 20, 18, 16, 14, 12, 10, 8, 6];
+    let ladder: Vec<usize> = vec![24, 20, 18, 16, 14, 12, 10, 8, 6, 5, 4];
     for (name, plant, orders) in [
         (
             "paper stage",
@@ -138,10 +141,11 @@ fn coprime_factor_reduction_keeps_the_loop() {
         let k = sd_hinf::loopshape(&p, Some(&w1), None, &Default::default())
             .unwrap()
             .controller;
-        let mut smallest = [None, None];
+        let mut smallest = [None, None, None];
         for (slot, method) in [
             ReductionMethod::CoprimeFactor,
             ReductionMethod::ClosedLoopWeighted,
+            ReductionMethod::LoopFit,
         ]
         .into_iter()
         .enumerate()
@@ -155,7 +159,9 @@ fn coprime_factor_reduction_keeps_the_loop() {
                             nyq.stable && nyq.agrees,
                             "{name} {method:?} {order}: {nyq:?}"
                         );
-                        if r.max_delta_s_db <= 0.5 && r.max_delta_t_db <= 0.5 {
+                        let rise =
+                            20.0 * (r.before.modulus_margin / r.after.modulus_margin).log10();
+                        if r.max_delta_s_db <= 0.5 && r.max_delta_t_db <= 0.5 && rise <= 0.5 {
                             smallest[slot] = Some((order, r.max_delta_s_db, r.max_delta_t_db));
                         }
                     }
@@ -165,14 +171,17 @@ fn coprime_factor_reduction_keeps_the_loop() {
         }
         println!(
             "{name}: controller {} states; smallest order within 0.5 dB: coprime factors {:?}, \
-             closed-loop weighted {:?} (order, |ΔS| dB, |ΔT| dB)",
+             closed-loop weighted {:?}, loop-weighted fit {:?} (order, |ΔS| dB, |ΔT| dB)",
             k.n(),
             smallest[0],
-            smallest[1]
+            smallest[1],
+            smallest[2]
         );
         assert!(
             smallest[0].is_some(),
             "{name}: coprime reduction never within 0.5 dB"
         );
+        let fit = smallest[2].map_or(usize::MAX, |s| s.0);
+        assert!(fit <= 8, "{name}: the fit needs {fit} states within 0.5 dB");
     }
 }

@@ -20,9 +20,12 @@ pub(crate) struct Args {
     /// The plant of the controller's loop (with --controller).
     #[arg(long)]
     pub(crate) plant: Option<String>,
-    /// With --controller: `weighted` (closed-loop weight, the default), `coprime` (balanced
-    /// truncation of the loop-scaled controller's normalized coprime factors) or `plain`.
-    #[arg(long, default_value = "weighted")]
+    /// With --controller: `auto` (the default: `fit` for a SISO discrete loop, else
+    /// `weighted`), `fit` (a rational fit of K's response weighted by the loop's
+    /// sensitivities: often far fewer states for the same |ΔS|, |ΔT|), `weighted` (balanced
+    /// truncation with the closed-loop weight), `coprime` (balanced truncation of the
+    /// loop-scaled controller's normalized coprime factors) or `plain`.
+    #[arg(long, default_value = "auto")]
     pub(crate) method: String,
     /// With --controller: print the comparison as JSON (the reduced controller under
     /// "controller") instead of the controller's model JSON with a summary on stderr.

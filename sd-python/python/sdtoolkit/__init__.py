@@ -778,14 +778,16 @@ def mixsyn(G, W1=None, W2=None, W3=None, Wd=None, gamma: Optional[float] = None,
     return Result(report)
 
 
-def reduce_controller(P, K, order: int, method: str = "weighted") -> Result:
+def reduce_controller(P, K, order: int, method: str = "auto") -> Result:
     """Reduce controller ``K`` (negative feedback around ``P``) to ``order`` states keeping the
     loop, as ``sdctl reduce --controller --json``: ``controller``, ``order_before`` /
     ``order_after``, ``hankel_sv``, ``band_hz``, ``max_delta_s_db``, ``max_delta_t_db``,
-    ``before`` / ``after`` (stability and margins). ``method``: ``"weighted"`` (balanced
-    truncation with the closed-loop weight), ``"coprime"`` (the loop-scaled controller's
-    normalized coprime factors) or ``"plain"``. A reduced controller that loses the loop
-    raises NumericalError."""
+    ``before`` / ``after`` (stability and margins). ``method``: ``"auto"`` (``"fit"`` for a
+    SISO discrete loop, else ``"weighted"``; ``method`` in the result names the one used),
+    ``"fit"`` (the rational fit of K's response weighted by the loop's ``max(|S|,|T|)/|K|``),
+    ``"weighted"`` (balanced truncation with the closed-loop weight), ``"coprime"`` (the
+    loop-scaled controller's normalized coprime factors) or ``"plain"``. A reduced controller
+    that loses the loop raises NumericalError."""
     d = _native.reduce_controller(_ss(P, "P")._tuple(), _ss(K, "K")._tuple(), int(order), str(method))
     d["controller"] = _from_tuple(d["controller"])
     return Result(d)
