@@ -16,9 +16,15 @@
 //!    pairs; `ζ, f` are the neighbouring level's fit (ζ at least the model experiment's), so a
 //!    mode whose damping rises with the level keeps four of its bandwidths in the band.
 //! 3. **Local fit per level** (one pole pair plus an affine background: on the FRF weighted
-//!    by the level's total variance, [`sd_ident::local_mode_with()`], its standard errors
+//!    by the level's total variance, [`sd_ident::local_mode_beside()`], its standard errors
 //!    carrying an LPM estimate's line correlation; on an open-loop non-periodic record's own
-//!    DFT lines, [`sd_ident::local_mode_dft()`]), from the model experiment
+//!    DFT lines, [`sd_ident::local_mode_dft_beside()`]; the neighbouring pairs whose skirts
+//!    curve over the level's band beyond what the affine background takes up — the physical
+//!    fit's term, whitened by that level's total variance, at least [`NEIGHBOUR_MIN`] from
+//!    its least-squares line — enter with their poles fixed at the physical fit's and their
+//!    residues free, at most [`MAX_NEIGHBOURS`]; a level whose distortion dwarfs the skirt's
+//!    curvature keeps the plain form, whose extra freedom there only let a narrow pole settle
+//!    on the scattered lines), from the model experiment
 //!    outwards in level: each level's band centred on its peak of `|G|²` averaged over the
 //!    half-power half-width `ζf` (a broad resonance's centre, not the largest of the lines the
 //!    distortion scatters over it), sought within reach of the frequency fitted at the level
@@ -56,13 +62,15 @@
 //! lines, [`sd_ident::local_mode_with`]); docs/diagnosis.md has the figures and the command.
 
 use crate::{DampingTrend, FreqTrend, Result};
+use num_complex::Complex64 as C;
 use rayon::prelude::*;
 use sd_ident::{
-    local_mode_dft, local_mode_with, physical_fit, LineNoise, LocalMode, ModeKind,
-    StabilizationOptions,
+    local_mode_beside, local_mode_dft_beside, physical_fit, LineNoise, LocalMode, ModeKind,
+    StabilizationOptions, MIN_LINES,
 };
 use sd_model::{chi2_quantile, normal_quantile, Frd};
 use serde::Serialize;
+use std::f64::consts::TAU;
 
 /// Pairs at or above this damping are not tracked (overdamped: no resonance to follow).
 pub const MAX_DAMPING: f64 = 0.3;
@@ -188,7 +196,8 @@ pub fn track_modes(
     let pairs: Vec<_> = phys
         .modes
         .iter()
-        .filter(|m| m.kind == ModeKind::Pair && m.in_band && m.damping < MAX_DAMPING)
+        .zip(&phys.fit.terms)
+        .filter(|(m, _)| m.kind == ModeKind::Pair && m.in_band && m.damping < MAX_DAMPING)
         .collect();
     let df = phys.line_spacing_hz;
     let z = normal_quantile(1.0 - alpha / 2.0);
@@ -196,12 +205,12 @@ pub fn track_modes(
     let mut tracks: Vec<ModeTrack> = (0..pairs.len())
         .into_par_iter()
         .filter_map(|i| {
-            let m = pairs[i];
+            let m = pairs[i].0;
             // the band's half-width is capped at 45 % of the distance to the neighbouring
             // pairs; how far a level's peak is sought from its neighbour's frequency too, and
             // at most MAX_STEP of the frequency
             let mut cap = f64::INFINITY;
-            for (k, o) in pairs.iter().enumerate() {
+            for (k, (o, _)) in pairs.iter().enumerate() {
                 if k != i {
                     cap = cap.min(0.45 * (o.freq_hz - m.freq_hz).abs());
                 }
@@ -213,7 +222,11 @@ pub fn track_modes(
             let half = width.half(m.freq_hz, m.damping);
             let band = (m.freq_hz - half, m.freq_hz + half);
             let reach = (MAX_STEP * m.freq_hz).min(cap).max(half);
-            let (points, buried) = follow(levels, (m.freq_hz, m.damping), (width, reach));
+            let dft = levels.iter().any(|lv| lv.spectra.is_some());
+            let beside = |frd: &Frd, band: (f64, f64)| {
+                neighbours(frd, (&pairs, phys.delay_samples), i, band, dft)
+            };
+            let (points, buried) = follow(levels, (m.freq_hz, m.damping), (width, reach), &beside);
             if points.len() < 2 {
                 return None;
             }
@@ -224,6 +237,86 @@ pub fn track_modes(
         .collect();
     mark_dominant(&mut tracks);
     Ok(tracks)
+}
+
+/// Least whitened size `Σ 2|r_k|²/σ²_k` of the part of a neighbouring mode's skirt over a
+/// band that no affine background takes up (module documentation, step 3) for the
+/// neighbour's pole pair to enter the band's local fit: about the square of the standard
+/// errors by which the skirt's curvature could move the fitted frequency.
+pub const NEIGHBOUR_MIN: f64 = 1.0;
+
+/// Most neighbouring modes one local fit takes.
+pub const MAX_NEIGHBOURS: usize = 2;
+
+/// The pairs beside pair `i` (frequency and damping) whose skirts curve over `band` of
+/// `frd` (the level's FRF: its total variance) beyond what the local fit's affine background takes up
+/// ([`NEIGHBOUR_MIN`]; each term of the physical fit, its delay included, evaluated at the
+/// band's lines, the least-squares line in `δ` removed with the lines' weights), the strongest
+/// first, as many as the band's lines leave residual degrees of freedom for
+/// (`dft`: the fit on a record's DFT lines, four real parameters per neighbour).
+fn neighbours(
+    frd: &Frd,
+    (pairs, delay): (&[(&sd_ident::PhysicalMode, &sd_ident::ModalTerm)], f64),
+    i: usize,
+    band: (f64, f64),
+    dft: bool,
+) -> Vec<(f64, f64)> {
+    let (Some(ts), Some(var)) = (frd.time().ts(), frd.variance()) else {
+        return Vec::new();
+    };
+    let fr = frd.freq_hz();
+    let lines: Vec<usize> = (0..fr.len())
+        .filter(|&k| (band.0..=band.1).contains(&fr[k]) && var[k][(0, 0)] > 0.0)
+        .collect();
+    let room = if dft {
+        lines.len().saturating_sub(MIN_LINES + 4) / 2
+    } else {
+        lines.len().saturating_sub(MIN_LINES)
+    };
+    let centre = 0.5 * (band.0 + band.1);
+    let mut sized: Vec<(f64, (f64, f64))> = pairs
+        .iter()
+        .enumerate()
+        .filter(|&(k, _)| k != i)
+        .map(|(_, (o, term))| {
+            let pts: Vec<(f64, C, f64)> = lines
+                .iter()
+                .map(|&k| {
+                    let z = C::from_polar(1.0, TAU * fr[k] * ts);
+                    let t = term.eval(z) * C::from_polar(1.0, -TAU * fr[k] * ts * delay);
+                    ((fr[k] - centre) / centre, t, 2.0 / var[k][(0, 0)])
+                })
+                .collect();
+            (curvature(&pts), (o.freq_hz, o.damping))
+        })
+        .filter(|(size, _)| *size >= NEIGHBOUR_MIN)
+        .collect();
+    sized.sort_by(|a, b| b.0.total_cmp(&a.0));
+    sized
+        .into_iter()
+        .take(room.min(MAX_NEIGHBOURS))
+        .map(|(_, m)| m)
+        .collect()
+}
+
+/// `min_{a,b} Σ w_k |t_k − a − b·δ_k|²` over the points `(δ_k, t_k, w_k)` (complex `a, b`):
+/// what of `t` no weighted line in `δ` takes up.
+fn curvature(pts: &[(f64, C, f64)]) -> f64 {
+    let (mut s0, mut s1, mut s2) = (0.0, 0.0, 0.0);
+    let (mut t0, mut t1) = (C::new(0.0, 0.0), C::new(0.0, 0.0));
+    for &(d, t, w) in pts {
+        (s0, s1, s2) = (s0 + w, s1 + w * d, s2 + w * d * d);
+        (t0, t1) = (t0 + t * w, t1 + t * (w * d));
+    }
+    let det = s0 * s2 - s1 * s1;
+    if !(det > 0.0) {
+        return 0.0;
+    }
+    let a = (t0 * s2 - t1 * s1) / det;
+    let b = (t1 * s0 - t0 * s1) / det;
+    pts.iter()
+        .map(|&(d, t, w)| w * (t - a - b * d).norm_sqr())
+        .sum()
 }
 
 /// Largest relative step of a mode's frequency between neighbouring levels that its peak is
@@ -287,6 +380,7 @@ fn best_local(
     band: (f64, f64),
     centre: f64,
     from: (f64, f64),
+    beside: &[(f64, f64)],
 ) -> Option<LocalMode> {
     let spacing = median_spacing(lv.frd, band)?;
     let noise = LineNoise {
@@ -296,8 +390,8 @@ fn best_local(
     [(centre, from.1), (centre, (3.0 * from.1).min(0.9)), from]
         .into_iter()
         .filter_map(|start| match lv.spectra {
-            Some(spec) => local_mode_dft(spec, band, start).ok(),
-            None => local_mode_with(lv.frd, band, start, &noise).ok(),
+            Some(spec) => local_mode_dft_beside(spec, band, start, beside).ok(),
+            None => local_mode_beside(lv.frd, band, start, &noise, beside).ok(),
         })
         .filter(|m| 2.0 * m.damping * m.freq_hz >= spacing)
         .min_by(|a, b| a.cost_per_dof.total_cmp(&b.cost_per_dof))
@@ -344,11 +438,13 @@ fn median_spacing(frd: &Frd, band: (f64, f64)) -> Option<f64> {
 /// there with that damping (a mode that shifts by more than its band over the levels is
 /// followed, not lost); in the order of `levels`, levels whose band holds no measurable
 /// resonance ([`MIN_BAND_SNR`]), whose fits failed ([`best_local`]) or did not determine the
-/// damping (standard error above the value) left out.
+/// damping (standard error above the value) left out; `beside` names a level's neighbouring
+/// modes from its FRF and band ([`neighbours`]).
 fn follow(
     levels: &[TrackLevel<'_>],
     start: (f64, f64),
     (width, reach): (Width, f64),
+    beside: &dyn Fn(&Frd, (f64, f64)) -> Vec<(f64, f64)>,
 ) -> (Vec<TrackPoint>, Vec<String>) {
     let mut order: Vec<usize> = (0..levels.len()).collect();
     order.sort_by(|&a, &b| levels[a].level.total_cmp(&levels[b].level));
@@ -376,7 +472,7 @@ fn follow(
                 }
                 continue;
             }
-            let Some(fit) = best_local(lv, band, centre, from) else {
+            let Some(fit) = best_local(lv, band, centre, from, &beside(lv.frd, band)) else {
                 continue;
             };
             // a fit that does not determine its damping found no resonance in the band

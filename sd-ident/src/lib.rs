@@ -62,9 +62,10 @@ pub use frf::{
 };
 pub use frf_mimo::{frf_periodic_mimo, Channels, MimoFrfEstimate};
 pub use input_delay::{advance_inputs, shift_inputs, DelayScan, InputDelay};
-pub use local_dft::{local_mode_dft, LineSpectra};
+pub use local_dft::{local_mode_dft, local_mode_dft_beside, LineSpectra};
 pub use local_mode::{
-    local_mode, local_mode_with, LineNoise, LocalMode, MIN_LINES, MIN_POOLED_LINES,
+    local_mode, local_mode_beside, local_mode_with, LineNoise, LocalMode, MIN_LINES,
+    MIN_POOLED_LINES,
 };
 pub use lpm::{
     lpm, lpm_closed_loop, lpm_closed_loop_full, lpm_closed_loop_mimo, lpm_closed_loop_snr,

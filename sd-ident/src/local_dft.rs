@@ -30,7 +30,8 @@
 //! of its standard errors of zero.
 
 use crate::local_mode::{
-    local_basis, put_line, solve, LineNoise, LocalMode, LocalProblem, MIN_LINES,
+    beside_basis, beside_poles, local_basis, pole_pair, put_line, solve, LineNoise, LocalMode,
+    LocalProblem, MIN_LINES,
 };
 use crate::lpm::{dft_columns, LpmEstimate};
 use crate::{IdentError, Result};
@@ -110,19 +111,26 @@ struct DftBand {
     weight: Vec<f64>,
     ts: f64,
     centre: f64,
+    beside: Vec<C>,
 }
 
 impl LocalProblem for DftBand {
     fn system(&self, wn: f64, zeta: f64) -> (DMatrix<f64>, DVector<f64>) {
         let l = self.w.len();
-        let p = C::new(-zeta * wn, wn * (1.0 - zeta * zeta).max(0.0).sqrt());
-        let (lam, lam_c) = ((p * self.ts).exp(), (p.conj() * self.ts).exp());
-        let mut a = DMatrix::zeros(2 * l, 16);
+        let poles = pole_pair(wn, zeta, Some(self.ts));
+        let mut a = DMatrix::zeros(2 * l, self.linear_params());
         let mut b = DVector::zeros(2 * l);
         for k in 0..l {
             let z = C::new(0.0, self.w[k] * self.ts).exp();
-            let local = local_basis(z, (lam, lam_c), (self.w[k] - self.centre) / self.centre);
-            let phis = local.iter().map(|v| v * self.x[k]).chain(local);
+            let local: Vec<C> = local_basis(z, poles, (self.w[k] - self.centre) / self.centre)
+                .into_iter()
+                .chain(beside_basis(z, &self.beside))
+                .collect();
+            // the transfer's terms times X(k), then the transient's
+            let phis = local
+                .iter()
+                .map(|v| v * self.x[k])
+                .chain(local.iter().copied());
             put_line((&mut a, &mut b), k, self.weight[k], phis, self.y[k]);
         }
         (a, b)
@@ -133,7 +141,7 @@ impl LocalProblem for DftBand {
     }
 
     fn linear_params(&self) -> usize {
-        16
+        16 + 4 * self.beside.len()
     }
 }
 
@@ -149,6 +157,22 @@ pub fn local_mode_dft(
     band: (f64, f64),
     start: (f64, f64),
 ) -> Result<LocalMode> {
+    local_mode_dft_beside(spec, band, start, &[])
+}
+
+/// [`local_mode_dft`] with the neighbouring modes `beside` (`(f_n Hz, ζ)` each) as fixed poles
+/// with free residues in both the transfer and the transient term (the
+/// [`crate::local_mode` module](mod@crate::local_mode)'s "Neighbouring modes").
+///
+/// # Errors
+/// As [`local_mode_dft`]; a neighbour outside `f_n > 0`, `0 < ζ < 1`; fewer than
+/// `MIN_LINES + 4 + 2·beside.len()` lines in the band.
+pub fn local_mode_dft_beside(
+    spec: &LineSpectra,
+    band: (f64, f64),
+    start: (f64, f64),
+    beside: &[(f64, f64)],
+) -> Result<LocalMode> {
     let (mut w, mut x, mut y, mut weight) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for (k, &f) in spec.freq_hz.iter().enumerate() {
         let v = spec.noise_var[k];
@@ -159,14 +183,17 @@ pub fn local_mode_dft(
             weight.push((2.0 / v).sqrt());
         }
     }
-    let need = MIN_LINES + 4;
+    // four more real parameters (two lines) per neighbour
+    let need = MIN_LINES + 4 + 2 * beside.len();
     if w.len() < need {
         return Err(IdentError::Data(format!(
             "the band {:.4}–{:.4} Hz holds {} DFT lines; a local fit on the record's lines \
-             needs at least {need}: widen the band or record longer",
+             with {} neighbouring modes needs at least {need}: widen the band, name fewer \
+             neighbours or record longer",
             band.0,
             band.1,
-            w.len()
+            w.len(),
+            beside.len()
         )));
     }
     let data = DftBand {
@@ -176,6 +203,7 @@ pub fn local_mode_dft(
         y,
         weight,
         ts: spec.ts,
+        beside: beside_poles(beside, Some(spec.ts))?,
     };
     solve(&data, band, start, &LineNoise::default())
 }

@@ -21,10 +21,11 @@
 //! `1550..1566`, `1600..1625`, `1650..1666`, `1700..1725`, `1750..1766`, `1800..1825`,
 //! `1850..1866`, `1900..1925`, `1950..1966`, `2200..2225`, `2250..2266`, `2400..2425`,
 //! `2450..2466`, `2500..2525`, `2550..2566` (its linear rising cases 2550 and 2560, the false
-//! alarms `compare`'s degrees of freedom fixed, were looked at one by one), reported by
-//! earlier versions; `2000..2150` for the linear and drifting stages' false alarms); the
-//! default run `50..53` (non-periodic `50..52`); to report next (not looked at yet)
-//! `2650..2675` (periodic) and `2600..2616` (non-periodic):
+//! alarms `compare`'s degrees of freedom fixed, were looked at one by one), `2650..2675` and
+//! `2600..2616` (the neighbouring modes in the local fits were developed on the periodic
+//! misses there), reported by earlier versions; `2000..2150` for the linear and drifting
+//! stages' false alarms); the default run `50..53` (non-periodic `50..52`); to report next
+//! (not looked at yet) `2900..2925` (periodic) and `2950..2966` (non-periodic):
 //! `cargo test --release -p sd-tests --test diagnose_levels -- --ignored --nocapture`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 use sd_model::median;
@@ -68,10 +69,10 @@ impl LevelGain {
         self.before >= VISIBLE && self.gain() < 3.0 && self.after > FLOOR_SLACK * self.floor
     }
 }
-const REPORT_SEEDS: std::ops::Range<u64> = 2650..2675;
+const REPORT_SEEDS: std::ops::Range<u64> = 2900..2925;
 const CI_SEEDS: std::ops::Range<u64> = 50..53;
 /// Reported seeds of the non-periodic forms (separate noise records, one rising record).
-const REPORT_SEEDS_NOISE: std::ops::Range<u64> = 2600..2616;
+const REPORT_SEEDS_NOISE: std::ops::Range<u64> = 2950..2966;
 /// The default run's non-periodic subset.
 const CI_SEEDS_NOISE: std::ops::Range<u64> = 50..52;
 
