@@ -22,7 +22,7 @@
 //! on a logarithmic grid of [`FIT_LINES`] frequencies from 0.05 % of the comparison band's top
 //! (twice the full loop's crossover) to 0.999 of Nyquist, `E_k = E` inside the band (where
 //! |ΔS| and |ΔT| are judged) and 1 above it (where the weight is the stability margin). The
-//! fit is the toolkit's rational fitter ([`sd_ident::fit`]: Sanathanan–Koerner iterations, then
+//! fit is the toolkit's rational fitter ([`sd_ident::fit()`]: Sanathanan–Koerner iterations, then
 //! Levenberg–Marquardt on the modal parameters, with a feedthrough), K's poles at `z = 1` (an
 //! integrator, at most two) kept exactly as its fixed poles. The emphasis `E` trades the band
 //! against the margin above it; the fits for `E` ∈ [`EMPHASES`] are judged on the loop with
