@@ -111,6 +111,31 @@ fn h2syn_json_and_a_bad_partition() {
     one_line_error(&o, 2, "ncon = 3");
 }
 
+/// `sdctl reduce --controller K --plant P --order 3 [--method M] --json`, which must succeed.
+fn reduce_json(k: &str, p: &str, method: Option<&str>) -> serde_json::Value {
+    let mut args = vec![
+        "reduce",
+        "--controller",
+        k,
+        "--plant",
+        p,
+        "--order",
+        "3",
+        "--json",
+    ];
+    if let Some(m) = method {
+        args.extend(["--method", m]);
+    }
+    let o = sdctl(&args);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
 /// `sdctl reduce --controller`: a loopshaping controller (6 states) of a damped double
 /// integrator reduced to 3 states keeps the loop within 0.1 dB (JSON: orders, the band, |ΔS|,
 /// |ΔT|, the loop before and after, the controller); to 1 state it loses the loop: exit 1, one
@@ -152,54 +177,23 @@ fn reduce_controller_keeps_the_loop_or_says_it_cannot() {
             String::from_utf8_lossy(&o.stderr)
         );
     }
-    let o = sdctl(&[
-        "reduce",
-        "--controller",
-        &k,
-        "--plant",
-        &p,
-        "--order",
-        "3",
-        "--json",
-    ]);
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    // the default for a SISO discrete loop: the loop-weighted fit
+    let v = reduce_json(&k, &p, None);
     assert_eq!(v["order_before"].as_u64(), Some(6));
     assert_eq!(v["order_after"].as_u64(), Some(3));
-    assert!(v["max_delta_s_db"].as_f64().unwrap() <= 0.1, "{v}");
-    assert!(v["max_delta_t_db"].as_f64().unwrap() <= 0.1, "{v}");
-    assert_eq!(v["after"]["stable"], serde_json::json!(true));
-    // the default for a SISO discrete loop: the loop-weighted fit
     assert_eq!(v["method"], serde_json::json!("loop_fit"));
     assert_eq!(v["controller"]["a"].as_array().unwrap().len(), 3);
-    // the coprime factors of the loop-scaled controller
-    let o = sdctl(&[
-        "reduce",
-        "--controller",
-        &k,
-        "--plant",
-        &p,
-        "--order",
-        "3",
-        "--method",
-        "coprime",
-        "--json",
-    ]);
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    assert_eq!(v["method"], serde_json::json!("coprime_factor"));
-    assert_eq!(v["after"]["stable"], serde_json::json!(true));
-    assert!(v["max_delta_s_db"].as_f64().unwrap() <= 0.5, "{v}");
+    for (method, name, within) in [
+        ("weighted", "closed_loop_weighted", 0.1),
+        ("coprime", "coprime_factor", 0.5),
+        ("fit", "loop_fit", 0.1),
+    ] {
+        let v = reduce_json(&k, &p, Some(method));
+        assert_eq!(v["method"], serde_json::json!(name));
+        assert_eq!(v["after"]["stable"], serde_json::json!(true), "{method}");
+        assert!(v["max_delta_s_db"].as_f64().unwrap() <= within, "{v}");
+        assert!(v["max_delta_t_db"].as_f64().unwrap() <= within, "{v}");
+    }
     let o = sdctl(&[
         "reduce",
         "--controller",
@@ -212,30 +206,6 @@ fn reduce_controller_keeps_the_loop_or_says_it_cannot() {
         "optimal",
     ]);
     one_line_error(&o, 2, "coprime");
-    // the loop-weighted rational fit
-    let o = sdctl(&[
-        "reduce",
-        "--controller",
-        &k,
-        "--plant",
-        &p,
-        "--order",
-        "3",
-        "--method",
-        "fit",
-        "--json",
-    ]);
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    assert_eq!(v["method"], serde_json::json!("loop_fit"));
-    assert_eq!(v["after"]["stable"], serde_json::json!(true));
-    assert!(v["max_delta_s_db"].as_f64().unwrap() <= 0.1, "{v}");
-    assert!(v["max_delta_t_db"].as_f64().unwrap() <= 0.1, "{v}");
     let o = sdctl(&["reduce", "--controller", &k, "--plant", &p, "--order", "1"]);
     one_line_error(&o, 1, "does not stabilize the loop");
     let o = sdctl(&["reduce", "--controller", &k, "--plant", &p, "--order", "0"]);
