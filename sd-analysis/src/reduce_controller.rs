@@ -48,6 +48,20 @@ pub enum ReductionMethod {
     Auto,
 }
 
+impl ReductionMethod {
+    /// `Auto` made concrete for controller `k`: `LoopFit` for a SISO discrete controller,
+    /// else `ClosedLoopWeighted`; the other methods as they are.
+    pub fn resolved(self, k: &StateSpace) -> ReductionMethod {
+        match self {
+            ReductionMethod::Auto if (k.ny(), k.nu()) == (1, 1) && k.ts().is_some() => {
+                ReductionMethod::LoopFit
+            }
+            ReductionMethod::Auto => ReductionMethod::ClosedLoopWeighted,
+            m => m,
+        }
+    }
+}
+
 impl std::str::FromStr for ReductionMethod {
     type Err = AnalysisError;
     /// The names `sdctl reduce --method` and Python take: `weighted`, `plain`, `coprime`,
@@ -119,13 +133,7 @@ pub fn reduce_controller(
     };
     let nyquist = p.ts().map_or(f64::INFINITY, |ts| 0.5 / ts);
     let band_hz = (2.0 * cross).min(0.999 * nyquist);
-    let method = match method {
-        ReductionMethod::Auto if (k.ny(), k.nu()) == (1, 1) && k.ts().is_some() => {
-            ReductionMethod::LoopFit
-        }
-        ReductionMethod::Auto => ReductionMethod::ClosedLoopWeighted,
-        m => m,
-    };
+    let method = method.resolved(k);
     let (kr, hankel_sv) = match method {
         ReductionMethod::ClosedLoopWeighted => {
             // PS realized by the closed loop itself (its states are the loop's: stable), not
@@ -141,9 +149,11 @@ pub fn reduce_controller(
             let r = coprime(k, order, &before)?;
             (r.model, r.hankel_sv)
         }
+        // `Auto` is resolved above
         ReductionMethod::LoopFit | ReductionMethod::Auto => {
             let fits = crate::reduce_fit::loop_fit(k, &full, order, band_hz)?;
-            (best_fit(p, &full, fits, band_hz)?, Vec::new())
+            let margin = before.modulus_margin;
+            (best_fit(p, (&full, margin), fits, band_hz)?, Vec::new())
         }
     };
     let (after, ds, dt) = judge(p, &full, &kr, band_hz)?;
@@ -194,17 +204,17 @@ fn judge(
 
 /// Among the loop-weighted fits, the one whose loop is stable with the least
 /// `max(|ΔS|, |ΔT|)` in the band ([`judge`]) and rise of `‖S‖∞` (dB; the modulus margin's
-/// loss anywhere, above the band too).
+/// loss anywhere, above the band too) against the full loop `full` of modulus margin
+/// `full_margin`.
 ///
 /// # Errors
 /// [`AnalysisError::ReductionFailed`] when no fit stabilizes the loop.
 fn best_fit(
     p: &StateSpace,
-    full: &ClosedLoop,
+    (full, full_margin): (&ClosedLoop, f64),
     fits: Vec<StateSpace>,
     band_hz: f64,
 ) -> Result<StateSpace> {
-    let full_margin = full.summary()?.modulus_margin;
     let mut best: Option<(f64, StateSpace)> = None;
     let mut least_radius = f64::INFINITY;
     let n = fits.first().map_or(0, StateSpace::n);

@@ -223,9 +223,9 @@ pub fn track_modes(
             let half = width.half(m.freq_hz, m.damping);
             let band = (m.freq_hz - half, m.freq_hz + half);
             let reach = (MAX_STEP * m.freq_hz).min(cap).max(half);
-            let dft = levels.iter().any(|lv| lv.spectra.is_some());
-            let beside = |frd: &Frd, band: (f64, f64)| {
-                neighbours(frd, (&pairs, phys.delay_samples), i, band, dft)
+            let beside = |lv: &TrackLevel<'_>, band: (f64, f64)| {
+                let dft = lv.spectra.is_some();
+                neighbours(lv.frd, (&pairs, phys.delay_samples), i, band, dft)
             };
             let (points, buried) = follow(levels, (m.freq_hz, m.damping), (width, reach), &beside);
             if points.len() < 2 {
@@ -242,7 +242,7 @@ pub fn track_modes(
 
 /// Least whitened size `Σ 2|r_k|²/σ²_k` of the part of a neighbouring mode's skirt over a
 /// band that no affine background takes up (module documentation, step 3) for the
-/// neighbour's pole pair to enter the band's local fit: about the square of the standard
+/// neighbour's pole to enter the band's local fit: about the square of the standard
 /// errors by which the skirt's curvature could move the fitted frequency.
 pub const NEIGHBOUR_MIN: f64 = 1.0;
 
@@ -320,8 +320,8 @@ fn curvature(pts: &[(f64, C, f64)]) -> f64 {
         .sum()
 }
 
-/// A level's neighbouring modes `(f_n Hz, ζ)` from its FRF and band ([`neighbours`]).
-type Beside<'a> = dyn Fn(&Frd, (f64, f64)) -> Vec<(f64, f64)> + 'a;
+/// A level's neighbouring modes `(f_n Hz, ζ)` for its band ([`neighbours`] on its FRF).
+type Beside<'a> = dyn Fn(&TrackLevel<'_>, (f64, f64)) -> Vec<(f64, f64)> + 'a;
 
 /// Largest relative step of a mode's frequency between neighbouring levels that its peak is
 /// sought over (module documentation, step 3).
@@ -476,7 +476,7 @@ fn follow(
                 }
                 continue;
             }
-            let Some(fit) = best_local(lv, band, centre, from, &beside(lv.frd, band)) else {
+            let Some(fit) = best_local(lv, band, centre, from, &beside(lv, band)) else {
                 continue;
             };
             // a fit that does not determine its damping found no resonance in the band

@@ -82,9 +82,11 @@
 //! parameters. Only the pole `λ_o` in the upper half plane enters: its mirror `λ̄_o` lies a
 //! whole `ω + ω_o` away from the band and its term is smooth there, within the background
 //! (a second free residue per neighbour makes the background flexible enough to take up part
-//! of a broad mode's own shape: on the level suite's development seed 2665 the standard error
-//! of a ζ = 0.026 mode's frequency beside a sharp neighbour grew 1.8-fold with both residues
-//! free, 1.4-fold with one, and the mode's hardening was lost with the first). A neighbour's
+//! of a broad mode's own shape: on the level suite's development seed 2665, with an earlier
+//! version of the tracking that chose the neighbours once per mode, the standard error of a
+//! ζ = 0.026 mode's frequency beside a sharp neighbour grew 1.8-fold with both residues
+//! free, 1.4-fold with one, and the mode's hardening was lost with the first; measured while
+//! developing, the two-residue form is not in the code). A neighbour's
 //! pole that is slightly
 //! off (its own frequency moves with the level) is absorbed to first order by its free
 //! residue and the background.
@@ -760,9 +762,9 @@ mod tests {
         assert!(rms < 1.29, "frequency: rms error/σ {rms:.2}");
     }
 
-    /// A weak mode (125 Hz, ζ 0.005) 25 Hz above a mode 50 times stronger (100 Hz, ζ 0.02),
-    /// 0.1 % noise: the strong mode's skirt curves over the weak one's band (half-width 2.5
-    /// Hz) beyond what the affine background takes up. Over 24 seeds the fit with the strong
+    /// A weak mode (112 Hz, ζ 0.01) 12 Hz above a mode 50 times stronger (100 Hz, ζ 0.02),
+    /// 0.1 % noise: the strong mode's skirt curves over the weak one's band (107.5–116.5 Hz)
+    /// beyond what the affine background takes up. Over 24 seeds the fit with the strong
     /// mode as a fixed neighbour holds the truth within 3.5 standard errors on every seed
     /// (probability of one of 24 beyond for a correct σ: 1 %), its mean error within 3
     /// standard errors of zero; the fit without it is biased by more than that.
@@ -783,7 +785,7 @@ mod tests {
         let mean = |z: &[f64]| z.iter().sum::<f64>() / z.len() as f64;
         let worst = |z: &[f64]| z.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         eprintln!(
-            "with the neighbour: mean z {:+.2}, worst {:.2} {with:.2?}; without: mean z {:+.2}, worst {:.2}",
+            "with the neighbour: mean z {:+.2}, worst {:.2}; without: mean z {:+.2}, worst {:.2}",
             mean(&with),
             worst(&with),
             mean(&without),

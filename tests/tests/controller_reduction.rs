@@ -161,6 +161,21 @@ fn coprime_factor_reduction_keeps_the_loop() {
                         );
                         let rise =
                             20.0 * (r.before.modulus_margin / r.after.modulus_margin).log10();
+                        if method == ReductionMethod::LoopFit {
+                            println!(
+                                "{name} fit {order}: |ΔS| {:.3} dB, |ΔT| {:.3} dB; modulus \
+                                 margin {:.3} → {:.3}, gain margin {:.2} → {:.2} dB, phase \
+                                 margin {:.1} → {:.1}°",
+                                r.max_delta_s_db,
+                                r.max_delta_t_db,
+                                r.before.modulus_margin,
+                                r.after.modulus_margin,
+                                r.before.gain_margin_db,
+                                r.after.gain_margin_db,
+                                r.before.phase_margin_deg,
+                                r.after.phase_margin_deg
+                            );
+                        }
                         if r.max_delta_s_db <= 0.5 && r.max_delta_t_db <= 0.5 && rise <= 0.5 {
                             smallest[slot] = Some((order, r.max_delta_s_db, r.max_delta_t_db));
                         }
