@@ -5,6 +5,7 @@ mod checks;
 mod decide;
 mod judged;
 mod levels;
+mod next;
 mod rate_tied;
 mod read;
 mod reports;
@@ -142,5 +143,6 @@ pub fn diagnose_with_progress(
         records,
         extended_model,
         predictor,
+        next_experiment: outcome.next,
     })
 }

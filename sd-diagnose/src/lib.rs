@@ -70,6 +70,7 @@ mod lemma6;
 pub mod mimo;
 pub mod modal;
 mod model;
+pub mod next_experiment;
 pub mod pieces;
 pub mod prediction;
 pub mod predictor;
@@ -86,6 +87,7 @@ pub use mimo::{
     diagnose_mimo, ChannelFinding, ChannelKind, EntryCheck, EntryCurves, MimoDiagnoseOptions,
     MimoDiagnosis, MimoGain,
 };
+pub use next_experiment::NextExperiment;
 pub use pieces::{Piece, RecordUse};
 pub use prediction::{
     predict_experiments, InBand, ModeAmplitude, PredictedExperiment, Prediction, Unpredictable,
@@ -857,6 +859,10 @@ pub struct Diagnosis {
     /// by the report as `predictor.json`).
     #[serde(skip)]
     pub predictor: Predictor,
+    /// Where two explanations fit the data alike (`unexplained` with `partial`): the cheapest
+    /// experiment that would separate them with probability ≥ [`next_experiment::NEXT_POWER`]
+    /// (`null` otherwise, or when none in the searched set does; [`next_experiment`]).
+    pub next_experiment: Option<NextExperiment>,
 }
 
 impl Diagnosis {

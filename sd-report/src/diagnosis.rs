@@ -125,7 +125,8 @@ pub fn write(dir: &Path, d: &Diagnosis, title: &str) -> Result<Vec<String>> {
 
 /// Everything a diagnosis writes, for `sdctl diagnose` and `cargo xtask paper` alike:
 /// `diagnosis.json` (its fields in docs/diagnosis.md), the model files, `predictor.json` (what
-/// `sdctl predict` reads, docs/formats.md), `report.md` and the
+/// `sdctl predict` reads, docs/formats.md), `next_experiment.toml` where the diagnosis proposes
+/// one (an `sdctl testbed` experiment table), `report.md` and the
 /// figures, into `dir` (created when missing); returns the figure file names. Each file is
 /// written atomically; `sdctl diagnose` stages the whole folder so that a run is published as
 /// a whole.
@@ -150,6 +151,9 @@ pub fn write_all(dir: &Path, d: &Diagnosis, title: &str) -> Result<Vec<String>> 
         .to_json_string()
         .map_err(|e| ReportError::Json(e.to_string()))?;
     crate::write_atomic(&dir.join("predictor.json"), &predictor)?;
+    if let Some(n) = &d.next_experiment {
+        crate::write_atomic(&dir.join("next_experiment.toml"), &n.testbed_toml())?;
+    }
     write(dir, d, title)
 }
 
@@ -228,6 +232,9 @@ fn next_steps(md: &mut String, d: &Diagnosis) {
             x.hold_delay, x.averaging
         );
     }
+    if let Some(n) = &d.next_experiment {
+        next_experiment_step(md, n);
+    }
     for name in names {
         let step = match name {
             "clock_error" => {
@@ -251,6 +258,8 @@ fn next_steps(md: &mut String, d: &Diagnosis) {
                  experiment after the others and fit the model on data taken in the state the \
                  controller will meet."
             }
+            // the proposed experiment's bullet above says what to do
+            "unexplained" if d.next_experiment.is_some() => continue,
             "unexplained" => {
                 "- No cataloged cause explains the excess (see the best partial \
                  explanation above): check that the rates are exact integer ratios, the timing \
@@ -261,6 +270,53 @@ fn next_steps(md: &mut String, d: &Diagnosis) {
         };
         let _ = writeln!(md, "{step}");
     }
+}
+
+/// The "Next steps" bullet of a proposed experiment ([`sd_diagnose::NextExperiment`]).
+fn next_experiment_step(md: &mut String, n: &sd_diagnose::NextExperiment) {
+    let expected: Vec<String> = n
+        .expected_statistic
+        .iter()
+        .map(|(h, v)| format!("{h} would read {v:.2}"))
+        .collect();
+    let others = if n.alternatives_hz.is_empty() {
+        String::new()
+    } else {
+        let hz: Vec<String> = n
+            .alternatives_hz
+            .iter()
+            .map(|f| format!("{f:.6}"))
+            .collect();
+        format!(" Other rates that would also do: {} Hz.", hz.join(", "))
+    };
+    let _ = writeln!(
+        md,
+        "- **The experiment that decides** between {}: repeat `{}` at {:.6} Hz (the model \
+         experiment's rate / {}), {} steady periods of {} samples after {} transient ({:.1} s), \
+         band {:.4}–{:.4} Hz, excitation rms {:.4e} as in `{}` (level {:.2} of the model \
+         experiment's), same injection point. If one were true, the other would show the \
+         statistic (1 = noise level) {}; the diagnosis with it separates them with probability \
+         {:.3} (predicted from the fitted hypotheses and the noise of `{}`). \
+         `next_experiment.toml` is its `[[experiment]]` table for `sdctl testbed`; on the \
+         stage, add the record to the manifest and run `sdctl diagnose` again.{}",
+        n.separates.join(" and "),
+        n.like,
+        n.rate_hz,
+        n.factor,
+        n.periods,
+        n.period_samples,
+        n.transient_periods,
+        n.duration_s,
+        n.band_hz[0],
+        n.band_hz[1],
+        n.rms,
+        n.like,
+        n.level,
+        expected.join(", "),
+        n.power,
+        n.like,
+        others
+    );
 }
 
 /// A table cell: the number (3 decimals, or 3 significant digits in scientific notation), or
@@ -293,13 +349,33 @@ fn hypotheses_section(md: &mut String, d: &Diagnosis) {
         );
     }
     if let Some(p) = &d.partial {
-        let _ = writeln!(
-            md,
-            "\nBest partial explanation (not named: its held-out statistic {} is above the \
-             threshold): {}.",
-            cell(p.held_out, false),
-            p.cause
-        );
+        match &d.next_experiment {
+            Some(n) => {
+                let _ = writeln!(
+                    md,
+                    "\nBest partial explanation: {} (held-out statistic {}), not named: {} \
+                     explain the data alike (see Next steps for the experiment that separates \
+                     them).",
+                    p.cause,
+                    cell(p.held_out, false),
+                    n.separates.join(" and ")
+                );
+            }
+            None => {
+                let _ = writeln!(
+                    md,
+                    "\nBest partial explanation (not named: {}): {}.",
+                    d.gain.why.as_deref().map_or_else(
+                        || format!(
+                            "its held-out statistic {} is above the threshold",
+                            cell(p.held_out, false)
+                        ),
+                        str::to_string
+                    ),
+                    p.cause
+                );
+            }
+        }
     }
     let _ = writeln!(
         md,

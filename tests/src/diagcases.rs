@@ -178,6 +178,8 @@ struct Exp<'a> {
     /// A non-periodic excitation of its own (filtered noise) in place of the multisine: one
     /// record, estimated by the LPM.
     signal: Option<Vec<f64>>,
+    /// Samples per period (default: one second's).
+    period: Option<usize>,
 }
 
 /// One closed-loop experiment; `None` when the loop is unstable.
@@ -189,7 +191,7 @@ fn identify(st: &Stage, rec: &Recording, x: &Exp<'_>) -> Option<Experiment> {
         ..Default::default()
     };
     let k = sd_hinf::weights::pid(bw, st.truth.mass, Some(ts), &opt).ok()?;
-    let period = x.rate as usize;
+    let period = x.period.unwrap_or(x.rate as usize);
     let periods = if rec.periodic { 1 + rec.steady } else { 1 };
     let len = if rec.periodic {
         period
@@ -309,6 +311,7 @@ pub fn build(seed: u64, effect: Effect, rec: Recording) -> Option<Case> {
                 seed: seed * 3 + 1,
                 role: Role::Model,
                 signal: None,
+                period: None,
             },
         )?,
         identify(
@@ -323,6 +326,7 @@ pub fn build(seed: u64, effect: Effect, rec: Recording) -> Option<Case> {
                 seed: seed * 3 + 2,
                 role: Role::Validation,
                 signal: None,
+                period: None,
             },
         )?,
     ];
@@ -339,6 +343,7 @@ pub fn build(seed: u64, effect: Effect, rec: Recording) -> Option<Case> {
                 seed: seed * 3 + 3,
                 role: Role::Validation,
                 signal: None,
+                period: None,
             },
         )?);
     }
@@ -375,9 +380,42 @@ pub fn with_another_rate(seed: u64, effect: Effect, rec: Recording) -> Option<(C
             seed: seed * 3 + 5,
             role: Role::Validation,
             signal: None,
+            period: None,
         },
     )?;
     Some((case, x))
+}
+
+/// The experiment a diagnosis proposed (`sd_diagnose::NextExperiment`) run on the case of
+/// `seed` with the same hidden effect: rate `rate`, `period` samples per period, `steady`
+/// periods after one transient, the case's excitation level and injection, its own noise and
+/// phases. Rate-tied effects only (`None` otherwise, or when the loop is unstable).
+pub fn proposed(
+    seed: u64,
+    effect: Effect,
+    rec: Recording,
+    (rate, period, steady): (f64, usize, usize),
+) -> Option<Experiment> {
+    if matches!(effect, Effect::Filter(_) | Effect::Cubic) || !rec.periodic {
+        return None;
+    }
+    let mut r = Rng::new(seed * 7919 + 17);
+    let st = stage(&mut r);
+    identify(
+        &st,
+        &Recording { steady, ..rec },
+        &Exp {
+            lines: Lines::Full,
+            name: "proposed",
+            rate,
+            rms: 0.5,
+            ni: effect.nonideal(),
+            seed: seed * 3 + 7,
+            role: Role::Validation,
+            signal: None,
+            period: Some(period),
+        },
+    )
 }
 
 fn sign(r: &mut Rng) -> f64 {
@@ -642,6 +680,7 @@ pub fn level_case_realization(
                 .map(|v| v * 0.5 * l)
                 .collect()
         }),
+        period: None,
     };
     if matches!(effect, LevelEffect::Hardening | LevelEffect::Softening) {
         let base = identify(&st, &rec, &exp(&st, 1.0, 0))?;
@@ -725,6 +764,7 @@ pub fn level_rate_case(
             Role::Validation
         },
         signal: None,
+        period: None,
     };
     let fast = st.fast_rate;
     if effect == LevelEffect::Hardening {
@@ -811,6 +851,7 @@ fn stepped_case(
         seed: seed * 13 + 2,
         role: Role::Model,
         signal: Some(signal(ls)),
+        period: None,
     };
     let top = levels.iter().cloned().fold(1.0, f64::max);
     if matches!(effect, LevelEffect::Hardening | LevelEffect::Softening) {

@@ -31,6 +31,8 @@ pub(super) struct Outcome {
     pub(super) held: BTreeMap<String, HeldOut>,
     /// The amplitude-dependent model, where that is the extension.
     pub(super) amplitude: Option<Box<crate::amplitude::AmplitudeModel>>,
+    /// The experiment that would separate the explanations the data cannot tell apart.
+    pub(super) next: Option<crate::NextExperiment>,
 }
 
 impl Outcome {
@@ -45,6 +47,7 @@ impl Outcome {
             models: BTreeMap::new(),
             held: BTreeMap::new(),
             amplitude: None,
+            next: None,
         }
     }
 }
@@ -504,5 +507,6 @@ pub(super) fn fast_model_error(data: &Data<'_>, j: &Judged<'_>, ch: &Checks) -> 
         models: BTreeMap::new(),
         held: BTreeMap::new(),
         amplitude: None,
+        next: None,
     })
 }

@@ -393,6 +393,7 @@ pub(super) fn nonlinearity(
         models,
         held,
         amplitude: Some(Box::new(model)),
+        next: None,
     })
 }
 
@@ -666,5 +667,6 @@ pub(super) fn per_level(
         models: BTreeMap::new(),
         held: BTreeMap::new(),
         amplitude: None,
+        next: None,
     }
 }

@@ -96,29 +96,59 @@ pub(super) fn nameable(fam: Family, p: &RateTied) -> bool {
         && !(fam.clock() && below_floor(Family::Clock, p))
 }
 
-/// Whether another hypothesis, sharing no cause with the chosen one (`k`), explains the data as
-/// well: it passes the naming threshold too (`judge`), and neither the training data nor the
-/// judged (held-out) data put the chosen one's score sum lower by [`PAIR_DECISIVE`]. Then the
-/// data do not tell the causes apart (a small hold delay and a short averaging window lag the
-/// phase alike), and naming either would be a guess.
-pub(super) fn ambiguous(
+/// The other hypotheses, sharing no cause with the chosen one (`k`), that explain the data as
+/// well: each passes the naming threshold too (`judge`), and neither the training data nor the
+/// judged (held-out) data put the chosen one's score sum lower by [`PAIR_DECISIVE`]. With any,
+/// the data do not tell the causes apart (a small hold delay and a short averaging window lag
+/// the phase alike), and naming either would be a guess.
+pub(super) fn rivals(
     fitted: &[Fitted],
     k: usize,
     judge: &dyn Fn(usize) -> Statistic,
     alpha: f64,
-) -> bool {
+) -> Vec<usize> {
     let chosen = fitted[k].family;
     let related =
         |f: Family| f == chosen || chosen.nested().contains(&f) || f.nested().contains(&chosen);
     let sum = |s: Statistic| penalised(&s, 0);
     let mine = sum(judge(k));
-    fitted.iter().enumerate().any(|(i, f)| {
-        f.family != Family::None
-            && !related(f.family)
-            && explains(&judge(i), alpha)
-            && !decisive(f, &fitted[k])
-            && sum(judge(i)) - mine < PAIR_DECISIVE
-    })
+    (0..fitted.len())
+        .filter(|&i| {
+            let f = &fitted[i];
+            f.family != Family::None
+                && !related(f.family)
+                && explains(&judge(i), alpha)
+                && !decisive(f, &fitted[k])
+                && sum(judge(i)) - mine < PAIR_DECISIVE
+        })
+        .collect()
+}
+
+/// The one cause that the chosen pair `k` and every rival pair contain, when it alone explains
+/// the data (the naming threshold on the judged data) and may be named: the data demand that
+/// cause and cannot tell the second causes apart (a hold delay with an averaging window and
+/// the same hold delay with a clock error fit alike), so the shared cause is the answer, not
+/// `unexplained`. `None` when `k` is no pair, a rival is no pair, or the pairs share no cause.
+pub(super) fn shared_cause(
+    fitted: &[Fitted],
+    k: usize,
+    others: &[usize],
+    judge: &dyn Fn(usize) -> Statistic,
+    alpha: f64,
+) -> Option<usize> {
+    if others.is_empty() {
+        return None;
+    }
+    let mut shared = fitted[k].family.nested();
+    for &o in others {
+        let n = fitted[o].family.nested();
+        shared.retain(|f| n.contains(f));
+    }
+    let [cause] = shared.as_slice() else {
+        return None;
+    };
+    let s = fitted.iter().position(|f| f.family == *cause)?;
+    (explains(&judge(s), alpha) && nameable(*cause, &fitted[s].params)).then_some(s)
 }
 
 /// Score-sum advantage on the training data beyond which a pair is kept against its nested
@@ -158,6 +188,8 @@ pub(super) struct Settled {
     pub(super) ranking: Vec<Ranked>,
     pub(super) partial: Ranked,
     pub(super) gain: Gain,
+    /// With `ambiguous`: the chosen hypothesis first, then those that explain the data as well.
+    pub(super) rivals: Vec<Fitted>,
 }
 
 /// The rate-tied search and its validation (earlier/later periods of every same-level slower
@@ -190,6 +222,11 @@ pub(super) fn rate_tied(
         s.gain = left_out_gain(j, &tied, s.family, &s.params)?;
     }
     if !s.named {
+        let next = if s.ambiguous {
+            super::next::propose(data, j, &tied, &s.rivals, progress)?
+        } else {
+            None
+        };
         let gain = if s.ambiguous {
             Gain::none(
                 "two unrelated rate-tied causes explain the data alike (see `partial` and the \
@@ -209,6 +246,7 @@ pub(super) fn rate_tied(
                 models: BTreeMap::new(),
                 held: BTreeMap::new(),
                 amplitude: None,
+                next,
             },
             s.ambiguous,
         ));
@@ -229,6 +267,7 @@ pub(super) fn rate_tied(
             models: BTreeMap::new(),
             held: BTreeMap::new(),
             amplitude: None,
+            next: None,
         },
         false,
     ))
@@ -265,8 +304,22 @@ pub(super) fn halves(
         .collect();
     let judge = |i: usize| held_stats[i].unwrap_or(fitted[i].stat);
     let k = pick(&fitted, &judge, held.is_some());
-    let unsure = ambiguous(&fitted, k, &judge, j.modal.alpha);
+    let others = rivals(&fitted, k, &judge, j.modal.alpha);
+    let (k, others) = match shared_cause(&fitted, k, &others, &judge, j.modal.alpha) {
+        Some(s) => (s, rivals(&fitted, s, &judge, j.modal.alpha)),
+        None => (k, others),
+    };
+    let unsure = !others.is_empty();
     let chosen = &fitted[k];
+    // the chosen hypothesis and those that explain the data as well, for the next experiment
+    let contest: Vec<Fitted> = if unsure {
+        std::iter::once(k)
+            .chain(others)
+            .map(|i| fitted[i].clone())
+            .collect()
+    } else {
+        Vec::new()
+    };
     let Some(held) = held else {
         // without held-out data the discrepancy must stand at the naming level itself, on the
         // naming yardstick (residue and pole covariance)
@@ -283,6 +336,7 @@ pub(super) fn halves(
             ambiguous: would && unsure,
             partial: ranked(chosen, None),
             ranking,
+            rivals: contest,
             gain: Gain::none(
                 "the validation experiment has fewer than four steady periods (or too short a \
                  record) to hold part of it out: the cause was chosen and judged on all of its \
@@ -315,6 +369,7 @@ pub(super) fn halves(
         ambiguous: would && unsure,
         partial: ranked(chosen, Some(after.value)),
         ranking,
+        rivals: contest,
         gain: Gain::measured(before.value, after.value, labels),
     })
 }
@@ -468,6 +523,7 @@ pub(super) fn leave_one_out(
         ambiguous: false,
         partial: ranked(&first, Some(a.value)),
         ranking,
+        rivals: Vec::new(),
         gain: Gain::measured(
             b.value,
             a.value,
