@@ -1,4 +1,4 @@
-//! Stage 7, the experiment that decides: what the diagnosis proposes to measure when the data
+//! Stage 8, the experiment that decides: what the diagnosis proposes to measure when the data
 //! cannot tell two explanations apart.
 //!
 //! When two unrelated rate-tied hypotheses explain the experiments alike (a hold delay and an

@@ -1,4 +1,4 @@
-//! Stage 7 in the diagnosis: the candidate experiments and their predicted separation of two
+//! Stage 8 in the diagnosis: the candidate experiments and their predicted separation of two
 //! rate-tied hypotheses that explain the data alike (the method in
 //! [`crate::next_experiment`]).
 //!
