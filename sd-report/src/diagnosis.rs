@@ -274,6 +274,8 @@ fn next_steps(md: &mut String, d: &Diagnosis) {
 
 /// The "Next steps" bullet of a proposed experiment ([`sd_diagnose::NextExperiment`]).
 fn next_experiment_step(md: &mut String, n: &sd_diagnose::NextExperiment) {
+    // rates and band edges to the millihertz, without trailing zeros
+    let hz = |v: f64| format!("{}", (v * 1e3).round() / 1e3);
     let expected: Vec<String> = n
         .expected_statistic
         .iter()
@@ -282,33 +284,29 @@ fn next_experiment_step(md: &mut String, n: &sd_diagnose::NextExperiment) {
     let others = if n.alternatives_hz.is_empty() {
         String::new()
     } else {
-        let hz: Vec<String> = n
-            .alternatives_hz
-            .iter()
-            .map(|f| format!("{f:.6}"))
-            .collect();
-        format!(" Other rates that would also do: {} Hz.", hz.join(", "))
+        let rates: Vec<String> = n.alternatives_hz.iter().map(|f| hz(*f)).collect();
+        format!(" Other rates that would also do: {} Hz.", rates.join(", "))
     };
     let _ = writeln!(
         md,
-        "- **The experiment that decides** between {}: repeat `{}` at {:.6} Hz (the model \
+        "- **The experiment that decides** between {}: repeat `{}` at {} Hz (the model \
          experiment's rate / {}), {} steady periods of {} samples after {} transient ({:.1} s), \
-         band {:.4}–{:.4} Hz, excitation rms {:.4e} as in `{}` (level {:.2} of the model \
+         band {}–{} Hz, excitation rms {:.4e} as in `{}` (level {:.2} of the model \
          experiment's), same injection point. If one were true, the other would show the \
-         statistic (1 = noise level) {}; the diagnosis with it separates them with probability \
+         statistic (1 = noise level): {}; the diagnosis with it separates them with probability \
          {:.3} (predicted from the fitted hypotheses and the noise of `{}`). \
          `next_experiment.toml` is its `[[experiment]]` table for `sdctl testbed`; on the \
          stage, add the record to the manifest and run `sdctl diagnose` again.{}",
         n.separates.join(" and "),
         n.like,
-        n.rate_hz,
+        hz(n.rate_hz),
         n.factor,
         n.periods,
         n.period_samples,
         n.transient_periods,
         n.duration_s,
-        n.band_hz[0],
-        n.band_hz[1],
+        hz(n.band_hz[0]),
+        hz(n.band_hz[1]),
         n.rms,
         n.like,
         n.level,

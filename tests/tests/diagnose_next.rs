@@ -59,7 +59,8 @@ struct Outcome {
     before: String,
     proposal: Option<(f64, usize, usize, f64)>,
     after: Option<String>,
-    seconds: (f64, f64),
+    /// Time of the first diagnosis (s).
+    seconds: f64,
     /// Per wrong hypothesis of `separates`: its predicted held-out excess over the noise level
     /// (`expected_held_out − 1`) and the observed one (its held-out statistic after, less the
     /// true cause's).
@@ -78,7 +79,7 @@ fn run_case(seed: u64) -> Option<Outcome> {
             before: d.cause,
             proposal: None,
             after: None,
-            seconds: (first, 0.0),
+            seconds: first,
             excess: Vec::new(),
         });
     };
@@ -101,7 +102,7 @@ fn run_case(seed: u64) -> Option<Outcome> {
             before: d.cause,
             proposal: Some((n.rate_hz, n.periods, n.period_samples, n.power)),
             after: Some("not run".into()),
-            seconds: (first, 0.0),
+            seconds: first,
             excess: Vec::new(),
         });
     };
@@ -130,7 +131,7 @@ fn run_case(seed: u64) -> Option<Outcome> {
         before: d.cause,
         proposal: Some((n.rate_hz, n.periods, n.period_samples, n.power)),
         after: Some(d2.cause),
-        seconds: (first, 0.0),
+        seconds: first,
         excess,
     })
 }
@@ -150,7 +151,7 @@ fn run(seeds: std::ops::Range<u64>) -> (usize, usize, usize, [usize; 3], f64, Ve
         unexplained += usize::from(o.before == "unexplained");
         println!(
             "seed {seed} {:?}: {} -> {:?} ({:.1} s)",
-            o.effect, o.before, o.after, o.seconds.0
+            o.effect, o.before, o.after, o.seconds
         );
         let (Some(p), Some(a)) = (&o.proposal, &o.after) else {
             continue;
@@ -215,16 +216,6 @@ fn report(seeds: std::ops::Range<u64>) {
     );
 }
 
-fn seeds_from_env(default: std::ops::Range<u64>) -> std::ops::Range<u64> {
-    std::env::var("NEXT_SEEDS")
-        .ok()
-        .and_then(|s| {
-            let (a, b) = s.split_once("..")?;
-            Some(a.parse().ok()?..b.parse().ok()?)
-        })
-        .unwrap_or(default)
-}
-
 /// One development case end to end (seed 13: a 0.29-period averaging window that a hold delay
 /// explains alike on two experiments): the proposal is made, its testbed table is a valid
 /// `sdctl testbed` configuration with the case's rate, and with the proposed experiment the
@@ -239,6 +230,19 @@ fn the_proposal_decides_a_fixed_case() {
     let n = d.next_experiment.clone().expect("a proposal");
     assert!(n.power >= sd_diagnose::next_experiment::NEXT_POWER);
     assert_eq!(n.separates.len(), 2, "{:?}", n.separates);
+    // the report folder: the proposal in Next steps and as the testbed's table
+    let dir = std::env::temp_dir().join(format!("sd_next_{}", std::process::id()));
+    sd_report::diagnosis::write_all(&dir, &d, "next experiment").unwrap();
+    let md = std::fs::read_to_string(dir.join("report.md")).unwrap();
+    assert!(md.contains("**The experiment that decides**"), "{md}");
+    let rate = format!("at {} Hz", (n.rate_hz * 1e3).round() / 1e3);
+    assert!(md.contains(&rate), "{rate} {md}");
+    let written = std::fs::read_to_string(dir.join("next_experiment.toml")).unwrap();
+    assert_eq!(written, n.testbed_toml());
+    let json = std::fs::read_to_string(dir.join("diagnosis.json")).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    assert_eq!(v["next_experiment"]["factor"], n.factor);
+    std::fs::remove_dir_all(&dir).ok();
     let toml = format!("[truth]\nmass = 20.0\n{}", n.testbed_toml());
     let cfg = sd_testbed::config::parse_config(&toml).unwrap();
     assert_eq!(cfg.identification.len(), 1);
@@ -258,7 +262,12 @@ fn the_proposal_decides_a_fixed_case() {
 #[test]
 #[ignore]
 fn development() {
-    report(seeds_from_env(0..40));
+    let seeds = sd_tests::env_seeds("NEXT_SEEDS", 0..60);
+    assert!(
+        seeds.end <= 3500 || seeds.start >= 3560,
+        "development seeds must not touch the reported range"
+    );
+    report(seeds);
 }
 
 #[test]
@@ -267,6 +276,9 @@ fn reported() {
     report(3500..3560);
 }
 
+/// Developer tool, not a check: one case's diagnosis with its progress, ranking and proposal
+/// (`SEED=13 cargo test --release -p sd-tests --test diagnose_next debug -- --ignored
+/// --nocapture`).
 #[test]
 #[ignore]
 fn debug() {
