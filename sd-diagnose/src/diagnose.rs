@@ -143,6 +143,7 @@ pub fn diagnose_with_progress(
         records,
         extended_model,
         predictor,
-        next_experiment: outcome.next,
+        next_experiment: outcome.next.clone().and_then(|n| n.ok()),
+        no_next_experiment: outcome.next.and_then(|n| n.err()),
     })
 }

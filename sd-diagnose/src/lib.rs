@@ -863,6 +863,9 @@ pub struct Diagnosis {
     /// experiment that would separate them with probability ≥ [`next_experiment::NEXT_POWER`]
     /// (`null` otherwise, or when none in the searched set does; [`next_experiment`]).
     pub next_experiment: Option<NextExperiment>,
+    /// Where two explanations fit alike but no experiment is proposed: why
+    /// ([`next_experiment::NoProposal`]; `null` otherwise).
+    pub no_next_experiment: Option<next_experiment::NoProposal>,
 }
 
 impl Diagnosis {

@@ -88,6 +88,26 @@ pub struct NextExperiment {
     pub alternatives_hz: Vec<f64>,
 }
 
+/// Why two explanations the data cannot tell apart get no proposal.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "reason", rename_all = "snake_case")]
+pub enum NoProposal {
+    /// With negligible clock errors taken out, the competing hypotheses are one cause.
+    OneCause,
+    /// No slower experiment is periodic (a proposal repeats one).
+    NoPeriodicTemplate,
+    /// No candidate separates them with probability [`NEXT_POWER`]: the causes act alike at
+    /// every rate searched.
+    NothingSeparates {
+        /// The largest power any refitted candidate reached.
+        best_power: f64,
+        /// The most steady periods searched.
+        most_periods: usize,
+        /// The slowest rate searched, as the model experiment's rate over it.
+        slowest_factor: usize,
+    },
+}
+
 impl NextExperiment {
     /// The proposal as an `[[experiment]]` table of `sdctl testbed`'s configuration: append it
     /// to the configuration that made the other experiments (its `[truth]` and `[nonideal]`
@@ -179,6 +199,20 @@ mod tests {
         }
         // correlated lines count for less
         assert!(separation_power(60.0, (200, 200), 2.0, 19.5, thr) < p(60.0));
+    }
+
+    #[test]
+    fn why_none_is_said_by_its_reason() {
+        let n = NoProposal::NothingSeparates {
+            best_power: 0.4,
+            most_periods: 32,
+            slowest_factor: 20,
+        };
+        let v = serde_json::to_value(&n).unwrap();
+        assert_eq!(v["reason"], "nothing_separates");
+        assert_eq!(v["most_periods"], 32);
+        let v = serde_json::to_value(NoProposal::NoPeriodicTemplate).unwrap();
+        assert_eq!(v["reason"], "no_periodic_template");
     }
 
     #[test]

@@ -235,6 +235,22 @@ fn next_steps(md: &mut String, d: &Diagnosis) {
     if let Some(n) = &d.next_experiment {
         next_experiment_step(md, n);
     }
+    if let Some(sd_diagnose::next_experiment::NoProposal::NothingSeparates {
+        best_power,
+        most_periods,
+        slowest_factor,
+    }) = &d.no_next_experiment
+    {
+        let _ = writeln!(
+            md,
+            "- The explanations in the ranking that fit alike cannot be told apart by another \
+             rate either: no repeat of a slower experiment at 1/2 to 1/{slowest_factor} of the \
+             model experiment's rate with up to {most_periods} steady periods separates them \
+             with probability 0.9 (the best reached {best_power:.2}): they act alike at every \
+             rate searched. The timing of the hold and the sampler in the hardware, or a \
+             repeat of the model experiment, decides instead."
+        );
+    }
     for name in names {
         let step = match name {
             "clock_error" => {
@@ -259,7 +275,9 @@ fn next_steps(md: &mut String, d: &Diagnosis) {
                  controller will meet."
             }
             // the proposed experiment's bullet above says what to do
-            "unexplained" if d.next_experiment.is_some() => continue,
+            "unexplained" if d.next_experiment.is_some() || d.no_next_experiment.is_some() => {
+                continue
+            }
             "unexplained" => {
                 "- No cataloged cause explains the excess (see the best partial \
                  explanation above): check that the rates are exact integer ratios, the timing \

@@ -299,4 +299,5 @@ fn debug() {
         println!("   {rk:?}");
     }
     println!("next {:#?}", d.next_experiment);
+    println!("no proposal {:?}", d.no_next_experiment);
 }

@@ -17,6 +17,10 @@ use sd_model::StateSpace;
 use std::collections::BTreeMap;
 
 /// Stages 4–5: the cause, the extension and its gain.
+/// The experiment that would separate competing explanations, or why there is none.
+pub(super) type Next =
+    std::result::Result<crate::NextExperiment, crate::next_experiment::NoProposal>;
+
 pub(super) struct Outcome {
     pub(super) verdict: Verdict,
     pub(super) causes: Vec<Cause>,
@@ -31,8 +35,9 @@ pub(super) struct Outcome {
     pub(super) held: BTreeMap<String, HeldOut>,
     /// The amplitude-dependent model, where that is the extension.
     pub(super) amplitude: Option<Box<crate::amplitude::AmplitudeModel>>,
-    /// The experiment that would separate the explanations the data cannot tell apart.
-    pub(super) next: Option<crate::NextExperiment>,
+    /// Where explanations the data cannot tell apart compete: the experiment that would
+    /// separate them, or why there is none.
+    pub(super) next: Option<Next>,
 }
 
 impl Outcome {

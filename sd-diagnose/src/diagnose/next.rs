@@ -13,7 +13,7 @@ use super::read::{Data, Val};
 use crate::data::{Estimate, Part};
 use crate::hypotheses::{Family, Fitted, Target};
 use crate::modal::Residues;
-use crate::next_experiment::{separation_power, NextExperiment, NEXT_POWER};
+use crate::next_experiment::{separation_power, NextExperiment, NoProposal, NEXT_POWER};
 use crate::{RateTied, Result};
 use nalgebra::DMatrix;
 use num_complex::Complex64 as C;
@@ -365,8 +365,8 @@ fn without_idle_clocks(rivals: &[Fitted]) -> Vec<Fitted> {
     out
 }
 
-/// The cheapest experiment that separates `rivals` (the chosen hypothesis first), or `None`
-/// when no candidate reaches [`NEXT_POWER`] (or no slower experiment is periodic).
+/// The cheapest experiment that separates `rivals` (the chosen hypothesis first), or why there
+/// is none ([`NoProposal`]).
 ///
 /// The search: every rate screened at the template's periods (at least four) with the
 /// hypotheses as fitted; the [`MAX_REFITS`] most promising rates refitted there; from each
@@ -380,14 +380,14 @@ pub(super) fn propose(
     tied: &[&Val<'_>],
     rivals: &[Fitted],
     progress: &mut dyn FnMut(&str),
-) -> Result<Option<NextExperiment>> {
+) -> Result<std::result::Result<NextExperiment, NoProposal>> {
     let rivals = without_idle_clocks(rivals);
     if rivals.len() < 2 {
-        return Ok(None);
+        return Ok(Err(NoProposal::OneCause));
     }
     let rivals = rivals.as_slice();
     let Some(t) = Template::of(tied) else {
-        return Ok(None);
+        return Ok(Err(NoProposal::NoPeriodicTemplate));
     };
     progress("the next experiment: predicting the competing hypotheses at other rates");
     let taken: Vec<usize> = data.vals.iter().map(|v| v.factor).collect();
@@ -420,6 +420,7 @@ pub(super) fn propose(
             .total_cmp(&b.0.duration_s)
             .then(b.1.total_cmp(&a.1))
     });
+    let mut best_power = refitted.iter().map(|r| r.1.power).fold(0.0f64, f64::max);
     let mut chosen: Option<(Candidate, Separation)> = None;
     for (c, _) in plans.iter().take(MAX_VERIFIED) {
         let s = if c.periods == base {
@@ -430,13 +431,18 @@ pub(super) fn propose(
         } else {
             separation(j, (&t, tied), rivals, *c)?
         };
+        best_power = best_power.max(s.power);
         if s.power >= NEXT_POWER {
             chosen = Some((*c, s));
             break;
         }
     }
     let Some((c, s)) = chosen else {
-        return Ok(None);
+        return Ok(Err(NoProposal::NothingSeparates {
+            best_power,
+            most_periods: base * PERIOD_MULTIPLES[PERIOD_MULTIPLES.len() - 1],
+            slowest_factor: MAX_FACTOR,
+        }));
     };
     // other rates verified at the same periods
     let alternatives_hz = refitted
@@ -445,7 +451,7 @@ pub(super) fn propose(
         .map(|(f, _)| 1.0 / (data.h * *f as f64))
         .take(3)
         .collect();
-    Ok(Some(proposal(&t, data.h, rivals, (c, s), alternatives_hz)))
+    Ok(Ok(proposal(&t, data.h, rivals, (c, s), alternatives_hz)))
 }
 
 /// The rates worth a refit, most promising first: every whole fraction not yet measured whose

@@ -223,7 +223,7 @@ pub(super) fn rate_tied(
     }
     if !s.named {
         let next = if s.ambiguous {
-            super::next::propose(data, j, &tied, &s.rivals, progress)?
+            Some(super::next::propose(data, j, &tied, &s.rivals, progress)?)
         } else {
             None
         };
