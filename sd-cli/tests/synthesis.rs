@@ -29,6 +29,16 @@ fn sdctl(args: &[&str]) -> Output {
         .unwrap()
 }
 
+/// Exit 0, else the failure's stderr.
+fn succeeded(o: &Output) {
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
 fn one_line_error(o: &Output, code: i32, must: &str) {
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(code), "stderr: {err}");
@@ -42,12 +52,7 @@ fn one_line_error(o: &Output, code: i32, must: &str) {
 fn the_json_has_gamma_the_achieved_norm_and_the_controller() {
     let p = file("p.json", PLANT);
     let o = sdctl(&["hinfsyn", &p, "--nmeas", "1", "--ncon", "1", "--json"]);
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    succeeded(&o);
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let (g, gmin, ach) = (
         v["gamma"].as_f64().unwrap(),
@@ -97,12 +102,7 @@ fn bad_problems_are_refused_with_the_reason() {
 fn h2syn_json_and_a_bad_partition() {
     let p = file("p3.json", PLANT);
     let o = sdctl(&["h2syn", &p, "--nmeas", "1", "--ncon", "1", "--json"]);
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    succeeded(&o);
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!(v["achieved_norm"].as_f64().unwrap().is_finite());
     assert_eq!(v["closed_loop_stable"], serde_json::json!(true));
@@ -127,12 +127,7 @@ fn reduce_json(k: &str, p: &str, method: Option<&str>) -> serde_json::Value {
         args.extend(["--method", m]);
     }
     let o = sdctl(&args);
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    succeeded(&o);
     serde_json::from_slice(&o.stdout).unwrap()
 }
 
@@ -170,12 +165,7 @@ fn reduce_controller_keeps_the_loop_or_says_it_cannot() {
         vec!["loopshape", &p, "--w1", &w, "-o", &k],
     ] {
         let o = sdctl(&args);
-        assert_eq!(
-            o.status.code(),
-            Some(0),
-            "{}",
-            String::from_utf8_lossy(&o.stderr)
-        );
+        succeeded(&o);
     }
     // the default for a SISO discrete loop: the loop-weighted fit
     let v = reduce_json(&k, &p, None);
@@ -252,22 +242,12 @@ fn mixsyn_designs_a_stable_loop() {
         ],
     ] {
         let o = sdctl(&args);
-        assert_eq!(
-            o.status.code(),
-            Some(0),
-            "{}",
-            String::from_utf8_lossy(&o.stderr)
-        );
+        succeeded(&o);
     }
     let o = sdctl(&[
         "mixsyn", &p, "--w1", &w1, "--w2", &w2, "--wd", &wd, "--json",
     ]);
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    succeeded(&o);
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let g = v["gamma"].as_f64().unwrap();
     assert!(
@@ -284,12 +264,7 @@ fn mixsyn_designs_a_stable_loop() {
         "mixsyn", &p, "--w1", &w1, "--w2", &w2, "--wd", &wd, "--factor", "4", "--wn", "1e-3",
         "--json",
     ]);
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    succeeded(&o);
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(v["factor"].as_u64(), Some(4), "{v}");
     assert_eq!(v["controller"]["ts"].as_f64(), Some(0.004), "{v}");

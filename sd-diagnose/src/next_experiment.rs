@@ -29,8 +29,7 @@
 //! compromises), and the noncentrality `Λ = Σ_k |P̂_A(f_k) − P̂_B(f_k)|²/v_k` (v_k the line's
 //! variance plus A's prediction variance) is what A's score sum exceeds B's by, on average.
 //! The refit is Gauss–Newton's first-order one: the step that trades the new lines' excess
-//! against the old lines' curvature ([`crate::hypotheses`]' `refit_excess`; on development
-//! cases within a few per cent of the power a full refit gives).
+//! against the old lines' curvature ([`crate::hypotheses`]' `refit_excess`).
 //! `expected_statistic[A] = 1 + Λ/K` is A's calibrated statistic on the whole proposal if B is
 //! true. The diagnosis of the proposal will judge the hypotheses on its later half (variance
 //! doubled: `Λ/2`), pooled with the earlier experiments' later halves: the wrong one is set
