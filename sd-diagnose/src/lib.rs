@@ -96,7 +96,7 @@ pub use predictor::{AmplitudePredictor, ModelUncertainty, Predictor, SavedExtens
 pub use sd_ident::{BandLevel, Distortion, Role, Unmeasurable};
 pub use stats::Statistic;
 pub use timedomain::AveragedPeriod;
-pub use tracks::{ModeTrack, TrackPoint};
+pub use tracks::{ModeTrack, TrackPoint, Tracked};
 
 use num_complex::Complex64 as C;
 use sd_model::StateSpace;

@@ -48,7 +48,15 @@
 //!    not move) weighted by the mode's share of the response. Its frequency trend is the
 //!    diagnosis's `kind` and its damping trend the `damping_trend` ([`decided`]); when no
 //!    tracked mode moves both are `none` (the amplitude model's poles may still move: a
-//!    friction corner is no pair, and a global fit's weak pair is not a physical mode); the
+//!    friction corner is no pair, and a global fit's weak pair is not a physical mode). A
+//!    friction-damped rigid body's corner that moves competes with the pairs on the same
+//!    scale — its shift over the levels in its own half-power bandwidth `2f_c` (a real
+//!    pole's `2|Re s|` as a pair's `2ζω`), weighted by the share of the physical fit's
+//!    rigid-body and real-pole terms: when it outweighs every moving pair, no pair is
+//!    dominant and both trends are `none`, the corner's trend is the `corner_trend` (on the
+//!    level suite, friction moves a stage's corner by most of its bandwidth while the
+//!    flexible modes' BLA shift by thousandths of theirs — significant at the standard
+//!    errors of long records, negligible for the response); the
 //!    amplitude model's stand when no mode could be tracked, or when none moves but a mode
 //!    was *buried* at a level above the model experiment's (its band's `|G|²/σ²` fell below
 //!    [`MIN_BAND_SNR`] as the excitation rose: distortion, and the level where it would have
@@ -149,6 +157,17 @@ pub struct TrackLevel<'a> {
     pub spectra: Option<&'a sd_ident::LineSpectra>,
 }
 
+/// What [`track_modes`] finds: the tracked pairs and the share of the rest.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Tracked {
+    /// The tracked pairs.
+    pub modes: Vec<ModeTrack>,
+    /// Share of the model experiment's response held by the physical fit's rigid-body and
+    /// real-pole terms ([`sd_ident::PhysicalMode::share`]): the body a friction corner damps
+    /// ([`corner_dominates`]).
+    pub body_share: f64,
+}
+
 /// Weighted mean, χ² of constancy, and the weighted slope against `x` with its z-score.
 fn spread(x: &[f64], y: &[f64], s: &[f64]) -> (f64, f64) {
     let w: Vec<f64> = s
@@ -180,11 +199,7 @@ fn spread(x: &[f64], y: &[f64], s: &[f64]) -> (f64, f64) {
 ///
 /// # Errors
 /// The physical fit's errors.
-pub fn track_modes(
-    modes_from: &Frd,
-    levels: &[TrackLevel<'_>],
-    alpha: f64,
-) -> Result<Vec<ModeTrack>> {
+pub fn track_modes(modes_from: &Frd, levels: &[TrackLevel<'_>], alpha: f64) -> Result<Tracked> {
     // the modes only need finding here (the local fits use every line): at most
     // MODE_FIT_LINES lines and orders up to MODE_FIT_ORDER keep the stabilisation to seconds
     let step = modes_from.len().div_ceil(MODE_FIT_LINES).max(1);
@@ -201,6 +216,12 @@ pub fn track_modes(
         .filter(|(m, _)| m.kind == ModeKind::Pair && m.in_band && m.damping < MAX_DAMPING)
         .collect();
     let df = phys.line_spacing_hz;
+    let body_share = phys
+        .modes
+        .iter()
+        .filter(|m| m.kind != ModeKind::Pair)
+        .map(|m| m.share)
+        .sum();
     let z = normal_quantile(1.0 - alpha / 2.0);
     // the modes' local fits are independent: in parallel, collected in order
     let mut tracks: Vec<ModeTrack> = (0..pairs.len())
@@ -237,7 +258,10 @@ pub fn track_modes(
         })
         .collect();
     mark_dominant(&mut tracks);
-    Ok(tracks)
+    Ok(Tracked {
+        modes: tracks,
+        body_share,
+    })
 }
 
 /// Least whitened size `Σ 2|r_k|²/σ²_k` of the part of a neighbouring mode's skirt over a
@@ -559,14 +583,20 @@ fn track(
     }
 }
 
-/// `kind` and `damping_trend` from the tracked modes (module documentation, step 5): the
-/// dominant moving mode's frequency and damping trends; none when no tracked mode moves and
-/// none was buried ([`ModeTrack::buried`]); `fallback`'s (the amplitude model's) when no mode
-/// could be tracked, or none moves and one was buried.
+/// `kind` and `damping_trend` from the tracked modes (module documentation, step 5): none
+/// when a moving friction `corner` dominates ([`corner_dominates`]); else the dominant moving
+/// mode's frequency and damping trends; none when no tracked mode moves and none was buried
+/// ([`ModeTrack::buried`]); `fallback`'s (the amplitude model's) when no mode could be
+/// tracked, or none moves and one was buried.
 pub fn decided(
     tracks: &[ModeTrack],
     fallback: (FreqTrend, DampingTrend),
+    corner: bool,
 ) -> (FreqTrend, DampingTrend) {
+    if corner {
+        // the friction corner dominates: its trend is the corner trend, no pair's
+        return (FreqTrend::None, DampingTrend::None);
+    }
     if tracks.is_empty() {
         return fallback;
     }
@@ -579,31 +609,57 @@ pub fn decided(
     }
 }
 
-/// Marks the dominant moving mode (module documentation, step 5).
-fn mark_dominant(tracks: &mut [ModeTrack]) {
-    let score = |t: &ModeTrack| -> f64 {
-        if !(t.frequency_moves || t.damping_moves) {
+impl ModeTrack {
+    /// Its claim to be the dominant moving mode (module documentation, step 5): the shift
+    /// over the levels in half-power bandwidths (the damping's relative change where the
+    /// frequency does not move) times the mode's share; 0 when it does not move.
+    pub fn dominance(&self) -> f64 {
+        if !(self.frequency_moves || self.damping_moves) {
             return 0.0;
         }
-        let moved = if t.frequency_trend != FreqTrend::None {
-            t.shift_bandwidths.abs()
+        let moved = if self.frequency_trend != FreqTrend::None {
+            self.shift_bandwidths.abs()
         } else {
-            let (lo, hi) = t
+            let (lo, hi) = self
                 .points
                 .iter()
                 .fold((f64::INFINITY, 0.0f64), |(lo, hi), p| {
                     (lo.min(p.damping), hi.max(p.damping))
                 });
-            (hi - lo) / t.damping.max(f64::MIN_POSITIVE)
+            (hi - lo) / self.damping.max(f64::MIN_POSITIVE)
         };
-        moved * t.share
-    };
+        moved * self.share
+    }
+}
+
+/// Marks the dominant moving mode (module documentation, step 5).
+fn mark_dominant(tracks: &mut [ModeTrack]) {
     let best = (0..tracks.len())
-        .filter(|&i| score(&tracks[i]) > 0.0)
-        .max_by(|&a, &b| score(&tracks[a]).total_cmp(&score(&tracks[b])));
+        .filter(|&i| tracks[i].dominance() > 0.0)
+        .max_by(|&a, &b| tracks[a].dominance().total_cmp(&tracks[b].dominance()));
     if let Some(i) = best {
         tracks[i].dominant = true;
     }
+}
+
+/// Whether a moving friction corner outweighs every moving pair (module documentation,
+/// step 5): `corner_shift` is the corner's move over the levels in its own half-power
+/// bandwidth (`|f_c(ρ_max) − f_c(ρ_min)|/(2f_c)`, a real pole's `2|Re s|` as a pair's
+/// `2ζω`), weighted by `body_share`; when it exceeds the dominant pair's
+/// [`ModeTrack::dominance`], no pair is dominant (their `dominant` flags are cleared).
+pub fn corner_dominates(tracks: &mut [ModeTrack], corner_shift: f64, body_share: f64) -> bool {
+    let corner = corner_shift * body_share;
+    let pairs = tracks
+        .iter()
+        .map(ModeTrack::dominance)
+        .fold(0.0f64, f64::max);
+    let wins = corner > 0.0 && corner > pairs;
+    if wins {
+        for t in tracks.iter_mut() {
+            t.dominant = false;
+        }
+    }
+    wins
 }
 
 #[cfg(test)]
@@ -680,10 +736,14 @@ mod tests {
         assert!(!t.frequency_moves && !t.dominant);
         let fallback = (FreqTrend::Hardening, DampingTrend::Increasing);
         assert_eq!(
-            decided(std::slice::from_ref(&t), fallback),
+            decided(std::slice::from_ref(&t), fallback, false),
             (FreqTrend::None, DampingTrend::None)
         );
         t.buried = vec!["l4".into()];
-        assert_eq!(decided(&[t], fallback), fallback);
+        assert_eq!(decided(std::slice::from_ref(&t), fallback, false), fallback);
+        assert_eq!(
+            decided(&[t], fallback, true),
+            (FreqTrend::None, DampingTrend::None)
+        );
     }
 }

@@ -23,9 +23,12 @@
 //! `2450..2466`, `2500..2525`, `2550..2566` (its linear rising cases 2550 and 2560, the false
 //! alarms `compare`'s degrees of freedom fixed, were looked at one by one), `2650..2675` and
 //! `2600..2616` (the neighbouring modes in the local fits were developed on the periodic
-//! misses there), reported by earlier versions; `2000..2150` for the linear and drifting
+//! misses there), `2900..2925` and `2950..2966` (reported by the neighbouring modes'
+//! version; the friction corner's weight against the pairs and the `none` answer with no
+//! level visible were developed on its three wrong cases, 2909, 2913 and 2962), reported by
+//! earlier versions; `2000..2150` for the linear and drifting
 //! stages' false alarms); the default run `50..53` (non-periodic `50..52`); to report next
-//! (not looked at yet) `2900..2925` (periodic) and `2950..2966` (non-periodic):
+//! (not looked at yet) `3600..3625` (periodic) and `3650..3666` (non-periodic):
 //! `cargo test --release -p sd-tests --test diagnose_levels -- --ignored --nocapture`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 use sd_model::median;
@@ -69,10 +72,10 @@ impl LevelGain {
         self.before >= VISIBLE && self.gain() < 3.0 && self.after > FLOOR_SLACK * self.floor
     }
 }
-const REPORT_SEEDS: std::ops::Range<u64> = 2900..2925;
+const REPORT_SEEDS: std::ops::Range<u64> = 3600..3625;
 const CI_SEEDS: std::ops::Range<u64> = 50..53;
 /// Reported seeds of the non-periodic forms (separate noise records, one rising record).
-const REPORT_SEEDS_NOISE: std::ops::Range<u64> = 2950..2966;
+const REPORT_SEEDS_NOISE: std::ops::Range<u64> = 3650..3666;
 /// The default run's non-periodic subset.
 const CI_SEEDS_NOISE: std::ops::Range<u64> = 50..52;
 
@@ -105,6 +108,10 @@ struct Outcome {
     track_errors: Vec<TrackError>,
     /// Tracks near no true mode (their frequencies, Hz).
     spurious: Vec<f64>,
+    /// The largest statistic of the linear model's simulation of one validation level
+    /// (`EvidenceKind::ModelSimulation`, the whole band): whether any level shows the
+    /// effect where the answer has no held-out levels (`none`).
+    simulation_peak: f64,
     /// A moving mode of the amplitude model takes its points from the tracks' local fits
     /// (`sd_diagnose::PointFit::Local`).
     on_tracks: bool,
@@ -114,15 +121,23 @@ impl Outcome {
     /// Whether any held-out level shows the nonlinearity above noise (the linear model's
     /// statistic there at least [`VISIBLE`]).
     fn visible(&self) -> bool {
-        self.levels.iter().any(|l| l.before >= VISIBLE)
+        self.levels.iter().any(|l| l.before >= VISIBLE) || self.simulation_peak >= VISIBLE
     }
 
-    /// The kind named (`hardening`/`softening`), or — where no held-out level shows the
-    /// nonlinearity above noise — `none` (the kind is stated only beyond the frequency
-    /// trend's uncertainty, and a trend the data hardly show may stay within it). The
-    /// opposite kind is always wrong.
+    /// No kind stated (`none` as the kind of a nonlinearity, or the answer `none`) and no
+    /// level shows the effect: a miss of what the data do not show, not a wrong name.
+    fn unseen(&self) -> bool {
+        !self.visible()
+            && (self.kind == Some(FreqTrend::None) || (self.cause == "none" && self.kind.is_none()))
+    }
+
+    /// The kind named (`hardening`/`softening`), or — where no level shows the nonlinearity
+    /// above noise — no kind ([`Outcome::unseen`]: the kind is stated only beyond the
+    /// frequency trend's uncertainty, and a trend the data hardly show may stay within it;
+    /// the answer `none` counts alike since seed 2909, a three-level softening whose largest
+    /// level statistic was 1.17). The opposite kind is always wrong.
     fn kind_right(&self, expected: FreqTrend) -> bool {
-        self.kind == Some(expected) || (!self.visible() && self.kind == Some(FreqTrend::None))
+        self.kind == Some(expected) || self.unseen()
     }
 
     fn right(&self) -> bool {
@@ -348,6 +363,12 @@ fn run(seed: u64, effect: LevelEffect, levels: &[f64], form: Form) -> Option<Out
         case,
         track_errors,
         spurious,
+        simulation_peak: d
+            .evidence
+            .iter()
+            .filter(|e| e.kind == sd_diagnose::EvidenceKind::ModelSimulation)
+            .map(|e| e.statistic)
+            .fold(0.0, f64::max),
     };
     println!(
         "seed {seed} {effect:?} {levels:?} {form_label:.9}: {} kind {:?} (tracks {:?}) damping {:?} corner {:?} gain {:?} levels {:?} \
@@ -492,12 +513,10 @@ fn summarize(out: &[Outcome]) -> (usize, usize) {
         _ => FreqTrend::Softening,
     };
     let named = nl.iter().filter(|o| o.kind == Some(expected(o))).count();
-    let unseen = nl
-        .iter()
-        .filter(|o| o.kind == Some(FreqTrend::None) && !o.visible())
-        .count();
+    let unseen = nl.iter().filter(|o| o.unseen()).count();
     println!(
-        "cubic kind: {named} of {} named right, {unseen} `none` with no level visible, {} wrong",
+        "cubic kind: {named} of {} named right, {unseen} without a kind (or the answer `none`) \
+         with no level visible, {} wrong",
         nl.len(),
         nl.iter().filter(|o| !o.right()).count()
     );

@@ -78,7 +78,7 @@ fn one_seed(seed: u64) -> (usize, usize, usize) {
             spectra: None,
         })
         .collect();
-    let tracks = track_modes(&frds[0], &levels, 0.01).unwrap();
+    let tracks = track_modes(&frds[0], &levels, 0.01).unwrap().modes;
     let near = |f: f64| {
         tracks
             .iter()

@@ -15,7 +15,7 @@ use crate::modal::ModalBasis;
 use crate::stats::{in_bands, statistic, Line, Statistic};
 use crate::{
     Cause, CornerTrend, DampingTrend, DriftCheck, DriftSign, Evidence, EvidenceKind, Extension,
-    FreqTrend, Gain, HeldOut, Result, Verdict,
+    FreqTrend, Gain, HeldOut, ModePoint, MovingMode, PoleKind, Result, Verdict,
 };
 use sd_model::normal_quantile;
 use std::collections::BTreeMap;
@@ -350,7 +350,7 @@ pub(super) fn nonlinearity(
     }
     progress("every physical mode tracked over the levels by local fits");
     let tracks = tracked(data, &levels, &at, alpha);
-    with_local_fits(&mut variants, &levels, &tracks);
+    with_local_fits(&mut variants, &levels, &tracks.modes);
     let every: Vec<usize> = (0..levels.len()).collect();
     let chosen = choose(&variants, &levels, &every, data.h, alpha);
     let Variant { basis, cand, fits } = &variants[chosen];
@@ -370,7 +370,11 @@ pub(super) fn nonlinearity(
     let modes = model.report(&all, &fit_refs, &loo);
     let (kind, damping_trend, corner_trend) = kinds(&modes, normal_quantile(1.0 - alpha / 2.0));
     // the dominant tracked mode names the kind and the damping trend where it states them
-    let (kind, damping_trend) = crate::tracks::decided(&tracks, (kind, damping_trend));
+    let mut tracks = tracks;
+    let corner =
+        crate::tracks::corner_dominates(&mut tracks.modes, corner_shift(&modes), tracks.body_share);
+    let tracks = tracks.modes;
+    let (kind, damping_trend) = crate::tracks::decided(&tracks, (kind, damping_trend), corner);
     let mut models = BTreeMap::new();
     for lv in &levels {
         models.insert(lv.name.clone(), model.model_at(lv)?);
@@ -436,6 +440,25 @@ fn with_local_fits(
     variants.extend(on_local);
 }
 
+/// The largest move of a moving real pole (a friction corner) of the amplitude model over the
+/// levels, in its half-power bandwidth `2f_c` ([`crate::tracks::corner_dominates`]); 0 when
+/// none moves.
+fn corner_shift(modes: &[MovingMode]) -> f64 {
+    modes
+        .iter()
+        .filter(|m| m.pole == PoleKind::Real && m.frequency_moves && m.linear_freq_hz > 0.0)
+        .filter_map(|m| {
+            let by = |a: &&ModePoint, b: &&ModePoint| {
+                a.relative_amplitude.total_cmp(&b.relative_amplitude)
+            };
+            let lo = m.points.iter().min_by(by)?;
+            let hi = m.points.iter().max_by(by)?;
+            Some((hi.freq_hz - lo.freq_hz).abs() / (2.0 * m.linear_freq_hz))
+        })
+        .filter(|s| s.is_finite())
+        .fold(0.0, f64::max)
+}
+
 /// The physical modes tracked over `levels` ([`crate::tracks`]), the model experiment's
 /// physical fit on its thinned lines; empty when it fails.
 fn tracked(
@@ -443,9 +466,9 @@ fn tracked(
     levels: &[Level<'_>],
     at: &[Option<usize>],
     alpha: f64,
-) -> Vec<crate::tracks::ModeTrack> {
+) -> crate::tracks::Tracked {
     let Ok(first) = levels[0].est.thinned() else {
-        return Vec::new();
+        return Default::default();
     };
     let tl: Vec<crate::tracks::TrackLevel<'_>> = levels
         .iter()
