@@ -87,7 +87,7 @@ pub use mimo::{
     diagnose_mimo, ChannelFinding, ChannelKind, EntryCheck, EntryCurves, MimoDiagnoseOptions,
     MimoDiagnosis, MimoGain,
 };
-pub use next_experiment::NextExperiment;
+pub use next_experiment::{Injection, NextExperiment};
 pub use pieces::{Piece, RecordUse};
 pub use prediction::{
     predict_experiments, InBand, ModeAmplitude, PredictedExperiment, Prediction, Unpredictable,

@@ -46,6 +46,26 @@ use std::fmt::Write as _;
 /// Least probability of separating the hypotheses for a proposal to be made.
 pub const NEXT_POWER: f64 = 0.9;
 
+/// Where a proposal's excitation enters: `like`'s injection point.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Injection {
+    /// A force at the plant input (the experiment has no reference column).
+    Input,
+    /// The position reference of the closed loop (the experiment's `reference` column).
+    Reference,
+}
+
+impl Injection {
+    /// The name `sdctl testbed`'s configuration uses.
+    pub fn name(self) -> &'static str {
+        match self {
+            Injection::Input => "input",
+            Injection::Reference => "reference",
+        }
+    }
+}
+
 /// An experiment that would separate the competing explanations of a diagnosis.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct NextExperiment {
@@ -60,7 +80,10 @@ pub struct NextExperiment {
     pub band_hz: [f64; 2],
     /// Excitation level relative to the model experiment's (`like`'s).
     pub level: f64,
-    /// Excitation rms of `like` (the units of its excitation column).
+    /// Where the excitation enters, as in `like`.
+    pub injection: Injection,
+    /// Excitation rms of `like` (the units of its excitation column: N at the input, m for a
+    /// reference).
     pub rms: f64,
     /// Samples per period.
     pub period_samples: usize,
@@ -110,8 +133,9 @@ pub enum NoProposal {
 impl NextExperiment {
     /// The proposal as an `[[experiment]]` table of `sdctl testbed`'s configuration: append it
     /// to the configuration that made the other experiments (its `[truth]` and `[nonideal]`
-    /// are the plant's) to run it on the virtual stage. The excitation's injection point and
-    /// multisine kind are `like`'s: copy them from its table.
+    /// are the plant's) to run it on the virtual stage. The injection point is `like`'s; its
+    /// multisine kind (full, odd, odd-odd) is not recorded in the data: copy it from `like`'s
+    /// table.
     pub fn testbed_toml(&self) -> String {
         let mut s = String::new();
         let _ = writeln!(
@@ -122,7 +146,7 @@ impl NextExperiment {
         );
         let _ = writeln!(
             s,
-            "# `{}` repeated at {} Hz; injection and multisine as in `{}`.",
+            "# `{}` repeated at {} Hz; the multisine's kind as in `{}`.",
             self.like,
             fmt_num(self.rate_hz),
             self.like
@@ -137,6 +161,7 @@ impl NextExperiment {
         let _ = writeln!(s, "f_min = {}", fmt_num(self.band_hz[0]));
         let _ = writeln!(s, "f_max = {}", fmt_num(self.band_hz[1]));
         let _ = writeln!(s, "rms = {}", fmt_num(self.rms));
+        let _ = writeln!(s, "injection = \"{}\"", self.injection.name());
         s
     }
 }

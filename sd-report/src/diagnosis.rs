@@ -309,8 +309,8 @@ fn next_experiment_step(md: &mut String, n: &sd_diagnose::NextExperiment) {
         md,
         "- **The experiment that decides** between {}: repeat `{}` at {} Hz (the model \
          experiment's rate / {}), {} steady periods of {} samples after {} transient ({:.1} s), \
-         band {}–{} Hz, excitation rms {:.4e} as in `{}` (level {:.2} of the model \
-         experiment's), same injection point. If one were true, the other would show the \
+         band {}–{} Hz, excitation rms {:.4e} {} as in `{}` (level {:.2} of the model \
+         experiment's), injected {}. If one were true, the other would show the \
          statistic (1 = noise level): {}; the diagnosis with it separates them with probability \
          {:.3} (predicted from the fitted hypotheses and the noise of `{}`). \
          `next_experiment.toml` is its `[[experiment]]` table for `sdctl testbed`; on the \
@@ -326,8 +326,16 @@ fn next_experiment_step(md: &mut String, n: &sd_diagnose::NextExperiment) {
         hz(n.band_hz[0]),
         hz(n.band_hz[1]),
         n.rms,
+        match n.injection {
+            sd_diagnose::Injection::Input => "N",
+            sd_diagnose::Injection::Reference => "m",
+        },
         n.like,
         n.level,
+        match n.injection {
+            sd_diagnose::Injection::Input => "as a force at the plant input",
+            sd_diagnose::Injection::Reference => "in the position reference",
+        },
         expected.join(", "),
         n.power,
         n.like,

@@ -252,6 +252,21 @@ fn the_proposal_decides_a_fixed_case() {
         cfg.identification[0].periods,
         n.periods + n.transient_periods
     );
+    // the injection point is the repeated experiment's: a reference column means reference
+    let like = case
+        .experiments
+        .iter()
+        .find(|e| e.spec.name == n.like)
+        .unwrap();
+    let by_reference = like.r.is_some();
+    assert_eq!(
+        cfg.identification[0].injection == sd_testbed::experiments::Injection::Reference,
+        by_reference
+    );
+    assert_eq!(
+        v["next_experiment"]["injection"],
+        if by_reference { "reference" } else { "input" }
+    );
     let x = proposed(seed, effect, rec, (n.rate_hz, n.period_samples, n.periods)).unwrap();
     let mut exps = case.experiments.clone();
     exps.push(x);

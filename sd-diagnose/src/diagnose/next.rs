@@ -13,7 +13,7 @@ use super::read::{Data, Val};
 use crate::data::{Estimate, Part};
 use crate::hypotheses::{Family, Fitted, Target};
 use crate::modal::Residues;
-use crate::next_experiment::{separation_power, NextExperiment, NoProposal, NEXT_POWER};
+use crate::next_experiment::{separation_power, Injection, NextExperiment, NoProposal, NEXT_POWER};
 use crate::{RateTied, Result};
 use nalgebra::DMatrix;
 use num_complex::Complex64 as C;
@@ -517,6 +517,11 @@ fn proposal(
             f.iter().copied().fold(0.0, f64::max),
         ],
         level: t.val.level,
+        injection: if t.val.exp.r.is_some() {
+            Injection::Reference
+        } else {
+            Injection::Input
+        },
         rms: t.rms,
         period_samples: t.period_at(c.factor).unwrap_or(t.period),
         periods: c.periods,
