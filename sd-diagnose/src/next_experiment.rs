@@ -247,6 +247,7 @@ mod tests {
             factor: 4,
             band_hz: [1.25, 600.0],
             level: 1.0,
+            injection: Injection::Reference,
             rms: 0.5,
             period_samples: 2000,
             periods: 8,
@@ -263,5 +264,6 @@ mod tests {
         assert!(t.contains("periods = 9\n") && t.contains("transient_periods = 1\n"));
         assert!(t.contains("f_min = 1.25\n") && t.contains("rms = 0.5\n"));
         assert!(t.contains("period = 2000\n") && t.contains("role = \"validation\""));
+        assert!(t.contains("injection = \"reference\"\n"), "{t}");
     }
 }

@@ -706,6 +706,48 @@ mod tests {
         assert!(!v[0].dominant);
     }
 
+    /// A friction corner that moves by most of its bandwidth outweighs a pair holding a
+    /// thousandth of the response moved by a hundredth of its own (seeds 2913, 2962 of the
+    /// level suite); a pair holding half the response, moved by a bandwidth, outweighs it.
+    #[test]
+    fn a_moving_corner_outweighs_a_negligible_pair() {
+        let pts = |df: f64| {
+            vec![
+                point(1.0, 100.0, 0.001, 0.010),
+                point(2.0, 100.0 + df / 2.0, 0.001, 0.010),
+                point(4.0, 100.0 + df, 0.001, 0.010),
+            ]
+        };
+        // ζ = 0.01 at 100 Hz: a half-power bandwidth of 2 Hz
+        let mut weak = vec![track(
+            100.0,
+            0.01,
+            1e-3,
+            (95.0, 105.0),
+            pts(-0.02),
+            (0.01, 2.576),
+        )];
+        mark_dominant(&mut weak);
+        assert!(weak[0].dominant && weak[0].frequency_trend == FreqTrend::Softening);
+        assert!((weak[0].dominance() - 0.01 * 1e-3).abs() < 1e-12);
+        // the corner: 40 → 8 Hz over the levels, 0.4 of its 2f_c, the body 0.9 of the response
+        assert!(corner_dominates(&mut weak, 0.4, 0.9));
+        assert!(!weak[0].dominant);
+        let mut strong = vec![track(
+            100.0,
+            0.01,
+            0.5,
+            (95.0, 105.0),
+            pts(-2.0),
+            (0.01, 2.576),
+        )];
+        mark_dominant(&mut strong);
+        assert!(!corner_dominates(&mut strong, 0.4, 0.9));
+        assert!(strong[0].dominant);
+        // no moving corner: nothing changes
+        assert!(!corner_dominates(&mut strong, 0.0, 0.9));
+    }
+
     /// No tracked mode moves: `none`, unless a mode was buried at a level above the model
     /// experiment's, where the amplitude model (the fallback) speaks.
     /// What of a skirt no weighted line takes up: nothing of a complex line, `2/3` of `δ²` on

@@ -99,6 +99,10 @@ pub struct Recording {
     pub drift: bool,
     /// Periodic multisine (true) or one non-periodic record (LPM).
     pub periodic: bool,
+    /// A level case's periodic multisine excites every line of its band (a full random-phase
+    /// multisine, one realization: no detection lines, so the nonlinear distortion cannot be
+    /// measured, as in a ground vibration test); else random-odd with detection lines.
+    pub full: bool,
 }
 
 impl Recording {
@@ -109,6 +113,12 @@ impl Recording {
         reference: false,
         drift: false,
         periodic: true,
+        full: false,
+    };
+    /// [`Recording::PERIODIC`] with every line of the band excited.
+    pub const FULL: Recording = Recording {
+        full: true,
+        ..Recording::PERIODIC
     };
     /// [`Recording::PERIODIC`] as one non-periodic record as long as its periods (LPM).
     pub const NOISE: Recording = Recording {
@@ -434,6 +444,7 @@ pub fn random_recording(r: &mut Rng, periodic_only: bool) -> Recording {
         reference: r.uniform() < 0.5,
         drift: r.uniform() < 0.3,
         periodic: periodic_only || r.uniform() >= 0.2,
+        full: false,
     }
 }
 
@@ -474,6 +485,7 @@ pub fn consistent(seed: u64) -> Case {
             reference: r.uniform() < 0.5,
             drift: r.uniform() < 0.5,
             periodic: r.uniform() >= 0.25,
+            full: false,
         };
         let effect = if r.uniform() < 0.2 {
             Effect::Filter(r.range(1200.0, 2400.0))
@@ -660,9 +672,13 @@ pub fn level_case_realization(
     let noise_seed = |k: usize| seed * 11 + k as u64 + realization * 1_000_003;
     let len = st.fast_rate as usize * (1 + rec.steady);
     let exp = |st: &Stage, l: f64, k: usize| Exp {
-        lines: Lines::RandomOdd {
-            group: 3,
-            seed: seed + 77,
+        lines: if rec.full {
+            Lines::Full
+        } else {
+            Lines::RandomOdd {
+                group: 3,
+                seed: seed + 77,
+            }
         },
         name: "",
         rate: st.fast_rate,

@@ -735,6 +735,7 @@ fn development_levels() {
         Ok("noise") => Form::Separate(NOISE),
         Ok("rising") => Form::Rising,
         Ok("burst") => Form::Burst,
+        Ok("full") => Form::Separate(Recording::FULL),
         _ => Form::Separate(PERIODIC),
     };
     let out = cases(a..b, form);
@@ -997,6 +998,7 @@ fn one_case() {
         Ok("noise") => Form::Separate(NOISE),
         Ok("rising") => Form::Rising,
         Ok("burst") => Form::Burst,
+        Ok("full") => Form::Separate(Recording::FULL),
         _ => Form::Separate(PERIODIC),
     };
     let out = cases(seed..seed + 1, form);
