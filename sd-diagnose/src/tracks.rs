@@ -64,11 +64,11 @@
 //!
 //! Judged against each mode's best linear approximation computed apart (the level suite's
 //! `sd_tests::modal_truth`: every mode integrated alone under random-phase forces with each
-//! level's spectrum), the tracked frequencies lie within 2.576 standard errors on 96.9 % of
-//! the points on periodic records and on 95.3–99.4 % on non-periodic ones (noise records,
-//! rising and burst records; fresh seeds; 91.7 % on periodic development seeds before the
-//! neighbouring modes entered the local fits); docs/diagnosis.md has the figures and the
-//! command.
+//! level's spectrum), the tracked frequencies lie within 2.576 standard errors on 97.9 % of
+//! the points on periodic records and on 95.2–97.9 % on non-periodic ones (noise records,
+//! rising and burst records; fresh seeds 3600..3625 and 3650..3666; 91.7 % on periodic
+//! development seeds before the neighbouring modes entered the local fits);
+//! docs/diagnosis.md has the figures and the command.
 
 use crate::{DampingTrend, FreqTrend, Result};
 use num_complex::Complex64 as C;

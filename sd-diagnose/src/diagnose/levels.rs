@@ -334,7 +334,14 @@ pub(super) fn nonlinearity(
         .iter()
         .find_map(|b| level_fits(b, data, &levels).map(|x| (b, x)));
     let Some((basis, (cand, fits))) = tried else {
-        return Ok(per_level(data, found, (relative_levels, check), alpha));
+        // no amplitude model: the physical modes tracked over the levels still name the kind
+        let tracks = tracked(data, &levels, &at, alpha).modes;
+        return Ok(per_level(
+            data,
+            found,
+            (relative_levels, check, tracks),
+            alpha,
+        ));
     };
     // the two-level validation fits its earlier periods with the level fit: it keeps the
     // level fits of the model experiment too, not the tracks'
@@ -639,14 +646,22 @@ pub(super) fn later_periods(
     .with_metric(Gain::METRIC_BANDS))
 }
 
-/// Without in-band modes to move: one FRF per level (the level's own earlier periods predict
-/// its later ones).
+/// Without an amplitude model (no in-band modes to move, or a level no modal fit describes):
+/// one FRF per level (the level's own earlier periods predict its later ones); `kind` and
+/// `damping_trend` from the physical modes tracked over the levels when they state them
+/// ([`crate::tracks::decided`]), else `none`.
 pub(super) fn per_level(
     data: &Data<'_>,
     found: &[(usize, Statistic)],
-    (relative_levels, check): (BTreeMap<String, f64>, DriftCheck),
+    (relative_levels, check, tracks): (
+        BTreeMap<String, f64>,
+        DriftCheck,
+        Vec<crate::tracks::ModeTrack>,
+    ),
     alpha: f64,
 ) -> Outcome {
+    let (kind, damping_trend) =
+        crate::tracks::decided(&tracks, (FreqTrend::None, DampingTrend::None), false);
     let (mut b, mut af, mut held) = (0.0, 0.0, Vec::new());
     for (i, _) in found {
         let v = &data.vals[*i];
@@ -676,11 +691,11 @@ pub(super) fn per_level(
         verdict: Verdict::Discrepancy,
         causes: vec![Cause::Nonlinearity {
             relative_levels,
-            kind: FreqTrend::None,
-            damping_trend: DampingTrend::None,
+            kind,
+            damping_trend,
             corner_trend: CornerTrend::None,
             modes: Vec::new(),
-            tracks: Vec::new(),
+            tracks,
             drift_check: check,
         }],
         extension: Extension::PerLevel,
