@@ -27,8 +27,11 @@
 //! version; the friction corner's weight against the pairs and the `none` answer with no
 //! level visible were developed on its three wrong cases, 2909, 2913 and 2962), reported by
 //! earlier versions; `2000..2150` for the linear and drifting
-//! stages' false alarms); the default run `50..53` (non-periodic `50..52`); to report next
-//! (not looked at yet) `3600..3625` (periodic) and `3650..3666` (non-periodic):
+//! stages' false alarms); the default run `50..53` (non-periodic `50..52`); reported by the
+//! friction corner's version (commit 7bd8c30) `3600..3625` (periodic) and `3650..3666`
+//! (non-periodic), the constants below; full multisines of one realization
+//! (`LEVEL_REC=full`): development `3700..3712` (the per-level answer's kind from the tracks
+//! was developed there), reported `3720..3745`; all of them:
 //! `cargo test --release -p sd-tests --test diagnose_levels -- --ignored --nocapture`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 use sd_model::median;
@@ -76,6 +79,8 @@ const REPORT_SEEDS: std::ops::Range<u64> = 3600..3625;
 const CI_SEEDS: std::ops::Range<u64> = 50..53;
 /// Reported seeds of the non-periodic forms (separate noise records, one rising record).
 const REPORT_SEEDS_NOISE: std::ops::Range<u64> = 3650..3666;
+/// Reported seeds of full multisines of one realization ([`levels_reported_full`]).
+const REPORT_SEEDS_FULL: std::ops::Range<u64> = 3720..3745;
 /// The default run's non-periodic subset.
 const CI_SEEDS_NOISE: std::ops::Range<u64> = 50..52;
 
@@ -723,13 +728,28 @@ fn levels_reported() {
     truth_check(&out).assert(TRUTH_SHARE_REPORTED, "periodic");
 }
 
+/// The reported seeds of full multisines of one realization ([`REPORT_SEEDS_FULL`]: every
+/// line excited, no detection lines, the distortion not measured — a ground vibration test's
+/// recording): `cargo test --release -p sd-tests --test diagnose_levels levels_reported_full
+/// -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn levels_reported_full() {
+    let out = cases(REPORT_SEEDS_FULL, Form::Separate(Recording::FULL));
+    let (wrong, weak) = summarize(&out);
+    assert_eq!(wrong, 0, "wrong kinds or causes");
+    assert_eq!(weak, 0, "visible levels with a gain below 3");
+    truth_check(&out).assert(TRUTH_SHARE_REPORTED, "full multisines");
+}
+
 /// Development seeds: `LEVEL_SEEDS=0..20 cargo test --release -p sd-tests --test
-/// diagnose_levels development -- --ignored --nocapture`.
+/// diagnose_levels development -- --ignored --nocapture` (`LEVEL_REC=noise`, `rising`,
+/// `burst`, `full` for the other record forms).
 #[test]
 #[ignore]
 fn development_levels() {
     let std::ops::Range { start: a, end: b } = sd_tests::env_seeds("LEVEL_SEEDS", 0..4);
-    for r in [REPORT_SEEDS, REPORT_SEEDS_NOISE] {
+    for r in [REPORT_SEEDS, REPORT_SEEDS_NOISE, REPORT_SEEDS_FULL] {
         assert!(
             b <= r.start || a >= r.end,
             "development seeds must not touch the reported range {r:?}"
