@@ -155,6 +155,17 @@ pub(super) fn nonlinearity_text(c: &Cause) -> Option<String> {
                 "the dominant moving mode softens (its frequency falls \
                                          with amplitude)"
             }
+            // a pair moved, but the moving friction corner outweighs it
+            // (`sd_diagnose::tracks::corner_dominates`)
+            FreqTrend::None
+                if *corner_trend != CornerTrend::None
+                    && tracks.iter().any(|t| t.frequency_moves)
+                    && !tracks.iter().any(|t| t.dominant) =>
+            {
+                "no mode's frequency trend is named: the moving corner outweighs the tracked \
+                 modes' shifts (each in half-power bandwidths, weighted by its share of the \
+                 response)"
+            }
             FreqTrend::None => "no mode's frequency moves beyond its uncertainty",
         };
         let damp = match damping_trend {
@@ -310,5 +321,67 @@ pub(super) fn explain_failed(d: &Diagnosis, e: &sd_diagnose::Evidence) -> String
              experiment: it is compared as a level (a test for nonlinearity), not as a repeat"
             .into(),
         K::NotRepeatable | K::Drift => "this is the verdict's reason (the test says it)".into(),
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+    use sd_diagnose::{ModeTrack, TrackPoint};
+
+    fn track(moves: bool, dominant: bool) -> ModeTrack {
+        let point = |l: f64, f: f64| TrackPoint {
+            experiment: format!("l{l}"),
+            relative_level: l,
+            freq_hz: f,
+            freq_std: 0.01,
+            damping: 0.01,
+            damping_std: 1e-4,
+        };
+        ModeTrack {
+            freq_hz: 1776.0,
+            damping: 0.0138,
+            share: 1e-4,
+            band_hz: (1700.0, 1850.0),
+            frequency_moves: moves,
+            damping_moves: false,
+            frequency_trend: if moves {
+                FreqTrend::Softening
+            } else {
+                FreqTrend::None
+            },
+            damping_trend: DampingTrend::None,
+            shift_bandwidths: -0.005,
+            dominant,
+            points: vec![point(1.0, 1776.08), point(4.0, 1775.84)],
+            buried: Vec::new(),
+        }
+    }
+
+    fn cause(tracks: Vec<ModeTrack>, corner: CornerTrend) -> Cause {
+        Cause::Nonlinearity {
+            relative_levels: [("level_4".to_string(), 4.0)].into_iter().collect(),
+            kind: FreqTrend::None,
+            damping_trend: DampingTrend::None,
+            corner_trend: corner,
+            modes: Vec::new(),
+            tracks,
+            drift_check: DriftCheck::DistortionSeen,
+        }
+    }
+
+    /// A pair that moved but was outweighed by the friction corner is said so; without a
+    /// moving corner, a kind of `none` means no mode moved.
+    #[test]
+    fn the_corner_outweighing_a_moving_pair_is_said() {
+        let t = nonlinearity_text(&cause(vec![track(true, false)], CornerTrend::Falling)).unwrap();
+        assert!(t.contains("the moving corner outweighs"), "{t}");
+        assert!(t.contains("friction-like"), "{t}");
+        let t = nonlinearity_text(&cause(vec![track(false, false)], CornerTrend::None)).unwrap();
+        assert!(
+            t.contains("no mode's frequency moves beyond its uncertainty"),
+            "{t}"
+        );
     }
 }
