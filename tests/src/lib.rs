@@ -51,6 +51,17 @@ pub fn env_seeds(var: &str, default: std::ops::Range<u64>) -> std::ops::Range<u6
     parsed.unwrap_or_else(|| panic!("{var}={spec:?} is not a seed range `a..b`"))
 }
 
+/// The whole number in the environment variable `var`, `default` when it is unset; a value
+/// that is no whole number stops the test, naming it.
+pub fn env_number(var: &str, default: u64) -> u64 {
+    let Ok(spec) = std::env::var(var) else {
+        return default;
+    };
+    spec.trim()
+        .parse()
+        .unwrap_or_else(|_| panic!("{var}={spec:?} is not a whole number"))
+}
+
 pub mod designs;
 pub mod gen;
 

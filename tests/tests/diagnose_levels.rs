@@ -773,7 +773,7 @@ fn development_levels() {
 #[test]
 #[ignore]
 fn realizations_of_one_stage() {
-    let seed: u64 = std::env::var("LEVEL_SEED").map_or(7, |s| s.parse().unwrap());
+    let seed = sd_tests::env_number("LEVEL_SEED", 7);
     let out: Vec<Outcome> = sd_tests::env_seeds("LEVEL_REALIZATIONS", 1..9)
         .filter_map(|r| {
             run(
@@ -1017,7 +1017,7 @@ fn a_distorted_repeat_is_not_drift() {
 #[test]
 #[ignore]
 fn one_case() {
-    let seed: u64 = std::env::var("LEVEL_CASE").map_or(0, |s| s.parse().unwrap());
+    let seed = sd_tests::env_number("LEVEL_CASE", 0);
     let form = match std::env::var("LEVEL_REC").as_deref() {
         Ok("noise") => Form::Separate(NOISE),
         Ok("rising") => Form::Rising,

@@ -95,10 +95,7 @@ fn one_more_rate_development() {
 #[test]
 #[ignore]
 fn one_more_rate_debug() {
-    let seed: u64 = std::env::var("SEED")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(1);
+    let seed: u64 = sd_tests::env_number("SEED", 1);
     let effect = effect_of(seed);
     let (case, other) = with_another_rate(seed, effect, PERIODIC).unwrap();
     for extra in [false, true] {

@@ -297,10 +297,7 @@ fn reported() {
 #[test]
 #[ignore]
 fn debug() {
-    let seed: u64 = std::env::var("SEED")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(2);
+    let seed: u64 = sd_tests::env_number("SEED", 2);
     let (effect, rec) = effect_of(seed);
     println!("{rec:?}");
     let case = build(seed, effect, rec).unwrap();

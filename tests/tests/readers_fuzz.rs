@@ -149,10 +149,7 @@ fn seeds_are_valid() {
 #[test]
 #[ignore = "long fuzz run; FUZZ_SECONDS=600 cargo test --release -p sd-tests --test readers_fuzz long_fuzz -- --ignored --nocapture"]
 fn long_fuzz() {
-    let secs: u64 = std::env::var("FUZZ_SECONDS")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(60);
+    let secs: u64 = sd_tests::env_number("FUZZ_SECONDS", 60);
     for which in 0..6 {
         let mut rng = SplitMix::new(0xf022 + which as u64);
         let (t0, mut n, mut slowest) = (Instant::now(), 0u64, Duration::ZERO);

@@ -300,33 +300,8 @@ pub(super) fn nonlinearity(
         return Ok(o);
     }
     let check = drift_check(data, alpha);
-    let mut levels = vec![Level {
-        name: data.model_exp.spec.name.clone(),
-        exp: data.model_exp,
-        est: &data.fast,
-    }];
-    let mut at: Vec<Option<usize>> = vec![None];
-    for (i, v) in data.vals.iter().enumerate().filter(|(_, v)| v.factor == 1) {
-        levels.push(Level {
-            name: v.exp.spec.name.clone(),
-            exp: v.exp,
-            est: &v.whole,
-        });
-        at.push(Some(i));
-    }
-    // a rigid body damped at the model experiment's level (friction) becomes one block whose
-    // damping moves (a pole below the first line is an integrator for the data)
-    let f0 = data.fast.frd.freq_hz().first().copied().unwrap_or(0.0);
-    let mut damped = j
-        .modal
-        .basis
-        .with_damped_rigid_body(std::f64::consts::TAU * f0)?;
-    if !damped.is_damped() {
-        let near_zero = std::f64::consts::TAU * f0;
-        if let Some(b) = damped_reading(&damped, near_zero, data.h, &levels[0], alpha)? {
-            damped = b;
-        }
-    }
+    let (levels, at) = levels_of(data);
+    let damped = damped_basis(data, j, &levels[0], alpha)?;
     progress("modal fit of every level");
     // the bases in the order tried; the first whose level fits all succeed
     let bases = candidate_bases(&damped, &j.modal.basis, data.h, &levels[0], alpha)?;
@@ -375,13 +350,7 @@ pub(super) fn nonlinearity(
         )
     };
     let modes = model.report(&all, &fit_refs, &loo);
-    let (kind, damping_trend, corner_trend) = kinds(&modes, normal_quantile(1.0 - alpha / 2.0));
-    // the dominant tracked mode names the kind and the damping trend where it states them
-    let mut tracks = tracks;
-    let corner =
-        crate::tracks::corner_dominates(&mut tracks.modes, corner_shift(&modes), tracks.body_share);
-    let tracks = tracks.modes;
-    let (kind, damping_trend) = crate::tracks::decided(&tracks, (kind, damping_trend), corner);
+    let (kind, damping_trend, corner_trend, tracks) = trends(&modes, tracks, alpha);
     let mut models = BTreeMap::new();
     for lv in &levels {
         models.insert(lv.name.clone(), model.model_at(lv)?);
@@ -445,6 +414,64 @@ fn with_local_fits(
         })
         .collect();
     variants.extend(on_local);
+}
+
+/// The model experiment first, then every experiment at its rate, each with its index in
+/// `data.vals` (`None` for the model experiment).
+fn levels_of<'d>(data: &'d Data<'_>) -> (Vec<Level<'d>>, Vec<Option<usize>>) {
+    let mut levels = vec![Level {
+        name: data.model_exp.spec.name.clone(),
+        exp: data.model_exp,
+        est: &data.fast,
+    }];
+    let mut at: Vec<Option<usize>> = vec![None];
+    for (i, v) in data.vals.iter().enumerate().filter(|(_, v)| v.factor == 1) {
+        levels.push(Level {
+            name: v.exp.spec.name.clone(),
+            exp: v.exp,
+            est: &v.whole,
+        });
+        at.push(Some(i));
+    }
+    (levels, at)
+}
+
+/// The model's basis with a rigid body damped at the model experiment's level (friction)
+/// as one block whose damping moves (a pole below the first line is an integrator for the
+/// data), or read from `reference` when the basis has none.
+fn damped_basis(
+    data: &Data<'_>,
+    j: &Judged<'_>,
+    reference: &Level<'_>,
+    alpha: f64,
+) -> Result<ModalBasis> {
+    let near_zero = std::f64::consts::TAU * data.fast.frd.freq_hz().first().copied().unwrap_or(0.0);
+    let damped = j.modal.basis.with_damped_rigid_body(near_zero)?;
+    if damped.is_damped() {
+        return Ok(damped);
+    }
+    Ok(damped_reading(&damped, near_zero, data.h, reference, alpha)?.unwrap_or(damped))
+}
+
+/// `kind`, `damping_trend` and `corner_trend` of the amplitude model's `modes`, the first
+/// two from the tracked physical modes where they state them — unless a moving friction
+/// corner outweighs every moving pair ([`crate::tracks::corner_dominates`]).
+fn trends(
+    modes: &[MovingMode],
+    mut tracks: crate::tracks::Tracked,
+    alpha: f64,
+) -> (
+    FreqTrend,
+    DampingTrend,
+    CornerTrend,
+    Vec<crate::tracks::ModeTrack>,
+) {
+    let (kind, damping_trend, corner_trend) = kinds(modes, normal_quantile(1.0 - alpha / 2.0));
+    let corner =
+        crate::tracks::corner_dominates(&mut tracks.modes, corner_shift(modes), tracks.body_share);
+    let (kind, damping_trend) =
+        crate::tracks::decided(&tracks.modes, (kind, damping_trend), corner);
+    (kind, damping_trend, corner_trend, tracks.modes)
 }
 
 /// The largest move of a moving real pole (a friction corner) of the amplitude model over the
