@@ -38,7 +38,15 @@
 //! degrees of freedom — a band the local form describes only approximately, or weights
 //! `1/σ̂²` from estimated variances (their scatter raises the cost per degree of freedom to
 //! `ν/(ν − 2)` for `ν` real degrees of freedom) — widens the standard errors rather than
-//! being ignored.
+//! being ignored. On independent lines the excess is not spread evenly: it is carried by a
+//! variance proportional to the response, `σ²_k·q_k` with `q_k = 1 + c·|G_k|²/σ²_k` and `c`
+//! such that the mean of `q` is the cost per degree of freedom (the meat's `R` weighted by
+//! `√(q_k q_m)`, as for correlated lines below). That is the shape of a structure's
+//! stochastic nonlinear distortion — an internal force passing through the same
+//! resonance, largest at its peak, where the lines that fix `ω_n` and `ζ` are — which a full
+//! multisine of one realization leaves out of the variance the lines are weighted by (on
+//! the level suite's full multisines the even spread left the tracked frequencies of
+//! cubic modes within 2.576 standard errors of their truth at 90 % of the points).
 //!
 //! # Weights of correlated lines
 //!
@@ -513,6 +521,13 @@ fn solve_with(
             band.0, band.1
         )));
     }
+    // independent lines with an excess cost: the excess shaped as distortion (module
+    // documentation, "Standard errors")
+    let shaped = match ratio {
+        None if noise.correlation.len() <= 1 => distortion_ratio(data, (wn, zeta), cost / dof),
+        _ => None,
+    };
+    let ratio = ratio.or(shaped.as_deref());
     let mean_ratio = ratio.map_or(1.0, |q| q.iter().sum::<f64>() / q.len().max(1) as f64);
     let cov = covariance(data, (wn, zeta), &r, noise, ratio)? * (cost / dof / mean_ratio).max(1.0);
     let var = |i: usize| cov[(i, i)].max(0.0);
@@ -524,6 +539,32 @@ fn solve_with(
         lines,
         cost_per_dof: cost / dof,
     })
+}
+
+/// The lines' error variances over their noise variances when the cost per degree of
+/// freedom `excess` is above 1 on independent lines: `q_k = 1 + c·|G_k|²/σ_k²`, the excess
+/// carried by a distortion variance proportional to the response (module documentation,
+/// "Standard errors"), `c` such that the mean of `q` is `excess`; `None` without an excess
+/// or without a response.
+fn distortion_ratio(
+    data: &dyn LocalProblem,
+    (wn, zeta): (f64, f64),
+    excess: f64,
+) -> Option<Vec<f64>> {
+    // an excess that is no number (NaN) is none either
+    if excess.is_nan() || excess <= 1.0 {
+        return None;
+    }
+    let (_, b) = data.system(wn, zeta);
+    let snr: Vec<f64> = (0..b.len() / 2)
+        .map(|k| b[2 * k].powi(2) + b[2 * k + 1].powi(2))
+        .collect();
+    let mean = snr.iter().sum::<f64>() / snr.len().max(1) as f64;
+    if mean.is_nan() || mean <= 0.0 || mean.is_infinite() {
+        return None;
+    }
+    let c = (excess - 1.0) / mean;
+    Some(snr.iter().map(|s| 1.0 + c * s).collect())
 }
 
 /// `(JᵀJ)⁻¹ (Jᵀ R J) (JᵀJ)⁻¹` at `θ = (ω_n, ζ)` with the projected Jacobian `J` (module
