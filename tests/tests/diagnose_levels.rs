@@ -29,9 +29,13 @@
 //! earlier versions; `2000..2150` for the linear and drifting
 //! stages' false alarms); the default run `50..53` (non-periodic `50..52`); reported by the
 //! friction corner's version (commit 7bd8c30) `3600..3625` (periodic) and `3650..3666`
-//! (non-periodic), the constants below; full multisines of one realization
-//! (`LEVEL_REC=full`): development `3700..3712` (the per-level answer's kind from the tracks
-//! was developed there), reported `3720..3745`; all of them:
+//! (non-periodic); full multisines of one realization (`LEVEL_REC=full`): development
+//! `3700..3712` (the per-level answer's kind from the tracks was developed there) and
+//! `3720..3745` (reported by commit f4c2b02; the ripples, the slope test and the
+//! distortion-shaped standard errors were developed on its four wrong cases, 3723, 3726,
+//! 3728, 3732, and checked on `3700..3745`); reported by that version (commits c82e073,
+//! e952644) `3800..3825` (periodic), `3850..3866` (non-periodic) and `3870..3895` (full
+//! multisines), the constants below; all of them:
 //! `cargo test --release -p sd-tests --test diagnose_levels -- --ignored --nocapture`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 use sd_model::median;
