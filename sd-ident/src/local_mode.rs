@@ -674,6 +674,56 @@ mod tests {
         Frd::new(f, g, Some(var), SampleTime::discrete(ts).unwrap()).unwrap()
     }
 
+    /// One mode (40 Hz, ζ 0.02, at 1 kHz, 0.25 Hz lines) whose lines carry, besides a
+    /// noise floor the FRD states, an unstated distortion of variance `(d·|G|)²` — at the
+    /// peak 50 times the floor, as a full multisine of one realization leaves it; the
+    /// frequency's error over its standard error.
+    fn distorted_z(seed: u64) -> Option<f64> {
+        let (ts, fm, zeta) = (1e-3, 40.0, 0.02);
+        let f: Vec<f64> = (1..800).map(|k| 0.25 * k as f64).collect();
+        let mut rng = crate::rng::SplitMix::new(seed);
+        let wn: f64 = TAU * fm;
+        let p = C::new(-zeta * wn, wn * (1.0 - zeta * zeta).sqrt());
+        let r = C::new(0.0, -wn / 2.0);
+        let lam = (p * ts).exp();
+        let g_of = |fk: f64| {
+            let z = C::new(0.0, TAU * fk * ts).exp();
+            let t = r * (lam - 1.0) / p / (z - lam);
+            t + (r.conj() * (lam.conj() - 1.0) / p.conj() / (z - lam.conj()))
+        };
+        let peak = g_of(fm).norm();
+        let (floor, d) = (1e-3 * peak, 0.05);
+        let mut g = Vec::new();
+        let mut var = Vec::new();
+        for &fk in &f {
+            let v = g_of(fk);
+            let s = (floor * floor + (d * v.norm()).powi(2)).sqrt();
+            let e = C::new(rng.normal(), rng.normal()) * (s / 2f64.sqrt());
+            g.push(nalgebra::DMatrix::from_element(1, 1, v + e));
+            var.push(nalgebra::DMatrix::from_element(1, 1, floor * floor));
+        }
+        let frd = Frd::new(f, g, Some(var), SampleTime::discrete(ts).unwrap()).unwrap();
+        let band = (fm - 4.0 * zeta * fm, fm + 4.0 * zeta * fm);
+        let m = local_mode(&frd, band, (fm * 1.005, zeta * 1.3)).ok()?;
+        Some((m.freq_hz - fm).abs() / m.freq_std)
+    }
+
+    /// The distortion-shaped excess covers the truth where the FRF's variance leaves the
+    /// distortion out. 400 seeds: for correct standard errors the count outside the 99 %
+    /// interval is binomial (mean 4), more than 12 outside has probability about 1e-4; the
+    /// rms of error over standard error is 1 (outside 0.85–1.2 far less often). Spreading
+    /// the excess evenly instead gave 23 of 399 outside and an rms of 1.37 when this test was
+    /// written; the shaped excess 9 and 1.10.
+    #[test]
+    fn an_unstated_distortion_is_covered() {
+        let z: Vec<f64> = (0..400).filter_map(distorted_z).collect();
+        assert!(z.len() >= 395, "only {} of 400 fits", z.len());
+        let outside = z.iter().filter(|&&v| v > 2.576).count();
+        let rms = (z.iter().map(|v| v * v).sum::<f64>() / z.len() as f64).sqrt();
+        assert!(outside <= 12, "{outside} of {} outside 2.576 σ", z.len());
+        assert!((0.85..1.2).contains(&rms), "rms of error/σ {rms}");
+    }
+
     #[test]
     fn recovers_each_mode_within_its_standard_error() {
         let mut worst: f64 = 0.0;
