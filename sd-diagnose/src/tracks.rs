@@ -10,9 +10,10 @@
 //!    [`MODE_FIT_LINES`] lines, no pair narrower than the line spacing unless the held-out
 //!    lines demand it) gives the lightly damped pairs in the band
 //!    (ζ < [`MAX_DAMPING`]) with their share of the response. A pair at the bandwidth floor
-//!    ([`FLOOR_RESOLUTION`]) inside a broader pair's half-power band whose own peak is below
-//!    that pair's term at its frequency is a *ripple*, not a mode: it has no peak of its own
-//!    in the response, and the fit spent it on what repeats from period to period (a full
+//!    ([`sd_ident::FLOOR_RESOLUTION`]) inside a broader pair's half-power band whose own peak
+//!    is below that pair's term at its frequency is a *ripple*
+//!    ([`sd_ident::PhysicalMode::ripple`]), not a mode: it has no peak of its own in the
+//!    response, and the fit spent it on what repeats from period to period (a full
 //!    multisine of one realization leaves the distortion out of the variance the fit
 //!    weighs by; on the level suite's full-multisine seeds such a pole 2–15 Hz from a
 //!    softening or hardening mode narrowed that mode's band below what its local fits need,
@@ -220,18 +221,13 @@ pub fn track_modes(modes_from: &Frd, levels: &[TrackLevel<'_>], alpha: f64) -> R
         ..StabilizationOptions::default()
     };
     let phys = physical_fit(&thinned, &opt, &mut |_| {})?;
-    let candidates: Vec<_> = phys
+    let pairs: Vec<_> = phys
         .modes
         .iter()
         .zip(&phys.fit.terms)
-        .filter(|(m, _)| m.kind == ModeKind::Pair && m.in_band && m.damping < MAX_DAMPING)
-        .collect();
-    let ts = modes_from.time().ts().unwrap_or(0.0);
-    let ripple = ripples(&candidates, ts);
-    let pairs: Vec<_> = candidates
-        .into_iter()
-        .zip(ripple)
-        .filter_map(|(p, r)| (!r).then_some(p))
+        .filter(|(m, _)| {
+            m.kind == ModeKind::Pair && m.in_band && m.damping < MAX_DAMPING && !m.ripple
+        })
         .collect();
     let df = phys.line_spacing_hz;
     let body_share = phys
@@ -280,32 +276,6 @@ pub fn track_modes(modes_from: &Frd, levels: &[TrackLevel<'_>], alpha: f64) -> R
         modes: tracks,
         body_share,
     })
-}
-
-/// A pair at most this far above the bandwidth floor (its half-power bandwidth over the
-/// line spacing, [`sd_ident::PhysicalMode::resolution`]) sits at the floor: the fit would
-/// have made it narrower than the lines resolve.
-pub const FLOOR_RESOLUTION: f64 = 1.01;
-
-/// Which of `pairs` are ripples on a stronger pair's resonance (module documentation, step
-/// 1): at the bandwidth floor ([`FLOOR_RESOLUTION`]) or below it, inside another pair's
-/// half-power band (`|f − f_o| < ζ_o f_o`) that is not at the floor itself, and with its own
-/// peak `|t(e^{jωT})|` at its frequency below that pair's term there — no peak of its own in
-/// the response, a pole the fit spent on what repeats from period to period.
-fn ripples(pairs: &[(&sd_ident::PhysicalMode, &sd_ident::ModalTerm)], ts: f64) -> Vec<bool> {
-    let at = |t: &sd_ident::ModalTerm, f: f64| t.eval(C::from_polar(1.0, TAU * f * ts)).norm();
-    let floored = |m: &sd_ident::PhysicalMode| m.resolution.is_some_and(|r| r <= FLOOR_RESOLUTION);
-    pairs
-        .iter()
-        .map(|&(m, t)| {
-            floored(m)
-                && pairs.iter().any(|&(o, u)| {
-                    !floored(o)
-                        && (o.freq_hz - m.freq_hz).abs() < o.damping * o.freq_hz
-                        && at(t, m.freq_hz) < at(u, m.freq_hz)
-                })
-        })
-        .collect()
 }
 
 /// Least whitened size `Σ 2|r_k|²/σ²_k` of the part of a neighbouring mode's skirt over a
@@ -765,49 +735,6 @@ mod tests {
         let mut v = vec![t];
         mark_dominant(&mut v);
         assert!(!v[0].dominant);
-    }
-
-    /// A pair `(f, ζ)` with residue magnitude `r` at `ts` (the z-domain pole `e^{sT}`) and its
-    /// bandwidth over a 1 Hz line spacing.
-    fn pair(f: f64, zeta: f64, r: f64, ts: f64) -> (sd_ident::PhysicalMode, sd_ident::ModalTerm) {
-        let w = TAU * f;
-        let s = C::new(-zeta * w, w * (1.0 - zeta * zeta).sqrt());
-        let mode = sd_ident::PhysicalMode {
-            kind: ModeKind::Pair,
-            freq_hz: f,
-            damping: zeta,
-            residue: [r, 0.0],
-            share: 0.0,
-            stable_orders: 10,
-            frequency_orders: 10,
-            in_band: true,
-            resolution: Some(2.0 * zeta * f / 1.0),
-        };
-        let term = sd_ident::ModalTerm::Pair {
-            pole: (s * ts).exp(),
-            residue: C::new(0.0, -r),
-        };
-        (mode, term)
-    }
-
-    /// A pole at the bandwidth floor 2 Hz beside a ζ = 0.006 mode at 1524 Hz with a
-    /// two-hundredth of its residue is a ripple (seed 3728's pair, within a factor of
-    /// two); as strong as the mode, outside its half-power band, or resolved, it is a mode.
-    #[test]
-    fn a_floored_weak_pole_inside_a_mode_is_a_ripple() {
-        let ts = 1.0 / 10_000.0;
-        let floor = 0.5 / 1522.0; // 2ζf = 1 Hz: the line spacing
-        let strong = pair(1524.0, 0.006, 1e-10, ts);
-        let cases = [
-            (pair(1522.0, floor, 5e-13, ts), true),
-            (pair(1522.0, floor, 5e-11, ts), false),
-            (pair(1560.0, 0.5 / 1560.0, 5e-13, ts), false),
-            (pair(1522.0, 0.001, 5e-13, ts), false),
-        ];
-        for (weak, ripple) in cases {
-            let pairs = [(&strong.0, &strong.1), (&weak.0, &weak.1)];
-            assert_eq!(ripples(&pairs, ts), vec![false, ripple], "{:?}", weak.0);
-        }
     }
 
     /// Three and four levels of a constant frequency with unequal standard errors: the two

@@ -81,7 +81,7 @@ pub use quality::{
 };
 pub use stabilization::{
     physical_fit, DiagramPole, ModeKind, OrderRow, PhysicalFit, PhysicalFitSummary, PhysicalMode,
-    PoleClass, StabilizationOptions,
+    PoleClass, StabilizationOptions, FLOOR_RESOLUTION,
 };
 
 /// The crate README's example, compiled and run as a doctest.

@@ -46,15 +46,19 @@
 //!
 //! The final model is fitted on all lines at the chosen order; each of its terms is a mode of
 //! the table with its share of the modal response (`Σ_k|term_k|²` over the sum of all
-//! terms'), and the number of orders of the diagram at which it is stable.
+//! terms'), the number of orders of the diagram at which it is stable, and whether it is a
+//! *ripple* (a pair at the bandwidth floor inside a broader pair's half-power band with no
+//! peak of its own: [`FLOOR_RESOLUTION`]).
 
 mod delay;
+mod ripple;
 
 use crate::fit::{fit, model_cost, FitOptions, FitResult, ModalTerm, Weighting};
 use crate::{IdentError, Result};
 use delay::{advance, best_delay, fraction};
 use num_complex::Complex64 as C;
 use rayon::prelude::*;
+pub use ripple::FLOOR_RESOLUTION;
 use sd_model::Frd;
 use std::f64::consts::PI;
 
@@ -165,6 +169,9 @@ pub struct PhysicalMode {
     pub in_band: bool,
     /// A pair's half-power bandwidth `2ζf_n` (Hz) over the line spacing (≥ 1: resolved).
     pub resolution: Option<f64>,
+    /// A pair at the bandwidth floor inside a broader pair's half-power band with no peak of
+    /// its own ([`FLOOR_RESOLUTION`]; module `ripple`): no mode an analyst would name.
+    pub ripple: bool,
 }
 
 /// A physical modal model ([`physical_fit`]).
@@ -340,7 +347,11 @@ pub fn physical_fit(
     let shifted = advance(frd, delay.samples)?;
     let final_fit = fit(&shifted, &fopt)?;
     let diagram = diagram_of(&scanned, chosen.rigid_body, frd.time().ts().unwrap_or(1.0));
-    let modes = modes_of(&final_fit, &shifted, &diagram, spacing);
+    let mut modes = modes_of(&final_fit, &shifted, &diagram, spacing);
+    let ripple = ripple::ripples(&modes, &final_fit.terms, frd.time().ts().unwrap_or(1.0));
+    for (m, r) in modes.iter_mut().zip(ripple) {
+        m.ripple = r;
+    }
     let cost_per_line = final_fit.cost / frd.len() as f64;
     Ok(PhysicalFit {
         fit: final_fit,
@@ -645,6 +656,7 @@ fn modes_of(
                 frequency_orders,
                 in_band: f >= flo && f <= fhi,
                 resolution: (kind == ModeKind::Pair).then(|| 2.0 * d * f / spacing),
+                ripple: false,
             }
         })
         .collect()

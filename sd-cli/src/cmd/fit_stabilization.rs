@@ -76,7 +76,7 @@ pub(crate) fn mode_table(r: &PhysicalFit) -> String {
     );
     for m in &r.modes {
         s += &format!(
-            "{:>10.3} {:>10.5} {:>9.2} {:>7} {:>7} {:>8} {:>10}  {:?}\n",
+            "{:>10.3} {:>10.5} {:>9.2} {:>7} {:>7} {:>8} {:>10}  {:?}{}\n",
             m.freq_hz,
             m.damping,
             100.0 * m.share,
@@ -84,7 +84,12 @@ pub(crate) fn mode_table(r: &PhysicalFit) -> String {
             m.frequency_orders,
             if m.in_band { "yes" } else { "no" },
             m.resolution.map_or("-".into(), |x| format!("{x:.2}")),
-            m.kind
+            m.kind,
+            if m.ripple {
+                " (ripple: at the bandwidth floor in a broader mode's band, no peak of its own)"
+            } else {
+                ""
+            }
         );
     }
     s
