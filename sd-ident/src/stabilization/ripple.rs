@@ -2,9 +2,9 @@
 //!
 //! A pair at the bandwidth floor ([`FLOOR_RESOLUTION`]: the fit would have made it narrower
 //! than the lines resolve) inside a broader resonance's half-power band (`|f − f_o| <
-//! ζ_o f_o`, `ζ_o < 1/√2`, the broader pair not at the floor itself), whose own term at its frequency is below that
-//! pair's term there (`|t(e^{jωT})| < |t_o(e^{jωT})|`), has no peak of its own in the
-//! response: an experimental modal analyst would not name it. Such poles are what a fit
+//! ζ_o f_o`, `ζ_o < 1/√2`, the broader pair not at the floor itself), whose own term at its
+//! frequency is below that pair's term there (`|t(e^{jωT})| < |t_o(e^{jωT})|`), has no peak
+//! of its own in the response: an experimental modal analyst would not name it. Such poles are what a fit
 //! spends on what repeats from period to period — a structure's stochastic nonlinear
 //! distortion, which a full multisine of one realization leaves out of the variance the fit
 //! weighs by — 2–15 Hz beside a softening or hardening mode on the level suite's
