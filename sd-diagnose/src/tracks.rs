@@ -15,9 +15,9 @@
 //!    ([`sd_ident::PhysicalMode::ripple`]), not a mode: it has no peak of its own in the
 //!    response, and the fit spent it on what repeats from period to period (a full
 //!    multisine of one realization leaves the distortion out of the variance the fit
-//!    weighs by; on the level suite's full-multisine seeds such a pole 2–15 Hz from a
-//!    softening or hardening mode narrowed that mode's band below what its local fits need,
-//!    and nothing was tracked). Ripples are neither tracked nor neighbours.
+//!    weighs by; on the level suite's full-multisine seeds such a pole beside a softening or
+//!    hardening mode narrowed that mode's band below what its local fits need, and nothing
+//!    was tracked). Ripples are neither tracked nor neighbours.
 //! 2. **The band of each mode** has the half-width `B = max(4ζf, 6Δf)` (four half-power
 //!    half-widths, at least six lines each side: room for a shift of about one bandwidth
 //!    between neighbouring levels), narrowed to 45 % of the distance to the neighbouring
@@ -76,11 +76,12 @@
 //!
 //! Judged against each mode's best linear approximation computed apart (the level suite's
 //! `sd_tests::modal_truth`: every mode integrated alone under random-phase forces with each
-//! level's spectrum), the tracked frequencies lie within 2.576 standard errors on 97.9 % of
-//! the points on periodic records and on 95.2–97.9 % on non-periodic ones (noise records,
-//! rising and burst records; fresh seeds 3600..3625 and 3650..3666; 91.7 % on periodic
-//! development seeds before the neighbouring modes entered the local fits);
-//! docs/diagnosis.md has the figures and the command.
+//! level's spectrum), the tracked frequencies lie within 2.576 standard errors on 98.0 % of
+//! the points on periodic records, on 95.1–97.2 % on non-periodic ones (noise records,
+//! rising and burst records) and on 96.4 % on full multisines of one realization (fresh
+//! seeds 3800..3825, 3850..3866 and 3870..3895; 91.7 % on periodic development seeds before
+//! the neighbouring modes entered the local fits); docs/diagnosis.md has the figures and the
+//! command.
 
 use crate::{DampingTrend, FreqTrend, Result};
 use num_complex::Complex64 as C;

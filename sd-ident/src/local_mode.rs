@@ -45,8 +45,9 @@
 //! stochastic nonlinear distortion — an internal force passing through the same
 //! resonance, largest at its peak, where the lines that fix `ω_n` and `ζ` are — which a full
 //! multisine of one realization leaves out of the variance the lines are weighted by (on
-//! the level suite's full multisines the even spread left the tracked frequencies of
-//! cubic modes within 2.576 standard errors of their truth at 90 % of the points).
+//! the level suite's full-multisine development seeds the even spread, commit c82e073, left
+//! the tracked frequencies of cubic modes within 2.576 standard errors of their truth at
+//! 90.2 % of the points, the shaped excess 93.0 %: docs/diagnosis.md).
 //!
 //! # Weights of correlated lines
 //!
@@ -711,9 +712,9 @@ mod tests {
     /// The distortion-shaped excess covers the truth where the FRF's variance leaves the
     /// distortion out. 400 seeds: for correct standard errors the count outside the 99 %
     /// interval is binomial (mean 4), more than 12 outside has probability about 1e-4; the
-    /// rms of error over standard error is 1 (outside 0.85–1.2 far less often). Spreading
-    /// the excess evenly instead gave 23 of 399 outside and an rms of 1.37 when this test was
-    /// written; the shaped excess 9 and 1.10.
+    /// rms of error over standard error is 1 (outside 0.85–1.2 far less often). The shaped
+    /// excess gives 9 outside and an rms of 1.10; spreading it evenly gave 23 of 399 and
+    /// 1.37 (an exploratory build with the shaping switched off, not in the repository).
     #[test]
     fn an_unstated_distortion_is_covered() {
         let z: Vec<f64> = (0..400).filter_map(distorted_z).collect();

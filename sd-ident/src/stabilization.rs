@@ -47,8 +47,8 @@
 //! The final model is fitted on all lines at the chosen order; each of its terms is a mode of
 //! the table with its share of the modal response (`Σ_k|term_k|²` over the sum of all
 //! terms'), the number of orders of the diagram at which it is stable, and whether it is a
-//! *ripple* (a pair at the bandwidth floor inside a broader pair's half-power band with no
-//! peak of its own: [`FLOOR_RESOLUTION`]).
+//! *ripple* (a pair at the bandwidth floor inside a broader resonance's half-power band with
+//! no peak of its own: [`FLOOR_RESOLUTION`]).
 
 mod delay;
 mod ripple;
@@ -169,8 +169,8 @@ pub struct PhysicalMode {
     pub in_band: bool,
     /// A pair's half-power bandwidth `2ζf_n` (Hz) over the line spacing (≥ 1: resolved).
     pub resolution: Option<f64>,
-    /// A pair at the bandwidth floor inside a broader pair's half-power band with no peak of
-    /// its own ([`FLOOR_RESOLUTION`]; module `ripple`): no mode an analyst would name.
+    /// A pair at the bandwidth floor inside a broader resonance's half-power band with no
+    /// peak of its own ([`FLOOR_RESOLUTION`]; module `ripple`): no mode an analyst would name.
     pub ripple: bool,
 }
 
@@ -347,11 +347,7 @@ pub fn physical_fit(
     let shifted = advance(frd, delay.samples)?;
     let final_fit = fit(&shifted, &fopt)?;
     let diagram = diagram_of(&scanned, chosen.rigid_body, frd.time().ts().unwrap_or(1.0));
-    let mut modes = modes_of(&final_fit, &shifted, &diagram, spacing);
-    let ripple = ripple::ripples(&modes, &final_fit.terms, frd.time().ts().unwrap_or(1.0));
-    for (m, r) in modes.iter_mut().zip(ripple) {
-        m.ripple = r;
-    }
+    let modes = modes_of(&final_fit, &shifted, &diagram, spacing);
     let cost_per_line = final_fit.cost / frd.len() as f64;
     Ok(PhysicalFit {
         fit: final_fit,
@@ -595,7 +591,7 @@ fn classify((f, z): (f64, f64), below: &[(f64, f64)]) -> PoleClass {
     class
 }
 
-/// The modes of the final fit with their shares and stability counts.
+/// The modes of the final fit with their shares, stability counts and ripples.
 fn modes_of(
     fit: &FitResult,
     frd: &Frd,
@@ -618,7 +614,8 @@ fn modes_of(
         frd.freq_hz().first().copied().unwrap_or(0.0),
         frd.freq_hz().last().copied().unwrap_or(0.0),
     );
-    fit.terms
+    let mut modes = fit
+        .terms
         .iter()
         .zip(&energy)
         .map(|(t, e)| {
@@ -659,7 +656,12 @@ fn modes_of(
                 ripple: false,
             }
         })
-        .collect()
+        .collect::<Vec<_>>();
+    let ripple = ripple::ripples(&modes, &fit.terms, ts);
+    for (m, r) in modes.iter_mut().zip(ripple) {
+        m.ripple = r;
+    }
+    modes
 }
 
 #[cfg(test)]

@@ -166,8 +166,9 @@ impl Outcome {
             // a same-level repeat that disagrees names drift
             LevelEffect::Drift => self.cause == "drift",
             // without a repeat, the non-excited lines of a periodic recording name drift;
-            // without them (a non-periodic record, a full multisine) nothing can tell a drift that follows the order of the levels from
-            // an amplitude effect: the diagnosis must say that drift is not ruled out
+            // without them (a non-periodic record, a full multisine) nothing can tell a drift
+            // that follows the order of the levels from an amplitude effect: the diagnosis
+            // must say that drift is not ruled out
             LevelEffect::DriftLevels
                 if self.case.recording.periodic && !self.case.recording.full =>
             {

@@ -4,12 +4,12 @@
 //! than the lines resolve) inside a broader resonance's half-power band (`|f − f_o| <
 //! ζ_o f_o`, `ζ_o < 1/√2`, the broader pair not at the floor itself), whose own term at its
 //! frequency is below that pair's term there (`|t(e^{jωT})| < |t_o(e^{jωT})|`), has no peak
-//! of its own in the response: an experimental modal analyst would not name it. Such poles are what a fit
-//! spends on what repeats from period to period — a structure's stochastic nonlinear
-//! distortion, which a full multisine of one realization leaves out of the variance the fit
-//! weighs by — 2–15 Hz beside a softening or hardening mode on the level suite's
-//! full-multisine seeds. A lightly damped mode of its own is not one: resolved, or as strong
-//! as its neighbour at its frequency, or outside its half-power band.
+//! of its own in the response: an experimental modal analyst would not name it. Such poles
+//! are what a fit spends on what repeats from period to period — a structure's stochastic
+//! nonlinear distortion, which a full multisine of one realization leaves out of the
+//! variance the fit weighs by (on the level suite's full multisines, beside a softening or
+//! hardening mode). A lightly damped mode of its own is not one: resolved, or as strong as
+//! its neighbour at its frequency, or outside its half-power band.
 
 use super::{ModeKind, PhysicalMode};
 use crate::fit::ModalTerm;
@@ -38,14 +38,16 @@ pub(super) fn ripples(modes: &[PhysicalMode], terms: &[ModalTerm], ts: f64) -> V
         .iter()
         .zip(terms)
         .map(|(m, t)| {
-            m.kind == ModeKind::Pair
-                && floored(m)
-                && pairs.iter().any(|&(o, u)| {
-                    o.damping < RESONANT
-                        && !floored(o)
-                        && (o.freq_hz - m.freq_hz).abs() < o.damping * o.freq_hz
-                        && at(t, m.freq_hz) < at(u, m.freq_hz)
-                })
+            if m.kind != ModeKind::Pair || !floored(m) {
+                return false;
+            }
+            let own = at(t, m.freq_hz);
+            pairs.iter().any(|&(o, u)| {
+                o.damping < RESONANT
+                    && !floored(o)
+                    && (o.freq_hz - m.freq_hz).abs() < o.damping * o.freq_hz
+                    && own < at(u, m.freq_hz)
+            })
         })
         .collect()
 }
@@ -79,9 +81,8 @@ mod tests {
     }
 
     /// A pole at the bandwidth floor 2 Hz beside a ζ = 0.006 mode at 1524 Hz with a
-    /// two-hundredth of its residue is a ripple (the level suite's seed 3728, within a factor
-    /// of two); as strong as the mode, outside its half-power band, or resolved, it is a
-    /// mode.
+    /// two-hundredth of its residue is a ripple; as strong as the mode, outside its
+    /// half-power band, or resolved, it is a mode.
     #[test]
     fn a_floored_weak_pole_inside_a_mode_is_a_ripple() {
         let ts = 1.0 / 10_000.0;
