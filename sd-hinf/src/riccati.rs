@@ -54,6 +54,7 @@ use sd_model::linalg::schur::to_complex;
 use sd_model::ModelError;
 
 mod care;
+mod cayley;
 pub mod complex;
 pub mod descriptor;
 use care::care_residual;
@@ -307,6 +308,22 @@ fn stein_sum(m: &DMatrix<f64>, q: Option<&DMatrix<f64>>, tol: f64) -> Option<DMa
     None
 }
 
+/// The solution P of the continuous Lyapunov equation `A_cᵀP + PA_c + Q = 0` (A_c stable) by
+/// the Cayley transform and [`stein_sum`]: with `M = (I − A_c)⁻¹`, `A_d = M(I + A_c)`,
+/// `A_dᵀPA_d − P = Mᵀ[(I + A_c)ᵀP(I + A_c) − (I − A_c)ᵀP(I − A_c)]M = 2Mᵀ(A_cᵀP + PA_c)M`,
+/// so P solves the Stein equation `A_dᵀPA_d − P + 2MᵀQM = 0` (matrix products only, no Schur
+/// form). `None` when `I − A_c` is singular or the sum does not settle (eigenvalues of A_c very
+/// far from the unit frequency on either side): the caller then uses Bartels–Stewart.
+fn lyap_ct_by_stein(ac: &DMatrix<f64>, q: &DMatrix<f64>, tol: f64) -> Option<DMatrix<f64>> {
+    let n = ac.nrows();
+    let ident = DMatrix::<f64>::identity(n, n);
+    let m = (&ident - ac).try_inverse()?;
+    let ad = &m * (&ident + ac);
+    let qd = symmetrize(&(m.transpose() * q * &m * 2.0));
+    let p = stein_sum(&ad, Some(&qd), tol)?;
+    p.iter().all(|v| v.is_finite()).then_some(p)
+}
+
 /// Copies the lower triangle of the square `m` onto its upper one.
 fn mirror_lower(m: &mut Mat<f64>) {
     for j in 0..m.ncols() {
@@ -431,7 +448,8 @@ fn finish(
         let delta = match kind {
             Kind::Discrete => stein_sum(&ac, Some(&res), f64::EPSILON)
                 .map_or_else(|| lyap(&ac.transpose(), &res, LyapKind::Discrete), Ok),
-            Kind::Continuous => lyap(&ac.transpose(), &res, LyapKind::Continuous),
+            Kind::Continuous => lyap_ct_by_stein(&ac, &res, f64::EPSILON)
+                .map_or_else(|| lyap(&ac.transpose(), &res, LyapKind::Continuous), Ok),
         };
         let Ok(delta) = delta else { break };
         let xn = symmetrize(&(&x + &delta));
@@ -517,7 +535,10 @@ fn condition(d: &Data, x: &DMatrix<f64>, ac: &DMatrix<f64>, kind: Kind) -> Resul
             Some(p) => p,
             None => lyap(&acb.transpose(), &ident, LyapKind::Discrete)?,
         },
-        Kind::Continuous => lyap(&acb.transpose(), &ident, LyapKind::Continuous)?,
+        Kind::Continuous => match lyap_ct_by_stein(&acb, &ident, tol::CONDITION_SUM) {
+            Some(p) => p,
+            None => lyap(&acb.transpose(), &ident, LyapKind::Continuous)?,
+        },
     };
     let omega_inv = p.norm();
     let m = match kind {

@@ -733,6 +733,25 @@ pub fn run(quick: bool) -> Result<(), String> {
     )
 }
 
+/// The H∞ synthesis entry alone (`cargo xtask bench --only hinfsyn`), written to
+/// `target/bench/hinfsyn.json`.
+pub fn run_hinfsyn(quick: bool) -> Result<(), String> {
+    let root = workspace_root();
+    let dir = root.join("target/bench");
+    std::fs::create_dir_all(&dir).map_err(err)?;
+    let reps = if quick { 3 } else { 15 };
+    let stage = sd_model::stage::stage60().map_err(err)?;
+    let pd = c2d(&stage, 2e-4, Discretization::Zoh).map_err(err)?;
+    let slow60 = sd_multirate::downsample(&pd, 5).map_err(err)?;
+    let entry = crate::bench_hinf::entry(&root, &dir, &slow60, reps)?;
+    let p = dir.join("hinfsyn.json");
+    let text = serde_json::to_string_pretty(&entry).map_err(err)?;
+    std::fs::write(&p, text).map_err(err)?;
+    println!("{}", serde_json::to_string(&entry).map_err(err)?);
+    println!("written {}", p.display());
+    Ok(())
+}
+
 /// The flops of the freqresp and DARE algorithms next to their times, and the fraction of the
 /// measured peak they reach (freqresp runs on every core, the doubling on one). The freqresp
 /// fraction is of the evaluation on a prepared evaluator (`eval_many_flat`, the work the flop

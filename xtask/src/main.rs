@@ -7,6 +7,9 @@
 //!   slycot import, of the same operations on the same inputs in python-control/scipy, with the
 //!   ratio; the machine's measured peak with the fraction of it freqresp and the DARE reach,
 //!   and the max RSS of whole processes (`physical`); written to `target/bench/results.json`.
+//! - `cargo xtask bench --only hinfsyn [--quick]`: the H∞ synthesis entry alone (the 60-state
+//!   stage's mixed-sensitivity plant, and SB10DD when slycot imports), written to
+//!   `target/bench/hinfsyn.json`.
 
 mod bench;
 mod bench_hinf;
@@ -39,10 +42,19 @@ fn main() -> ExitCode {
     };
     let r = match args.first().map(String::as_str) {
         Some("paper") => paper::run(out.as_deref().unwrap_or("target/paper"), quick, averaging),
-        Some("bench") => bench::run(quick),
+        Some("bench") => match args.iter().position(|a| a == "--only") {
+            None => bench::run(quick),
+            Some(i) => match args.get(i + 1).map(String::as_str) {
+                Some("hinfsyn") => bench::run_hinfsyn(quick),
+                _ => {
+                    eprintln!("xtask: --only takes `hinfsyn` (the one entry that runs alone)");
+                    return ExitCode::from(2);
+                }
+            },
+        },
         _ => {
             eprintln!(
-                "usage: cargo xtask paper [--out DIR] [--quick] [--averaging F] | cargo xtask bench [--quick]"
+                "usage: cargo xtask paper [--out DIR] [--quick] [--averaging F] | cargo xtask bench [--quick] [--only hinfsyn]"
             );
             return ExitCode::from(2);
         }

@@ -93,6 +93,13 @@ fn care_with(
     if n == 0 {
         return Ok(empty(d.b.ncols()));
     }
+    // the H∞ existence tests first try the Cayley transform and doubling (`cayley.rs`): much
+    // faster, and kept only when it vouches for its result
+    if axis.is_some() {
+        if let Some(sol) = super::cayley::care_by_doubling(&d, axis) {
+            return Ok(sol);
+        }
+    }
     let x0 = match care_initial(&d, axis) {
         Ok(x) => x,
         Err(e) => return Err(diagnose(&d, Kind::Continuous).unwrap_or(e)),
