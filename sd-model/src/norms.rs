@@ -165,11 +165,11 @@ fn bilinear_to_ct(sys: &StateSpace) -> Result<StateSpace> {
 /// σ_max at ω is evaluated on `own` at [`own_point`] — for a discrete model at
 /// `z = (1 + jω)/(1 − jω)`, never on the bilinear image: that image's A is as large as the
 /// discrete poles are close to z = −1 (‖A‖ = 7·10⁶ for a 128-state H∞ loop at 1 kHz, against
-/// 5·10⁴ for its discrete A), and a dense solve of `jωI − A` near DC then lost five digits
-/// (σ̄ 1.0504946 where 40-digit arithmetic on the same discrete loop gives 1.0504748 at
-/// ω = 2.7·10⁻⁵: an H∞ norm 1.6·10⁻⁵ too high, at the wrong frequency; the discrete solve
-/// agrees to 10⁻⁹, `tests/tests/hinf_norm_reference.rs`). The image serves the Hamiltonian
-/// level-set test only.
+/// 5·10⁴ for its discrete A), and dense solves of `jωI − A` near DC then lose digits that the
+/// discrete solves keep (`tests/tests/hinf_norm_reference.rs` prints both errors against
+/// 30-digit arithmetic and requires the image's to be the larger by 100×; the norm came out
+/// too high there, at a frequency near DC instead of the peak). The image serves the
+/// Hamiltonian level-set test only.
 ///
 /// σ_max is evaluated in the eigenvector basis ([`Modal`]) when that basis passes its accuracy
 /// check, and the value at the peak it finds is then recomputed by a dense solve (the reported

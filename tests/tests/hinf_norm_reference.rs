@@ -14,7 +14,10 @@ use sd_tests::read_json;
 use std::f64::consts::PI;
 
 fn sigma_max(g: &nalgebra::DMatrix<Complex64>) -> f64 {
-    g.clone().singular_values().iter().fold(0.0f64, |a, v| a.max(*v))
+    g.clone()
+        .singular_values()
+        .iter()
+        .fold(0.0f64, |a, v| a.max(*v))
 }
 
 /// Dense solves on the discrete model agree with the 30-digit values at every reference
@@ -22,7 +25,8 @@ fn sigma_max(g: &nalgebra::DMatrix<Complex64>) -> f64 {
 /// condition number near 10⁸; the bilinear image's solves were 1.9e-5 off there),
 /// and the norm is the supremum of the reference values to 1e-8 — not above it (the defect
 /// this guards against was 3·10⁻⁵ above) and not below (a norm is a supremum) — attained at
-/// the reported frequency.
+/// the reported frequency. The bilinear image's solves, which the norm used before, are
+/// printed beside them.
 #[test]
 fn discrete_norm_matches_30_digit_arithmetic() {
     let m = model_from_json_str(&read_json("hinf/loop128_1khz.json").to_string()).unwrap();
@@ -37,6 +41,19 @@ fn discrete_norm_matches_30_digit_arithmetic() {
         worst = worst.max((ours - s).abs() / s);
     }
     assert!(worst <= 3e-8, "dense solves vs 30 digits: {worst:.2e}");
+    // the same solves on the bilinear image, which the norm evaluated before: the reason
+    let image = sd_hinf::bilinear::bilinear_to_continuous(&m).unwrap();
+    let mut worst_image: f64 = 0.0;
+    for (f, s) in freqs.iter().zip(&sig) {
+        let w = (PI * f * ts).tan();
+        let g = image.eval_direct(Complex64::new(0.0, w)).unwrap();
+        worst_image = worst_image.max((sigma_max(&g) - s).abs() / s);
+    }
+    eprintln!("σ̄ vs 30 digits: discrete solves {worst:.2e}, bilinear image {worst_image:.2e}");
+    assert!(
+        worst_image > 100.0 * worst,
+        "{worst_image:.2e} vs {worst:.2e}"
+    );
     let sup = sig.iter().fold(0.0f64, |a, v| a.max(*v));
     let norm = m.hinf_norm().unwrap();
     assert!(norm.stable);
