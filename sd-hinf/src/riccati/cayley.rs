@@ -28,8 +28,8 @@
 //! below `−axis·‖H‖_F` — the Schur method's own refusal criterion, since the stable Hamiltonian
 //! eigenvalues are the closed loop's. A doubling step costs about 15n³ flops of matrix
 //! products and one LU (faer), against the O((2n)³) complex QR sweeps and swaps of the ordered
-//! Schur form (nalgebra): on the 64-state mixed-sensitivity plant of `cargo xtask bench` the
-//! pair of H∞ equations at one γ went from about 0.1 s to the figure that bench reports.
+//! Schur form (nalgebra); `cargo xtask bench --only hinfsyn` times the whole synthesis on the
+//! 64-state mixed-sensitivity plant that these equations dominated.
 
 use super::{finish, sym_solve, symmetrize, Data, Kind, RiccatiSolution};
 use crate::tol;
