@@ -26,7 +26,6 @@ use crate::time::SampleTime;
 use nalgebra::DMatrix;
 use num_complex::Complex64 as C;
 use rayon::prelude::*;
-use std::f64::consts::PI;
 
 /// A cluster of the reduced form: upper-triangular `t` (m×m) with its input map `b` (m×nu)
 /// and output map `c` (ny×m).
@@ -403,10 +402,7 @@ impl FreqRespEvaluator {
 
     /// The point of the complex plane for a frequency in Hz.
     pub fn point(&self, f_hz: f64) -> C {
-        match self.time {
-            SampleTime::Continuous => C::new(0.0, 2.0 * PI * f_hz),
-            SampleTime::Discrete { ts } => C::from_polar(1.0, 2.0 * PI * f_hz * ts),
-        }
+        self.time.point(f_hz)
     }
 
     /// `G` at a frequency in Hz written column-major into `out` (length ny·nu), without
@@ -730,7 +726,7 @@ mod tests {
         assert_eq!(ev.eval_hz(10.0)[(0, 0)], C::new(2.0, 0.0));
         let hf = HessenbergForm::new(sys.a(), sys.b(), sys.c());
         for f in [1.0, 37.0, 250.0, 499.0] {
-            let z = C::from_polar(1.0, 2.0 * PI * f * 1e-3);
+            let z = C::from_polar(1.0, 2.0 * std::f64::consts::PI * f * 1e-3);
             let reference = sys.eval_direct(z).unwrap();
             let mut g = to_complex(sys.d());
             assert!(hf.accumulate(z, g.as_mut_slice(), 3));

@@ -164,8 +164,8 @@ fn bilinear_to_ct(sys: &StateSpace) -> Result<StateSpace> {
 ///
 /// σ_max at ω is evaluated on `own` at [`own_point`] — for a discrete model at
 /// `z = (1 + jω)/(1 − jω)`, never on the bilinear image: that image's A is as large as the
-/// discrete poles are close to z = −1 (‖A‖ = 7·10⁶ for a 128-state H∞ loop at 1 kHz, against
-/// 5·10⁴ for its discrete A), and dense solves of `jωI − A` near DC then lose digits that the
+/// discrete poles are close to z = −1 (‖A‖_F = 1.6·10⁷ for a 128-state H∞ loop at 1 kHz,
+/// against 4.7·10⁴ for its discrete A), and dense solves of `jωI − A` near DC then lose digits that the
 /// discrete solves keep (`tests/tests/hinf_norm_reference.rs` prints both errors against
 /// 30-digit arithmetic and requires the image's to be the larger by 100×; the norm came out
 /// too high there, at a frequency near DC instead of the peak). The image serves the

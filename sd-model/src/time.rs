@@ -71,6 +71,16 @@ impl SampleTime {
             })
         }
     }
+    /// The point of the complex plane where a response is evaluated at `f_hz`: `s = j2πf`
+    /// (continuous) or `z = e^{j2πf·ts}` (discrete).
+    pub fn point(&self, f_hz: f64) -> num_complex::Complex64 {
+        let w = 2.0 * std::f64::consts::PI * f_hz;
+        match self {
+            SampleTime::Continuous => num_complex::Complex64::new(0.0, w),
+            SampleTime::Discrete { ts } => num_complex::Complex64::from_polar(1.0, w * ts),
+        }
+    }
+
     /// Nyquist frequency in Hz for discrete time.
     pub fn nyquist_hz(&self) -> Option<f64> {
         self.ts().map(|t| 0.5 / t)

@@ -44,12 +44,10 @@ use crate::lft::{lft_lower, Partition};
 use crate::tol;
 use central::Level;
 use normalize::Normalized;
-use num_complex::Complex64;
 use rayon::prelude::*;
 use sd_model::linalg::convert::eigenvalues;
 use sd_model::{SampleTime, StateSpace};
 use serde::{Deserialize, Serialize};
-use std::f64::consts::PI;
 
 /// Options of [`hinfsyn()`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -455,14 +453,10 @@ fn probe(cl: &StateSpace, at_hz: &[f64], bound: f64) -> Option<(f64, f64)> {
         freqs.push(nyquist);
         freqs.extend((0..24).map(|i| nyquist * 10f64.powf(-6.0 + 6.0 * f64::from(i) / 23.0)));
     }
-    let point = |f: f64| match time {
-        SampleTime::Continuous => Complex64::new(0.0, 2.0 * PI * f),
-        SampleTime::Discrete { ts } => Complex64::from_polar(1.0, 2.0 * PI * f * ts),
-    };
     freqs
         .par_iter()
         .filter_map(|&f| {
-            let g = cl.eval_direct(point(f)).ok()?;
+            let g = cl.eval_direct(time.point(f)).ok()?;
             let v = g.singular_values().iter().fold(0.0f64, |a, x| a.max(*x));
             (v.is_finite() && v > bound).then_some((v, f))
         })

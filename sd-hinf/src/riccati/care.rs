@@ -107,15 +107,21 @@ fn care_with(
     finish(&d, x0, 0, Kind::Continuous)
 }
 
-fn care_initial(d: &Data, axis: Option<f64>) -> Result<DMatrix<f64>> {
-    let n = d.a.nrows();
-    let rinv_st = sym_solve(&d.r, &d.s.transpose())
-        .ok_or_else(|| HinfError::InvalidArgument("R must be invertible for the CARE".into()))?;
-    let rinv_bt = sym_solve(&d.r, &d.b.transpose())
-        .ok_or_else(|| HinfError::InvalidArgument("R must be invertible for the CARE".into()))?;
+/// `(A − BR⁻¹Sᵀ, BR⁻¹Bᵀ, Q − SR⁻¹Sᵀ)`: the blocks of the Hamiltonian `[A_s −G; −Q_s −A_sᵀ]`
+/// (and of a DARE's doubling iteration); `None` when R is singular.
+pub(super) fn separated(d: &Data) -> Option<(DMatrix<f64>, DMatrix<f64>, DMatrix<f64>)> {
+    let rinv_st = sym_solve(&d.r, &d.s.transpose())?;
+    let rinv_bt = sym_solve(&d.r, &d.b.transpose())?;
     let a_s = &d.a - &d.b * &rinv_st;
     let q_s = symmetrize(&(&d.q - &d.s * &rinv_st));
     let g = symmetrize(&(&d.b * &rinv_bt));
+    Some((a_s, g, q_s))
+}
+
+fn care_initial(d: &Data, axis: Option<f64>) -> Result<DMatrix<f64>> {
+    let n = d.a.nrows();
+    let (a_s, g, q_s) = separated(d)
+        .ok_or_else(|| HinfError::InvalidArgument("R must be invertible for the CARE".into()))?;
     let mut h = DMatrix::<f64>::zeros(2 * n, 2 * n);
     h.view_mut((0, 0), (n, n)).copy_from(&a_s);
     h.view_mut((0, n), (n, n)).copy_from(&(-&g));

@@ -31,7 +31,7 @@
 //! Schur form (nalgebra); `cargo xtask bench --only hinfsyn` times the whole synthesis on the
 //! 64-state mixed-sensitivity plant that these equations dominated.
 
-use super::{finish, sym_solve, symmetrize, Data, Kind, RiccatiSolution};
+use super::{finish, symmetrize, Data, Kind, RiccatiSolution};
 use crate::tol;
 use nalgebra::DMatrix;
 
@@ -48,18 +48,20 @@ pub(super) fn care_by_doubling(d: &Data, axis: Option<f64>) -> Option<RiccatiSol
     let nb = &nm * &d.b;
     let qn = &d.q * &nm;
     let a_d = &nm * (&ident + &d.a);
-    let b_d = &nb * r2;
     let q_d = symmetrize(&(nm.transpose() * &qn * 2.0));
     let qnb_s = &qn * &d.b + &d.s;
     let s_d = nm.transpose() * &qnb_s * r2;
     let r_d = symmetrize(
         &(&d.r + nb.transpose() * &d.s + d.s.transpose() * &nb + nb.transpose() * &qn * &d.b),
     );
-    let rinv_st = sym_solve(&r_d, &s_d.transpose())?;
-    let rinv_bt = sym_solve(&r_d, &b_d.transpose())?;
-    let a_s = &a_d - &b_d * &rinv_st;
-    let q_s = symmetrize(&(&q_d - &s_d * &rinv_st));
-    let g = symmetrize(&(&b_d * &rinv_bt));
+    let discrete = Data {
+        a: a_d,
+        b: &nb * r2,
+        q: q_d,
+        r: r_d,
+        s: s_d,
+    };
+    let (a_s, g, q_s) = super::care::separated(&discrete)?;
     let (x0, steps) = crate::sda::doubling(&a_s, &g, &q_s).ok()?;
     if x0.iter().any(|v| !v.is_finite()) {
         return None;
@@ -79,11 +81,7 @@ pub(super) fn care_by_doubling(d: &Data, axis: Option<f64>) -> Option<RiccatiSol
 /// `‖[A_s −G; −Q_s −A_sᵀ]‖_F` of the continuous equation (the scale of the Schur method's axis
 /// test).
 fn hamiltonian_norm(d: &Data) -> Option<f64> {
-    let rinv_st = sym_solve(&d.r, &d.s.transpose())?;
-    let rinv_bt = sym_solve(&d.r, &d.b.transpose())?;
-    let a_s = &d.a - &d.b * &rinv_st;
-    let q_s = &d.q - &d.s * &rinv_st;
-    let g = &d.b * &rinv_bt;
+    let (a_s, g, q_s) = super::care::separated(d)?;
     let sq = 2.0 * a_s.norm_squared() + g.norm_squared() + q_s.norm_squared();
     Some(sq.sqrt())
 }
