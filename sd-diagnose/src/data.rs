@@ -180,10 +180,11 @@ fn with_distortion(est: &sd_ident::FrfEstimate, noise_dof: f64) -> Result<WithDi
     let Ok(bla) = sd_ident::Bla::from_periodic(est) else {
         return Ok((est.frd.clone(), noise_dof, Vec::new()));
     };
-    if !matches!(bla.distortion, sd_ident::Distortion::DetectionLines { .. }) {
-        return Ok((bla.frd, noise_dof, Vec::new()));
-    }
-    let nl_dof = 2.0 * sd_ident::NL_NEIGHBOURS as f64;
+    let nl_dof = match bla.distortion {
+        sd_ident::Distortion::DetectionLines { .. } => 2.0 * sd_ident::NL_NEIGHBOURS as f64,
+        sd_ident::Distortion::Roughness { .. } => sd_ident::ROUGHNESS_DOF as f64,
+        _ => return Ok((bla.frd, noise_dof, Vec::new())),
+    };
     let dof_sum: f64 = bla
         .noise_var
         .iter()
@@ -234,11 +235,11 @@ pub(crate) fn carry_distortion(
     let (Some(own), Some(src)) = (&est.bla, &source.bla) else {
         return Ok(());
     };
-    if !alike || own.distortion.measured() {
+    if !alike {
         return Ok(());
     }
     let carried = own.carried_from(src, &b.name)?;
-    if !carried.distortion.measured() {
+    if !matches!(carried.distortion, sd_ident::Distortion::Carried { .. }) {
         return Ok(());
     }
     let nl_dof = 2.0 * sd_ident::NL_NEIGHBOURS as f64;
@@ -262,11 +263,8 @@ pub(crate) fn carry_within(set: &mut [(&Experiment, Estimate)]) -> Result<()> {
         .enumerate()
         .filter(|(_, (_, e))| {
             e.bla.as_ref().is_some_and(|b| {
-                matches!(
-                    b.distortion,
-                    sd_ident::Distortion::DetectionLines { .. }
-                        | sd_ident::Distortion::Realizations { .. }
-                )
+                b.distortion.direct()
+                    || matches!(b.distortion, sd_ident::Distortion::Roughness { .. })
             })
         })
         .map(|(i, (_, e))| (i, e.clone()))

@@ -21,8 +21,16 @@
 //!   with the same lines and level and other phases give `Ĝ_BLA = mean_r Ĝ_r`, its total
 //!   variance `Σ_r |Ĝ_r − Ĝ_BLA|²/(R(R − 1))` and its noise variance `mean_r σ²_N,r / R`; the
 //!   distortion is their difference (clamped at 0);
-//! - **carried** ([`Distortion::Carried`]): a full multisine (every line excited) of one
-//!   realisation cannot measure it; a sibling experiment on the same channel, in the same band
+//! - **roughness** ([`Distortion::Roughness`]): a full multisine (every line excited, no odd
+//!   line left out) of one random-phase realisation and two steady periods or more: the
+//!   residual of a local rational model over neighbouring excited lines holds noise and
+//!   distortion, the periods' spread the noise alone ([`crate::roughness`]: Pintelon,
+//!   Louarroudi & Lataire, I2MTC 2012); gated at [`DISTORTION_ALPHA`] by the F law of the
+//!   ratio of the two estimates ([`crate::roughness::roughness_gate`]);
+//! - **carried** ([`Distortion::Carried`]): an experiment that cannot measure it itself (one
+//!   steady period, too few lines for either method), or whose measure is the roughness (a
+//!   direct measure is preferred: the roughness assumes random phases — a Schroeder
+//!   multisine's are not — and a locally rational BLA); a sibling experiment on the same channel, in the same band
 //!   and at the same rms (within [`CARRY_RMS_TOLERANCE`]) that did measure it supplies the
 //!   distortion's *output* power per line `P_S(f) = σ²_S·|Ū|²`, interpolated in frequency and
 //!   divided by this experiment's `|Ū_k|²`. At one rms and band the distortion's output power
@@ -52,7 +60,9 @@ const MAX_BANDS: usize = 6;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Unmeasurable {
-    /// Every line in the band is excited and there is one phase realisation.
+    /// Every line in the band is excited, there is one phase realisation, and too few lines
+    /// (fewer than [`crate::ROUGHNESS_WINDOW`]) or a response that vanishes over a window
+    /// leave the roughness unmeasured.
     EveryLineExcited,
     /// Too few odd non-excited lines in the band (fewer than [`crate::NL_NEIGHBOURS`]).
     TooFewDetectionLines,
@@ -63,7 +73,9 @@ pub enum Unmeasurable {
 impl std::fmt::Display for Unmeasurable {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(match self {
-            Unmeasurable::EveryLineExcited => "every line excited, one realisation",
+            Unmeasurable::EveryLineExcited => {
+                "every line excited, one realisation, too few lines for the roughness"
+            }
             Unmeasurable::TooFewDetectionLines => "too few non-excited odd lines in the band",
             Unmeasurable::OnePeriod => "one steady period",
         })
@@ -91,6 +103,14 @@ pub enum Distortion {
         /// That experiment's name.
         from: String,
     },
+    /// From the roughness of the FRF over neighbouring excited lines (every line excited, one
+    /// random-phase realisation: [`crate::roughness`]).
+    Roughness {
+        /// Excited lines in the band.
+        lines: usize,
+        /// Lines where the local level passed the gate (the distortion counted there).
+        significant_lines: usize,
+    },
     /// Non-periodic data: noise and distortion together in the LPM's residual.
     InLpmResidual,
     /// Not measurable with this excitation.
@@ -104,6 +124,28 @@ impl Distortion {
     /// Whether the variance of the [`Bla`] includes the distortion.
     pub fn measured(&self) -> bool {
         !matches!(self, Distortion::NotMeasurable { .. })
+    }
+
+    /// Whether it was measured directly — on non-excited lines or over realisations — with no
+    /// assumption on the BLA's shape or on the phases (the roughness assumes both).
+    pub fn direct(&self) -> bool {
+        matches!(
+            self,
+            Distortion::DetectionLines { .. } | Distortion::Realizations { .. }
+        )
+    }
+
+    /// Whether a sibling's distortion `source` replaces this one ([`Bla::carried_from`]):
+    /// this one is not measured and the source is (directly or by roughness), or this one is
+    /// a roughness and the source direct.
+    pub fn replaced_by(&self, source: &Distortion) -> bool {
+        match self {
+            Distortion::NotMeasurable { .. } => {
+                source.direct() || matches!(source, Distortion::Roughness { .. })
+            }
+            Distortion::Roughness { .. } => source.direct(),
+            _ => false,
+        }
     }
 }
 
@@ -121,9 +163,16 @@ impl std::fmt::Display for Distortion {
             Distortion::Realizations { count } => {
                 write!(f, "measured from the spread of {count} realisations")
             }
-            Distortion::Carried { from } => write!(
+            Distortion::Carried { from } => {
+                write!(f, "carried from `{from}` (same channel, band and rms)")
+            }
+            Distortion::Roughness {
+                lines,
+                significant_lines,
+            } => write!(
                 f,
-                "carried from `{from}` (same channel, band and rms; its detection lines)"
+                "measured from the FRF's roughness over neighbouring excited lines (every line \
+                 excited, one realisation: significant at {significant_lines} of {lines} lines)"
             ),
             Distortion::InLpmResidual => f.write_str(
                 "in the LPM residual (non-periodic data: noise and distortion together)",
@@ -179,21 +228,43 @@ impl Bla {
         let noise_var = siso_var(&est.frd)?;
         let input_power: Vec<f64> = est.u_mean.iter().map(|u| u.norm_sqr()).collect();
         let n = noise_var.len();
+        let gated = |nl: &[(f64, f64)], gate: f64| -> (Vec<f64>, Vec<f64>, usize) {
+            let level: Vec<f64> = nl.iter().map(|x| x.0).collect();
+            let var: Vec<f64> = nl
+                .iter()
+                .map(|&(d, ratio)| if ratio > gate { d } else { 0.0 })
+                .collect();
+            let significant = var.iter().filter(|v| **v > 0.0).count();
+            (level, var, significant)
+        };
+        // every line excited: the roughness over neighbouring lines
+        let rough = match est.frd.siso(0, 0) {
+            Ok(g) if est.periods >= 2 && detection_lines(&est.lines) == 0 => {
+                crate::roughness::roughness_variance(&est.lines, &g, &noise_var)
+            }
+            _ => None,
+        };
         let (distortion_level, distortion_var, distortion) = match &est.nl_variance {
             Some(nl) if est.periods >= 2 => {
-                let gate = detection_gate();
-                let level: Vec<f64> = nl.iter().map(|x| x.0).collect();
-                let var: Vec<f64> = nl
-                    .iter()
-                    .map(|&(d, ratio)| if ratio > gate { d } else { 0.0 })
-                    .collect();
-                let significant = var.iter().filter(|v| **v > 0.0).count();
+                let (level, var, significant) = gated(nl, detection_gate());
                 let detection = detection_lines(&est.lines);
                 (
                     level,
                     var,
                     Distortion::DetectionLines {
                         detection_lines: detection,
+                        significant_lines: significant,
+                    },
+                )
+            }
+            _ if rough.is_some() => {
+                let gate = crate::roughness::roughness_gate(est.periods);
+                let (level, var, significant) = gated(rough.as_deref().unwrap_or_default(), gate);
+                (
+                    level,
+                    var,
+                    Distortion::Roughness {
+                        lines: n,
                         significant_lines: significant,
                     },
                 )
@@ -305,20 +376,17 @@ impl Bla {
             .collect()
     }
 
-    /// This BLA with the distortion of `source` (named `name`) carried over where this one's
-    /// is not measurable (module documentation): the source's output-level distortion
-    /// interpolated linearly in frequency, over this experiment's `|Ū|²`, at this experiment's
-    /// lines inside the source's band. `self` unchanged (returned as is) when its distortion is
-    /// measured or the source's is not.
+    /// This BLA with the distortion of `source` (named `name`) carried over where
+    /// [`Distortion::replaced_by`] allows it (module documentation): the source's output-level
+    /// distortion interpolated linearly in frequency, over this experiment's `|Ū|²`, at this
+    /// experiment's lines inside the source's band. `self` unchanged (returned as is)
+    /// otherwise.
     ///
     /// # Errors
     /// Shapes or sample times that do not match.
     pub fn carried_from(&self, source: &Bla, name: &str) -> Result<Bla> {
-        let usable = matches!(
-            source.distortion,
-            Distortion::DetectionLines { .. } | Distortion::Realizations { .. }
-        );
-        if self.distortion.measured() || !usable || source.frd.time() != self.frd.time() {
+        if !self.distortion.replaced_by(&source.distortion) || source.frd.time() != self.frd.time()
+        {
             return Ok(self.clone());
         }
         let fs = source.frd.freq_hz();
@@ -559,18 +627,32 @@ mod tests {
     }
 
     #[test]
-    fn full_multisine_is_not_measurable_and_odd_odd_is() {
+    fn full_multisine_by_roughness_odd_odd_by_detection_lines() {
         let p = 512;
         let full: Vec<usize> = (1..100).collect();
         let (u, mut y) = record(&multisine(&full, p, 1), 6, 0.05);
         add_noise(&mut y, 1e-3, 7);
         let est = frf_periodic(1000.0, None, &u, &y, &PeriodicOptions::new(p, 1)).unwrap();
         let b = Bla::from_periodic(&est).unwrap();
+        match &b.distortion {
+            Distortion::Roughness {
+                lines,
+                significant_lines,
+            } => assert!(
+                *lines == 99 && *significant_lines > 50,
+                "{:?}",
+                b.distortion
+            ),
+            d => panic!("{d:?}"),
+        }
+        // one period: no noise level, nothing measurable
+        let one = PeriodicOptions::new(p, 5);
+        let est = frf_periodic(1000.0, None, &u, &y, &one).unwrap();
         assert_eq!(
-            b.distortion,
-            Distortion::NotMeasurable {
-                reason: Unmeasurable::EveryLineExcited
-            }
+            Bla::from_periodic(&est).map(|b| b.distortion).ok(),
+            Some(Distortion::NotMeasurable {
+                reason: Unmeasurable::OnePeriod
+            })
         );
         let oo: Vec<usize> = (0..25).map(|i| 4 * i + 1).collect();
         let (u, mut y) = record(&multisine(&oo, p, 2), 6, 0.05);

@@ -156,7 +156,13 @@ pub fn estimate_in_set(
         IdentError::InvalidArgument(format!("experiment index {target} out of range"))
     })?;
     let mut own = estimate_experiment(exp, req)?;
-    let Some(bla) = own.bla.as_ref().filter(|b| !b.distortion.measured()) else {
+    let replaceable = |d: &crate::Distortion| {
+        matches!(
+            d,
+            crate::Distortion::NotMeasurable { .. } | crate::Distortion::Roughness { .. }
+        )
+    };
+    let Some(bla) = own.bla.as_ref().filter(|b| replaceable(&b.distortion)) else {
         return Ok(own);
     };
     let level = excitation_rms(exp);
@@ -189,7 +195,7 @@ pub fn estimate_in_set(
     }
     if let Some((_, src, name)) = best {
         let carried = bla.carried_from(&src, name)?;
-        if carried.distortion.measured() {
+        if matches!(carried.distortion, crate::Distortion::Carried { .. }) {
             own.frd = carried.frd.clone();
             own.bla = Some(carried);
         }

@@ -34,6 +34,7 @@ pub mod lpm;
 pub mod multisine;
 pub mod quality;
 pub mod rng;
+pub mod roughness;
 pub mod stabilization;
 #[cfg(test)]
 mod testsim;
@@ -79,6 +80,7 @@ pub use quality::{
     feedback_only, input_unexplained_by_output, likely_period, snr_warnings, trusted, DataWarning,
     FEEDBACK_ONLY_RESIDUAL, NO_EXCITATION_SNR,
 };
+pub use roughness::{ROUGHNESS_DOF, ROUGHNESS_WINDOW};
 pub use stabilization::{
     physical_fit, DiagramPole, ModeKind, OrderRow, PhysicalFit, PhysicalFitSummary, PhysicalMode,
     PoleClass, StabilizationOptions, FLOOR_RESOLUTION,

@@ -56,7 +56,7 @@ pub use json::{
 };
 pub use norms::HinfNorm;
 pub use num_complex::Complex64;
-pub use quantile::{chi2_quantile, normal_cdf, normal_quantile};
+pub use quantile::{chi2_quantile, f_quantile, normal_cdf, normal_quantile};
 pub use reduce::BalancedTruncation;
 pub use sim::{median, rms, rms_of, Simulation};
 pub use ss::StateSpace;

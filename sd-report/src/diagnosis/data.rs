@@ -55,8 +55,9 @@ pub(super) fn bla_section(md: &mut String, d: &Diagnosis) {
         md,
         "## Noise and nonlinear distortion\n\nThe statistic's variance is the noise plus the \
          stochastic nonlinear distortion wherever the data measure it (odd multisines' \
-         non-excited lines, several realisations, a sibling experiment of the same channel, \
-         band and level, or the LPM's residual, which holds both). Where it cannot be \
+         non-excited lines, several realisations, a full random-phase multisine's roughness \
+         over neighbouring lines, a sibling experiment of the same channel, band and level, \
+         or the LPM's residual, which holds both). Where it cannot be \
          measured the report says so: a misfit there may be distortion or a fit error.\n"
     );
     for x in &d.experiments {
