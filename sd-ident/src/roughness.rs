@@ -53,6 +53,9 @@ use num_complex::Complex64 as C;
 pub const ROUGHNESS_WINDOW: usize = 9;
 /// Excited lines of the wider window that fixes each local denominator.
 const DENOMINATOR_WINDOW: usize = 3 * ROUGHNESS_WINDOW;
+/// Lines from a denominator's centre within which it serves a narrow window (the wide window
+/// reaches 13 lines to either side, the narrow one 4).
+const DENOMINATOR_REUSE: usize = 1;
 /// Complex coefficients of the local numerator (degree 2).
 const NUMERATOR: usize = 3;
 /// Complex coefficients of the local rational model of the wide window (`a₀, a₁, a₂, b₁, b₂`).
@@ -101,6 +104,7 @@ pub(crate) fn roughness_variance(
     let half = ROUGHNESS_WINDOW / 2;
     let wide = DENOMINATOR_WINDOW.min(n);
     let mut out = Vec::with_capacity(n);
+    let mut den: Option<Denominator> = None;
     let mut start_prev = usize::MAX;
     let mut level_prev = (0.0, 0.0);
     for k in 0..n {
@@ -112,19 +116,19 @@ pub(crate) fn roughness_variance(
         }
         let span = start..start + ROUGHNESS_WINDOW;
         let centre = start + half;
-        let wide_start = centre.saturating_sub(wide / 2).min(n - wide);
-        let wide_span = wide_start..wide_start + wide;
-        let c = lines[centre] as f64;
-        let reach = lines[wide_span.clone()]
+        // one denominator serves the centres within DENOMINATOR_REUSE lines of its own
+        if den
+            .as_ref()
+            .is_none_or(|d: &Denominator| d.centre.abs_diff(centre) > DENOMINATOR_REUSE)
+        {
+            den = Some(Denominator::at(lines, g, centre, wide)?);
+        }
+        let d = den.as_ref()?;
+        let offsets: Vec<f64> = lines[span.clone()]
             .iter()
-            .map(|&l| (l as f64 - c).abs())
-            .fold(0.0, f64::max)
-            .max(1.0);
-        let offsets = |s: std::ops::Range<usize>| -> Vec<f64> {
-            lines[s].iter().map(|&l| (l as f64 - c) / reach).collect()
-        };
-        let den = denominator(&offsets(wide_span.clone()), &g[wide_span])?;
-        let total = numerator_residual(&offsets(span.clone()), &g[span.clone()], den)?;
+            .map(|&l| (l as f64 - d.c) / d.reach)
+            .collect();
+        let total = numerator_residual(&offsets, &g[span.clone()], d.b)?;
         let noise = noise_var[span].iter().sum::<f64>() / ROUGHNESS_WINDOW as f64;
         let level = (
             (total - noise).max(0.0),
@@ -138,6 +142,39 @@ pub(crate) fn roughness_variance(
         (start_prev, level_prev) = (start, level);
     }
     Some(out)
+}
+
+/// The local denominator fitted over the wide window around line index `centre`: the offsets
+/// `(l − c)/reach` of its lines and `D = 1 + b₁r + b₂r²` in them.
+struct Denominator {
+    centre: usize,
+    c: f64,
+    reach: f64,
+    b: (C, C),
+}
+
+impl Denominator {
+    fn at(lines: &[usize], g: &[C], centre: usize, wide: usize) -> Option<Denominator> {
+        let n = lines.len();
+        let start = centre.saturating_sub(wide / 2).min(n - wide);
+        let span = start..start + wide;
+        let c = lines[centre] as f64;
+        let reach = lines[span.clone()]
+            .iter()
+            .map(|&l| (l as f64 - c).abs())
+            .fold(0.0, f64::max)
+            .max(1.0);
+        let r: Vec<f64> = lines[span.clone()]
+            .iter()
+            .map(|&l| (l as f64 - c) / reach)
+            .collect();
+        Some(Denominator {
+            centre,
+            c,
+            reach,
+            b: denominator(&r, &g[span])?,
+        })
+    }
 }
 
 /// `SSR/(w − 3)` of `g ≈ N(r)/D(r)` over the narrow window, `D = 1 + b₁r + b₂r²` given and
@@ -240,9 +277,28 @@ fn residual(r: &[f64], gs: &[C], theta: &[C]) -> Option<(f64, DVector<C>, DMatri
     ssr.is_finite().then_some((ssr, e, jac))
 }
 
-/// Least-squares solution of `a·x ≈ b` by the SVD (singular values below `1e-12·σ_max`
-/// dropped).
+/// Least-squares solution of `a·x ≈ b` (at most [`PARAMS`] columns): by the normal equations
+/// with the columns scaled to unit norm (Cholesky of a 5×5 Hermitian matrix: the offsets are
+/// within [−1, 1] and the response at unit rms, so their condition number stays far from
+/// `1/√ε`), by the SVD when Cholesky fails (singular values below `1e-12·σ_max` dropped).
 fn least_squares(a: &DMatrix<C>, b: &DVector<C>) -> Option<DVector<C>> {
+    let norms: Vec<f64> = a.column_iter().map(|c| c.norm()).collect();
+    if norms.iter().all(|n| *n > 0.0 && n.is_finite()) {
+        let mut scaled = a.clone();
+        for (j, n) in norms.iter().enumerate() {
+            scaled.column_mut(j).unscale_mut(*n);
+        }
+        let normal = scaled.adjoint() * &scaled;
+        if let Some(ch) = normal.cholesky() {
+            let mut x = ch.solve(&(scaled.adjoint() * b));
+            for (j, n) in norms.iter().enumerate() {
+                x[j] /= *n;
+            }
+            if x.iter().all(|v| v.re.is_finite() && v.im.is_finite()) {
+                return Some(x);
+            }
+        }
+    }
     let svd = nalgebra::linalg::SVD::try_new(a.clone(), true, true, f64::EPSILON, 200)?;
     let smax = svd.singular_values.iter().cloned().fold(0.0, f64::max);
     svd.solve(b, 1e-12 * smax).ok()

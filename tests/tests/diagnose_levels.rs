@@ -35,7 +35,9 @@
 //! distortion-shaped standard errors were developed on its four wrong cases, 3723, 3726,
 //! 3728, 3732, and checked on `3700..3745`); reported by that version (commits c82e073,
 //! e952644) `3800..3825` (periodic), `3850..3866` (non-periodic) and `3870..3895` (full
-//! multisines), the constants below; all of them:
+//! multisines); the roughness (`sd_ident::roughness`, commit 3117345) was checked on the
+//! full multisines of `3700..3712` and reported on `3900..3925`; the constants below; all of
+//! them:
 //! `cargo test --release -p sd-tests --test diagnose_levels -- --ignored --nocapture`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 use sd_model::median;
@@ -84,7 +86,7 @@ const CI_SEEDS: std::ops::Range<u64> = 50..53;
 /// Reported seeds of the non-periodic forms (separate noise records, one rising record).
 const REPORT_SEEDS_NOISE: std::ops::Range<u64> = 3850..3866;
 /// Reported seeds of full multisines of one realization ([`levels_reported_full`]).
-const REPORT_SEEDS_FULL: std::ops::Range<u64> = 3870..3895;
+const REPORT_SEEDS_FULL: std::ops::Range<u64> = 3900..3925;
 /// The default run's non-periodic subset.
 const CI_SEEDS_NOISE: std::ops::Range<u64> = 50..52;
 
@@ -678,7 +680,8 @@ fn levels_reported_nonperiodic() {
 }
 
 /// Speed: a four-level and a seven-level diagnosis of 70 000 samples per level (14 s at 5 kHz;
-/// periodic and separate noise records), at most 10 s and 15 s on a 2-core machine:
+/// periodic odd multisines, full multisines — the roughness measures their distortion — and
+/// separate noise records), at most 10 s and 15 s on a 2-core machine:
 /// `cargo test --release -p sd-tests --test diagnose_levels levels_speed -- --ignored
 /// --nocapture`.
 #[test]
@@ -698,24 +701,28 @@ fn levels_speed() {
     let four = [1.0, 2.0, 4.0, 8.0];
     let seven = [1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0];
     let mut slow = Vec::new();
-    for rec in [
-        long,
-        Recording {
-            periodic: false,
-            ..long
-        },
-    ] {
+    let forms = [
+        ("periodic", long),
+        ("full", Recording { full: true, ..long }),
+        (
+            "noise",
+            Recording {
+                periodic: false,
+                ..long
+            },
+        ),
+    ];
+    for (name, rec) in forms {
         for (levels, limit) in [(&four[..], 10.0), (&seven[..], 15.0)] {
             let o = run(seed, LevelEffect::Hardening, levels, Form::Separate(rec)).unwrap();
             let n: usize = o.case.experiments.iter().map(|e| e.y.len()).sum();
             println!(
-                "periodic {}, {} levels: {n} samples in {:.2} s (limit {limit} s)",
-                rec.periodic,
+                "{name}, {} levels: {n} samples in {:.2} s (limit {limit} s)",
                 levels.len(),
                 o.seconds
             );
             if o.seconds > limit {
-                slow.push((rec.periodic, levels.len(), o.seconds));
+                slow.push((name, levels.len(), o.seconds));
             }
         }
     }
@@ -734,8 +741,8 @@ fn levels_reported() {
 }
 
 /// The reported seeds of full multisines of one realization ([`REPORT_SEEDS_FULL`]: every
-/// line excited, no detection lines, the distortion not measured — a ground vibration test's
-/// recording): `cargo test --release -p sd-tests --test diagnose_levels levels_reported_full
+/// line excited, no detection lines, the distortion measured by the FRF's roughness — a
+/// ground vibration test's recording): `cargo test --release -p sd-tests --test diagnose_levels levels_reported_full
 /// -- --ignored --nocapture`.
 #[test]
 #[ignore]
