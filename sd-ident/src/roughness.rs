@@ -379,14 +379,8 @@ mod tests {
             let b = Bla::from_periodic(&est).unwrap();
             assert!(matches!(b.distortion, crate::Distortion::Roughness { .. }));
             let g: Vec<C> = est.frd.siso(0, 0).unwrap();
-            let v: Vec<f64> = est
-                .frd
-                .variance()
-                .unwrap()
-                .iter()
-                .map(|m| m[(0, 0)])
-                .collect();
-            for (_, ratio) in roughness_variance(&est.lines, &g, &v).unwrap() {
+            let v = &b.noise_var;
+            for (_, ratio) in roughness_variance(&est.lines, &g, v).unwrap() {
                 ratios.push(ratio);
                 passed += usize::from(ratio > gate);
             }

@@ -35,9 +35,10 @@
 //! distortion-shaped standard errors were developed on its four wrong cases, 3723, 3726,
 //! 3728, 3732, and checked on `3700..3745`); reported by that version (commits c82e073,
 //! e952644) `3800..3825` (periodic), `3850..3866` (non-periodic) and `3870..3895` (full
-//! multisines); the roughness (`sd_ident::roughness`, commit 3117345) was checked on the
-//! full multisines of `3700..3712` and reported on `3900..3925`; the constants below; all of
-//! them:
+//! multisines); the roughness (`sd_ident::roughness`, commits 3117345, 7abc527) was checked
+//! on the full multisines of `3700..3712` and reported on `3900..3925` (4 wrong: seeds 3903
+//! Coulomb and 3909 softening, which the version before answers right); the constants below;
+//! all of them:
 //! `cargo test --release -p sd-tests --test diagnose_levels -- --ignored --nocapture`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 use sd_model::median;

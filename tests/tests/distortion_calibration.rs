@@ -27,9 +27,9 @@ fn threshold(lines: usize) -> f64 {
     sd_model::chi2_quantile(1.0 - ALPHA, nu) / nu
 }
 
-/// `(odd alarm, even alarm)` of one linear experiment at `rate`, or `None` when the
-/// controller does not stabilise the stage or the record has no detection lines.
-fn alarms(rate: f64, seed: u64) -> Option<(bool, bool)> {
+/// The periodic estimate of one linear closed-loop experiment at `rate` exciting `lines`, or
+/// `None` when the controller does not stabilise the stage.
+fn linear_estimate(rate: f64, seed: u64, lines: Lines) -> Option<sd_ident::FrfEstimate> {
     let truth = Truth::default();
     let spec = ExperimentSpec {
         bandwidth_hz: if rate >= 2000.0 { 30.0 } else { 20.0 },
@@ -40,10 +40,7 @@ fn alarms(rate: f64, seed: u64) -> Option<(bool, bool)> {
             3e-10 * (rate / 5000.0).sqrt(),
         ),
         fold_rate_hz: 1000.0,
-        lines: Lines::RandomOdd {
-            group: 3,
-            seed: seed ^ 0x5eed,
-        },
+        lines,
         periods: 4,
         fine_steps: None,
     };
@@ -57,14 +54,24 @@ fn alarms(rate: f64, seed: u64) -> Option<(bool, bool)> {
         Role::Validation,
     )?;
     let period = e.spec.period_samples?;
-    let est = frf_periodic(
+    frf_periodic(
         rate,
         None,
         &e.u,
         &e.y,
         &PeriodicOptions::new(period, e.spec.skip_periods),
     )
-    .ok()?;
+    .ok()
+}
+
+/// `(odd alarm, even alarm)` of one linear experiment at `rate`, or `None` when the
+/// controller does not stabilise the stage or the record has no detection lines.
+fn alarms(rate: f64, seed: u64) -> Option<(bool, bool)> {
+    let lines = Lines::RandomOdd {
+        group: 3,
+        seed: seed ^ 0x5eed,
+    };
+    let est = linear_estimate(rate, seed, lines)?;
     let d = est.distortion?;
     Some((
         d.odd_lines > 0 && d.odd_score > threshold(d.odd_lines),
@@ -120,38 +127,7 @@ fn distortion_false_alarms_report() {
 /// roughness, `sd_ident::roughness`), or `None` when the controller does not stabilise the
 /// stage or the roughness is not what measured it.
 fn roughness_alarms(rate: f64, seed: u64) -> Option<(usize, usize)> {
-    let truth = Truth::default();
-    let spec = ExperimentSpec {
-        bandwidth_hz: if rate >= 2000.0 { 30.0 } else { 20.0 },
-        lowpass_hz: (rate >= 2000.0).then_some(1000.0),
-        rms: 2.0,
-        noise: (
-            0.05 * (rate / 5000.0).sqrt(),
-            3e-10 * (rate / 5000.0).sqrt(),
-        ),
-        fold_rate_hz: 1000.0,
-        lines: Lines::Full,
-        periods: 4,
-        fine_steps: None,
-    };
-    let e = identification_experiment(
-        &truth,
-        "x",
-        rate,
-        &spec,
-        NonIdealities::default(),
-        seed,
-        Role::Validation,
-    )?;
-    let period = e.spec.period_samples?;
-    let est = frf_periodic(
-        rate,
-        None,
-        &e.u,
-        &e.y,
-        &PeriodicOptions::new(period, e.spec.skip_periods),
-    )
-    .ok()?;
+    let est = linear_estimate(rate, seed, Lines::Full)?;
     match sd_ident::Bla::from_periodic(&est).ok()?.distortion {
         sd_ident::Distortion::Roughness {
             lines,

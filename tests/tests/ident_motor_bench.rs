@@ -20,6 +20,17 @@ fn estimates() -> (ExperimentFrf, ExperimentFrf) {
     (a, b)
 }
 
+/// The Schroeder record's BLA on its own (no sibling: its distortion from its roughness).
+fn own_roughness() -> sd_ident::Bla {
+    let path = sd_tests::test_data("motor_bench/experiments.toml");
+    let exps = sd_ident::load_experiments(&path, |_| true).unwrap();
+    let req = FrfRequest::default();
+    sd_ident::estimate_experiment(&exps[0], &req)
+        .unwrap()
+        .bla
+        .unwrap()
+}
+
 /// `|G_a − G_b|²/(v_a + v_b)` at the lines both have, with `var` the variance to use.
 fn normalized_differences(a: &Frd, va: &[f64], b: &Frd, vb: &[f64]) -> Vec<f64> {
     let fa = a.freq_hz();
@@ -86,15 +97,7 @@ fn motor_bench_bla_total_variance() {
     // the Schroeder record alone measures its distortion by its roughness (the carried level
     // is preferred: Schroeder phases are not random); an independent measure of the same
     // quantity, it must bring the two BLAs together as the carried one does
-    let exps =
-        sd_ident::load_experiments(&sd_tests::test_data("motor_bench/experiments.toml"), |_| {
-            true
-        })
-        .unwrap();
-    let own = sd_ident::estimate_experiment(&exps[0], &sd_ident::FrfRequest::default())
-        .unwrap()
-        .bla
-        .unwrap();
+    let own = own_roughness();
     match &own.distortion {
         Distortion::Roughness {
             significant_lines, ..
@@ -202,15 +205,7 @@ fn motor_bench_physical_fit() {
     // with the record's own roughness as its distortion: the coupling resonance again, and a
     // cost per line near the variance's level (the rigid body is not asked of it: below the
     // band a heavily damped pair describes the lines as well, printed)
-    let exps =
-        sd_ident::load_experiments(&sd_tests::test_data("motor_bench/experiments.toml"), |_| {
-            true
-        })
-        .unwrap();
-    let own = sd_ident::estimate_experiment(&exps[0], &sd_ident::FrfRequest::default())
-        .unwrap()
-        .bla
-        .unwrap();
+    let own = own_roughness();
     let ro = sd_ident::physical_fit(&own.frd, &opt, &mut |_| {}).unwrap();
     eprintln!(
         "own roughness: order {}, rigid body {}, cost per line {:.2}; modes {:?}",
