@@ -32,10 +32,10 @@ pub(crate) struct Estimate {
     /// tracks' local fits use them in place of the LPM estimate).
     pub(crate) spectra: Option<std::sync::Arc<sd_ident::LineSpectra>>,
     pub(crate) distortion: Option<DistortionReport>,
-    /// Per excited line of a periodic odd multisine: its frequency (Hz), the local stochastic
-    /// distortion variance, and the part of it not in the FRF's variance (below the
+    /// Per excited line of a periodic odd or full multisine: its frequency (Hz), the local
+    /// stochastic distortion variance, and the part of it not in the FRF's variance (below the
     /// significance gate of [`with_distortion`]); ascending in frequency, empty without
-    /// detection lines.
+    /// detection lines or roughness.
     pub(crate) local_distortion: Vec<(f64, f64, f64)>,
     /// The best linear approximation at the estimate's lines: how its distortion was measured
     /// and its noise and distortion per band (`None` for a part of an experiment).
@@ -215,11 +215,12 @@ impl Estimate {
 }
 
 /// A full multisine's distortion carried from `source` (named `name`), an experiment of the
-/// same rate, period, columns and excitation rms ([`sd_ident::same_level`]) whose detection
-/// lines measured it ([`sd_ident::Bla::carried_from`]): the FRF's variance becomes noise +
-/// the carried distortion, its degrees of freedom combined per line by Satterthwaite as in
-/// [`with_distortion`]. Unchanged when `est`'s own distortion is measured, the source's is
-/// not, or they differ in rate, period, columns or level.
+/// same rate, period, columns and excitation rms ([`sd_ident::same_level`]) whose measure
+/// may replace `est`'s ([`sd_ident::Distortion::replaced_by`], [`sd_ident::Bla::carried_from`]):
+/// the FRF's variance becomes noise + the carried distortion, its degrees of freedom combined
+/// per line by Satterthwaite as in [`with_distortion`] (from `est.dof`, which for a replaced
+/// roughness already counts that roughness: conservative). Unchanged otherwise, or when they
+/// differ in rate, period, columns or level.
 pub(crate) fn carry_distortion(
     (est, exp): (&mut Estimate, &Experiment),
     (source, src_exp): (&Estimate, &Experiment),
@@ -261,12 +262,7 @@ pub(crate) fn carry_within(set: &mut [(&Experiment, Estimate)]) -> Result<()> {
     let sources: Vec<(usize, Estimate)> = set
         .iter()
         .enumerate()
-        .filter(|(_, (_, e))| {
-            e.bla.as_ref().is_some_and(|b| {
-                b.distortion.direct()
-                    || matches!(b.distortion, sd_ident::Distortion::Roughness { .. })
-            })
-        })
+        .filter(|(_, (_, e))| e.bla.as_ref().is_some_and(|b| b.distortion.lends()))
         .map(|(i, (_, e))| (i, e.clone()))
         .collect();
     for t in 0..set.len() {

@@ -135,14 +135,26 @@ impl Distortion {
         )
     }
 
+    /// Whether this experiment's own measure can lend its level to a sibling: direct or by
+    /// roughness ([`Bla::carried_from`]).
+    pub fn lends(&self) -> bool {
+        self.direct() || matches!(self, Distortion::Roughness { .. })
+    }
+
+    /// Whether some sibling's level could replace this one: not measured, or by roughness.
+    pub fn replaceable(&self) -> bool {
+        matches!(
+            self,
+            Distortion::NotMeasurable { .. } | Distortion::Roughness { .. }
+        )
+    }
+
     /// Whether a sibling's distortion `source` replaces this one ([`Bla::carried_from`]):
-    /// this one is not measured and the source is (directly or by roughness), or this one is
-    /// a roughness and the source direct.
+    /// this one is not measured and the source [`lends`](Distortion::lends), or this one is a
+    /// roughness and the source direct.
     pub fn replaced_by(&self, source: &Distortion) -> bool {
         match self {
-            Distortion::NotMeasurable { .. } => {
-                source.direct() || matches!(source, Distortion::Roughness { .. })
-            }
+            Distortion::NotMeasurable { .. } => source.lends(),
             Distortion::Roughness { .. } => source.direct(),
             _ => false,
         }
@@ -244,8 +256,8 @@ impl Bla {
             }
             _ => None,
         };
-        let (distortion_level, distortion_var, distortion) = match &est.nl_variance {
-            Some(nl) if est.periods >= 2 => {
+        let (distortion_level, distortion_var, distortion) = match (&est.nl_variance, rough) {
+            (Some(nl), _) if est.periods >= 2 => {
                 let (level, var, significant) = gated(nl, detection_gate());
                 let detection = detection_lines(&est.lines);
                 (
@@ -257,9 +269,9 @@ impl Bla {
                     },
                 )
             }
-            _ if rough.is_some() => {
+            (_, Some(nl)) => {
                 let gate = crate::roughness::roughness_gate(est.periods);
-                let (level, var, significant) = gated(rough.as_deref().unwrap_or_default(), gate);
+                let (level, var, significant) = gated(&nl, gate);
                 (
                     level,
                     var,

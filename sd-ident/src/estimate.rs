@@ -142,8 +142,8 @@ pub fn estimate_experiment(exp: &Experiment, req: &FrfRequest) -> Result<Experim
 /// own excitation cannot measure it ([`Bla::carried_from`]): a periodic experiment of the set
 /// with the same input, output and reference columns, sample rate and period, an excitation
 /// rms within [`crate::bla::CARRY_RMS_TOLERANCE`] ([`same_level`]) and a band covering at
-/// least 80 % of the target's lines, whose detection lines measured it. Of several, the one
-/// nearest in rms.
+/// least 80 % of the target's lines, whose measure may replace the target's
+/// ([`crate::Distortion::replaced_by`]). Of several, the one nearest in rms.
 ///
 /// # Errors
 /// As [`estimate_experiment`]; a `target` out of range.
@@ -156,13 +156,7 @@ pub fn estimate_in_set(
         IdentError::InvalidArgument(format!("experiment index {target} out of range"))
     })?;
     let mut own = estimate_experiment(exp, req)?;
-    let replaceable = |d: &crate::Distortion| {
-        matches!(
-            d,
-            crate::Distortion::NotMeasurable { .. } | crate::Distortion::Roughness { .. }
-        )
-    };
-    let Some(bla) = own.bla.as_ref().filter(|b| replaceable(&b.distortion)) else {
+    let Some(bla) = own.bla.as_ref().filter(|b| b.distortion.replaceable()) else {
         return Ok(own);
     };
     let level = excitation_rms(exp);

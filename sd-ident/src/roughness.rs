@@ -18,9 +18,8 @@
 //! window (even than one line) leaves no curvature behind, as a local polynomial would (the
 //! local rational method: McKelvey & Guérin, "Non-parametric frequency response estimation
 //! using a local rational model", SYSID 2012). Fitted freely over a few lines, a rational
-//! model also follows the noise (its poles move to a noisy line: on the unit test's linear
-//! structure an 11-line fit of all five coefficients read the noise at 0.87–0.90 of its
-//! level), so the two roles are split: the denominator comes from the
+//! model also follows the noise (its poles move to a noisy line, so the residual reads below
+//! the noise's level), so the two roles are split: the denominator comes from the
 //! `DENOMINATOR_WINDOW` = 27 nearest lines (Sanathanan–Koerner iterations by `1/|D_prev|`,
 //! then Gauss–Newton steps on `Ĝ − N/D` itself), and over the [`ROUGHNESS_WINDOW`] = 9 nearest
 //! lines only the numerator is fitted, by linear least squares with the row weights `1/|D|`.
@@ -33,17 +32,15 @@
 //! variance. For a linear system the ratio is ≈ `F(12, ν_N)`; the unit tests measure, on a
 //! two-mode structure simulated in the time domain (modes of 5 and 15 lines' half-power
 //! bandwidth, 6 steady periods), a mean ratio of 1.02 and the gate passed at 1.1 % of the lines
-//! (nominal 1 %), and with a
-//! cubic spring the distortion within a factor 1.4 of the robust method over 16 realisations
+//! (nominal 1 %), and with a cubic spring the distortion within a factor 1.4 of the robust method over 16 realisations
 //! in every quarter of the band.
 //!
 //! **Where it is wrong.** Two modes within one denominator window leave curvature (a
 //! second-order denominator holds one). A resonance narrower than the line spacing makes the
 //! distortion of one realisation correlated over neighbouring lines (the products of its few
-//! resonant lines' fixed phases), so the roughness reads low: with a mode of ζ = 0.004 at
-//! 61.3 Hz and 0.98 Hz lines, 0.68 of the robust method in the quarter of the band that holds
-//! it (the unit test's structure so changed, run once). A deterministic phase choice (Schroeder
-//! phases) likewise makes `G_S` smoother than a random-phase one. And the estimate is an
+//! resonant lines' fixed phases), so the roughness reads low there (seen during development on
+//! the unit test's structure with a mode of ζ = 0.004 at 0.98 Hz lines; no test measures it).
+//! A deterministic phase choice (Schroeder phases) likewise makes `G_S` smoother than a random-phase one. And the estimate is an
 //! average over 9 lines, so a distortion peaked at a narrower resonance is spread over them.
 
 use nalgebra::{DMatrix, DVector};
