@@ -684,7 +684,7 @@ fn levels_reported_nonperiodic() {
 /// periodic odd multisines, full multisines — the roughness measures their distortion — and
 /// separate noise records), at most 10 s and 15 s on a 2-core machine:
 /// `cargo test --release -p sd-tests --test diagnose_levels levels_speed -- --ignored
-/// --nocapture`.
+/// --nocapture` (`LEVEL_SPEED_FORM=noise` times one form, for a profiler).
 #[test]
 #[ignore]
 fn levels_speed() {
@@ -713,7 +713,11 @@ fn levels_speed() {
             },
         ),
     ];
+    let only = std::env::var("LEVEL_SPEED_FORM").ok();
     for (name, rec) in forms {
+        if only.as_deref().is_some_and(|o| o != name) {
+            continue;
+        }
         for (levels, limit) in [(&four[..], 10.0), (&seven[..], 15.0)] {
             let o = run(seed, LevelEffect::Hardening, levels, Form::Separate(rec)).unwrap();
             let n: usize = o.case.experiments.iter().map(|e| e.y.len()).sum();

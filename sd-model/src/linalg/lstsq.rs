@@ -6,7 +6,8 @@
 //! For `min ‖A x − b‖₂` with `A` m×n, the columns are first scaled to unit Euclidean norm,
 //! `Aₛ = A S⁻¹`, `S = diag(‖a_j‖)` (a zero column keeps scale 1), so that the rank decision sees
 //! the conditioning of the basis and not the units of its columns. When `m > n` the augmented
-//! matrix `[Aₛ b]` is reduced by a Householder QR (faer's blocked kernel): its thin `R` factor
+//! matrix `[Aₛ b]` is reduced by a Householder QR ([`qr_r`]: faer's blocked kernel at an exact
+//! power-of-two column scale): its thin `R` factor
 //! is `[[R, c], [0, ρ]]` with `c = Qᵀb` and `ρ` the residual norm, so `Q` is never formed. The
 //! n×n `R` (or `Aₛ` itself when `m ≤ n`) is then decomposed by an SVD, `R = U Σ Vᵀ`, and
 //!
@@ -36,6 +37,7 @@ use faer::MatRef;
 use nalgebra::{DMatrix, DVector};
 
 use crate::linalg::convert::{from_faer, to_faer};
+use crate::linalg::qr::qr_r;
 use crate::{ModelError, Result};
 
 /// Singular values below `RANK_CUT · σ_max` of the column-scaled matrix are treated as zero.
@@ -52,13 +54,15 @@ pub struct LstSq {
     pub rank: usize,
 }
 
-/// The Euclidean norm of each column (1 for a zero one).
+/// The Euclidean norm of each column (1 for a zero one), accumulated relative to the column's
+/// largest magnitude so that no square under- or overflows.
 fn column_scales(a: MatRef<'_, f64>) -> Vec<f64> {
     (0..a.ncols())
         .map(|c| {
-            let s = a.col(c).norm_l2();
-            if s > 0.0 {
-                s
+            let amax = (0..a.nrows()).fold(0.0f64, |m, r| m.max(a[(r, c)].abs()));
+            if amax > 0.0 {
+                let ss: f64 = (0..a.nrows()).map(|r| (a[(r, c)] / amax).powi(2)).sum();
+                amax * ss.sqrt()
             } else {
                 1.0
             }
@@ -82,8 +86,7 @@ fn reduce(a: MatRef<'_, f64>, b: &[f64], scale: &[f64]) -> (faer::Mat<f64>, Vec<
     for (r, &v) in b.iter().enumerate() {
         aug[(r, n)] = v;
     }
-    let qr = aug.qr();
-    let rf = qr.thin_R();
+    let rf = qr_r(aug.as_ref());
     let r = faer::Mat::<f64>::from_fn(n, n, |i, j| rf[(i, j)]);
     let c = (0..n).map(|i| rf[(i, n)]).collect();
     (r, c)

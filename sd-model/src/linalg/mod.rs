@@ -11,8 +11,10 @@ pub mod golden;
 pub mod hamiltonian;
 pub mod lstsq;
 pub mod lyap;
+pub mod qr;
 pub mod schur;
 
 pub use expm::expm;
 pub use golden::golden_min;
 pub use lstsq::{lstsq, lstsq_faer, LstSq};
+pub use qr::qr_r;
