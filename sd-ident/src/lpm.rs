@@ -7,7 +7,7 @@
 //! line offset r ∈ [−n, n]:
 //! `Z(k+r) = (G_k + Σ_s g_s r^s) X(k+r) + T_k + Σ_s t_s r^s + V(k+r)`.
 //! The `(nx + 1)(R + 1)` coefficients per output follow by least squares over the `2n + 1`
-//! lines (solved by SVD, r scaled to [−1, 1]); `G_k` is the estimate, the residual gives the
+//! lines (solved by a small Householder QR, r scaled to [−1, 1]; `small_ls`); `G_k` is the estimate, the residual gives the
 //! noise covariance `C_V = EᴴE/(2n + 1 − q)`, and `var Ĝ_k(i, j) = C_V(i, i)·[(KᴴK)⁻¹]_jj`;
 //! the covariance of entries (i, j) and (i', j') is `C_V(i, i')·[(KᴴK)⁻¹]_{jj'}`.
 //! The window is shifted (not shrunk) at the band edges. Default R = 2 and the smallest n with
@@ -17,6 +17,8 @@
 //! `U/R` and returns their ratio with first-order variance.
 
 use crate::error::{IdentError, Result};
+
+mod small_ls;
 use nalgebra::DMatrix;
 use num_complex::Complex64 as C;
 use rayon::prelude::*;
@@ -232,42 +234,20 @@ fn local_fit(
             zw[(row, i)] = zs[i][line];
         }
     }
-    let svd = nalgebra::linalg::SVD::try_new(kmat.clone(), true, true, f64::EPSILON, 200)
-        .ok_or_else(|| IdentError::Numerical("SVD of a local LPM problem".into()))?;
-    let smax = svd.singular_values.iter().cloned().fold(0.0, f64::max);
-    let smin = svd
-        .singular_values
-        .iter()
-        .cloned()
-        .fold(f64::INFINITY, f64::min);
-    if smin <= 1e-12 * smax {
-        return Err(IdentError::Data(format!(
+    let ls = small_ls::solve(&kmat, &zw).ok_or_else(|| {
+        IdentError::Data(format!(
             "the local LPM problem at line {k} is singular: the excitation has no power \
              there (or the inputs are collinear)"
-        )));
-    }
-    let theta = svd
-        .solve(&zw, 0.0)
-        .map_err(|e| IdentError::Numerical(format!("LPM solve: {e}")))?;
-    let e = &zw - &kmat * &theta;
+        ))
+    })?;
+    let theta = &ls.theta;
     let dof = (w - q) as f64;
-    let cv = (e.adjoint() * &e).map(|v| v / dof);
-    // (KᴴK)⁻¹ = V Σ⁻² Vᴴ (scaled coordinates)
-    let v_t = svd
-        .v_t
-        .as_ref()
-        .ok_or_else(|| IdentError::Numerical("SVD without V".into()))?;
+    let cv = ls.residual_gram.map(|v| v / dof);
     let mut g = DMatrix::<C>::zeros(nz, nx);
     let mut gv = DMatrix::<f64>::zeros(nz, nx);
-    // [(KᴴK)⁻¹]_{jj'} = Σ_l conj(Vᴴ_lj) Vᴴ_lj' / s_l², unscaled
+    // (KᴴK)⁻¹ = R⁻¹R⁻ᴴ in the scaled coordinates, unscaled
     let pinv = DMatrix::<C>::from_fn(nx, nx, |j, jj| {
-        let s: C = svd
-            .singular_values
-            .iter()
-            .enumerate()
-            .map(|(l, sv)| v_t[(l, j)].conj() * v_t[(l, jj)] / (sv * sv))
-            .sum();
-        s / (scale[j] * scale[jj])
+        ls.gram_inverse(j, jj) / (scale[j] * scale[jj])
     });
     for j in 0..nx {
         for i in 0..nz {

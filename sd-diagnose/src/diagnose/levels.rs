@@ -17,6 +17,7 @@ use crate::{
     Cause, CornerTrend, DampingTrend, DriftCheck, DriftSign, Evidence, EvidenceKind, Extension,
     FreqTrend, Gain, HeldOut, ModePoint, MovingMode, PoleKind, Result, Verdict,
 };
+use rayon::prelude::*;
 use sd_model::normal_quantile;
 use std::collections::BTreeMap;
 
@@ -29,10 +30,12 @@ pub(super) fn level_fits(
     data: &Data<'_>,
     levels: &[Level<'_>],
 ) -> Option<(Vec<usize>, Vec<LevelFit>)> {
+    // the levels' fits are independent: in parallel, collected in order
+    let h = data.h;
     let fit = |cand: &[usize]| -> Option<Vec<LevelFit>> {
         levels
-            .iter()
-            .map(|lv| fit_level(basis, cand, data.h, lv))
+            .par_iter()
+            .map(|lv| fit_level(basis, cand, h, lv))
             .collect::<Result<Vec<_>>>()
             .ok()
     };
@@ -523,7 +526,8 @@ pub(super) type LeftOut = Vec<Option<Vec<(f64, f64)>>>;
 
 /// Three or more levels: each validation level left out in turn, the amplitude model fitted
 /// on the others (the model experiment always among them) and judged on it; before: the
-/// linear model's simulation of it.
+/// linear model's simulation of it. The folds are independent: they run in parallel and are
+/// gathered in level order.
 pub(super) fn levels_left_out(
     data: &Data<'_>,
     ch: &Checks,
@@ -531,70 +535,43 @@ pub(super) fn levels_left_out(
     at: &[Option<usize>],
     (variants, chosen, alpha): (&[Variant], usize, f64),
 ) -> Result<(Gain, LeftOut, BTreeMap<String, HeldOut>)> {
+    // each level's excitation relative to the model experiment's, and the linear model's lines
+    let rel: Vec<f64> = at
+        .iter()
+        .map(|a| a.map_or(1.0, |i| data.vals[i].level))
+        .collect();
+    let linear: Vec<Option<&[Line]>> = at.iter().map(|a| a.map(|i| &ch.model[i][..])).collect();
+    let h = data.h;
+    let folds = (1..levels.len())
+        .into_par_iter()
+        .map(|k| {
+            linear[k]
+                .map(|lin| left_out((h, &rel), lin, levels, (k, variants, chosen, alpha)))
+                .transpose()
+        })
+        .collect::<Result<Vec<_>>>()?;
     let (mut before, mut after, mut held) = (Vec::new(), Vec::new(), Vec::new());
     let mut per = BTreeMap::new();
     let mut loo: LeftOut = vec![None; levels.len()];
-    // each level's excitation relative to the model experiment's
-    let level_of = |q: usize| at[q].map_or(1.0, |i| data.vals[i].level);
-    for (k, lv) in levels.iter().enumerate().skip(1) {
-        let Some(i) = at[k] else { continue };
-        let train: Vec<&Level<'_>> = levels
-            .iter()
-            .enumerate()
-            .filter(|(m, _)| *m != k)
-            .map(|(_, l)| l)
-            .collect();
-        // the basis chosen on the training levels alone ([`choose`])
-        let on: Vec<usize> = (0..levels.len()).filter(|m| *m != k).collect();
-        let fold = choose(variants, levels, &on, data.h, alpha);
-        let Variant { basis, cand, fits } = &variants[fold];
-        let tf: Vec<&LevelFit> = on.iter().map(|&q| &fits[q]).collect();
-        let m = AmplitudeModel::fit(basis, data.h, cand, &train, &tf, alpha)?;
-        // per-candidate predictions only where the fold's basis is the final one's
-        loo[k] = (fold == chosen).then(|| m.predicted(lv));
-        let c = lv.est.inflation;
-        let bands = m.moving_bands(lv);
-        let (a, b) = (
-            in_bands(m.lines(lv)?, &bands),
-            in_bands(ch.model[i].clone(), &bands),
-        );
-        let (sa, sb) = (
-            statistic([(a.as_slice(), c)], alpha).value,
-            statistic([(b.as_slice(), c)], alpha).value,
-        );
-        let own = level_floor((basis, cand), &fits[k], data.h, lv, &bands, alpha)?;
-        // beyond the fitted amplitudes of a moving mode; or, where nothing moves on the
-        // training levels, beyond their excitation levels
-        let (lo, hi) = (0..levels.len())
-            .filter(|q| *q != k)
-            .map(level_of)
-            .fold((f64::INFINITY, 0.0f64), |(lo, hi), x| {
-                (lo.min(x), hi.max(x))
-            });
-        let beyond = level_of(k) < lo * 0.999 || level_of(k) > hi * 1.001;
-        let extrapolated = m.extrapolates(lv, &tf) || (!m.moves_any() && beyond);
-        per.insert(
-            lv.name.clone(),
-            HeldOut {
-                before: sb,
-                after: sa,
-                ratio: sb / sa,
-                floor: own,
-                lines: a.len(),
-                extrapolated,
-            },
-        );
-        after.push((a, c));
-        before.push((b, c));
+    for (k, f) in folds
+        .into_iter()
+        .enumerate()
+        .filter_map(|(q, f)| Some((q + 1, f?)))
+    {
+        let lv = &levels[k];
+        loo[k] = f.predicted;
         held.push(format!(
             "{} (whole experiment, left out{})",
             lv.name,
-            if extrapolated {
+            if f.held.extrapolated {
                 "; beyond the fitted amplitudes: extrapolated"
             } else {
                 ""
             }
         ));
+        per.insert(lv.name.clone(), f.held);
+        after.push((f.after, lv.est.inflation));
+        before.push((f.before, lv.est.inflation));
     }
     let pooled =
         |sets: &[(Vec<Line>, f64)]| statistic(sets.iter().map(|(l, c)| (l.as_slice(), *c)), alpha);
@@ -604,6 +581,73 @@ pub(super) fn levels_left_out(
         loo,
         per,
     ))
+}
+
+/// One fold of [`levels_left_out`]: the level's lines in the moving bands under the model
+/// fitted without it (`after`) and under the linear model (`before`), and the summary.
+struct Fold {
+    after: Vec<Line>,
+    before: Vec<Line>,
+    held: HeldOut,
+    /// The fold's per-candidate predictions, where its basis is the final one's.
+    predicted: Option<Vec<(f64, f64)>>,
+}
+
+/// Level `k` left out: the basis chosen on the other levels ([`choose`]), the amplitude model
+/// fitted on them, judged on level `k` against the linear model's lines `linear`; `h` is the
+/// model experiment's sample period, `rel` each level's excitation relative to its.
+fn left_out(
+    (h, rel): (f64, &[f64]),
+    linear: &[Line],
+    levels: &[Level<'_>],
+    (k, variants, chosen, alpha): (usize, &[Variant], usize, f64),
+) -> Result<Fold> {
+    let lv = &levels[k];
+    let train: Vec<&Level<'_>> = levels
+        .iter()
+        .enumerate()
+        .filter(|(m, _)| *m != k)
+        .map(|(_, l)| l)
+        .collect();
+    let on: Vec<usize> = (0..levels.len()).filter(|m| *m != k).collect();
+    let fold = choose(variants, levels, &on, h, alpha);
+    let Variant { basis, cand, fits } = &variants[fold];
+    let tf: Vec<&LevelFit> = on.iter().map(|&q| &fits[q]).collect();
+    let m = AmplitudeModel::fit(basis, h, cand, &train, &tf, alpha)?;
+    let c = lv.est.inflation;
+    let bands = m.moving_bands(lv);
+    let (a, b) = (
+        in_bands(m.lines(lv)?, &bands),
+        in_bands(linear.to_vec(), &bands),
+    );
+    let (sa, sb) = (
+        statistic([(a.as_slice(), c)], alpha).value,
+        statistic([(b.as_slice(), c)], alpha).value,
+    );
+    let own = level_floor((basis, cand), &fits[k], h, lv, &bands, alpha)?;
+    // beyond the fitted amplitudes of a moving mode; or, where nothing moves on the training
+    // levels, beyond their excitation levels
+    let (lo, hi) = on
+        .iter()
+        .map(|&q| rel[q])
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), x| {
+            (lo.min(x), hi.max(x))
+        });
+    let beyond = rel[k] < lo * 0.999 || rel[k] > hi * 1.001;
+    let extrapolated = m.extrapolates(lv, &tf) || (!m.moves_any() && beyond);
+    Ok(Fold {
+        held: HeldOut {
+            before: sb,
+            after: sa,
+            ratio: sb / sa,
+            floor: own,
+            lines: a.len(),
+            extrapolated,
+        },
+        predicted: (fold == chosen).then(|| m.predicted(lv)),
+        after: a,
+        before: b,
+    })
 }
 
 /// Two levels: the amplitude model fitted on the model experiment and the other level's

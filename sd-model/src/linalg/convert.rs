@@ -84,18 +84,77 @@ pub fn generalized_eigenvalues(a: &DMatrix<f64>, e: &DMatrix<f64>) -> Result<Vec
     Ok(out)
 }
 
-/// Singular values (descending) and thin factors `(U, σ, V)` of a real matrix, by faer's SVD.
+/// Singular values (descending) and thin factors `(U, σ, V)` of a real matrix, by faer's SVD;
+/// where it reports no convergence (it does on some well-conditioned matrices with paired
+/// singular values, e.g. a 16 × 16 triangle of a local modal fit: the test
+/// `svd_falls_back_where_faer_does_not_converge`), by nalgebra's one-sided Golub–Kahan SVD.
+///
+/// # Errors
+/// [`ModelError::NotConverged`] when neither converges.
 pub fn svd(a: &DMatrix<f64>) -> Result<(DMatrix<f64>, Vec<f64>, DMatrix<f64>)> {
     let (m, n) = a.shape();
     if m == 0 || n == 0 {
         return Ok((DMatrix::zeros(m, 0), Vec::new(), DMatrix::zeros(n, 0)));
     }
     let fa = to_faer(a);
-    let s = fa.thin_svd().map_err(|e| ModelError::NotConverged {
-        what: format!("the SVD ({e:?})"),
-    })?;
-    let u = from_faer(s.U());
-    let v = from_faer(s.V());
-    let sv = s.S().column_vector().iter().cloned().collect();
-    Ok((u, sv, v))
+    match fa.thin_svd() {
+        Ok(s) => {
+            let u = from_faer(s.U());
+            let v = from_faer(s.V());
+            let sv = s.S().column_vector().iter().cloned().collect();
+            Ok((u, sv, v))
+        }
+        Err(e) => svd_nalgebra(a).ok_or_else(|| ModelError::NotConverged {
+            what: format!("the SVD (faer: {e:?}; nalgebra: no convergence either)"),
+        }),
+    }
+}
+
+/// nalgebra's SVD, sorted descending, as `(U, σ, V)`; `None` without convergence.
+fn svd_nalgebra(a: &DMatrix<f64>) -> Option<(DMatrix<f64>, Vec<f64>, DMatrix<f64>)> {
+    let iterations = 200 * a.nrows().max(a.ncols());
+    let s = nalgebra::linalg::SVD::try_new(a.clone(), true, true, f64::EPSILON, iterations)?;
+    let (u, vt) = (s.u?, s.v_t?);
+    let mut order: Vec<usize> = (0..s.singular_values.len()).collect();
+    order.sort_by(|&i, &j| s.singular_values[j].total_cmp(&s.singular_values[i]));
+    let uo = DMatrix::from_fn(u.nrows(), order.len(), |r, c| u[(r, order[c])]);
+    let vo = DMatrix::from_fn(vt.ncols(), order.len(), |r, c| vt[(order[c], r)]);
+    Some((
+        uo,
+        order.iter().map(|&i| s.singular_values[i]).collect(),
+        vo,
+    ))
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    /// A matrix faer's SVD does not converge on: the fallback's factors reproduce it to
+    /// `n·ε·σ_max`, are orthonormal, and the values descend.
+    #[test]
+    fn svd_falls_back_where_faer_does_not_converge() {
+        let text = include_str!("testdata/faer_svd_no_convergence.txt");
+        let rows: Vec<Vec<f64>> = text
+            .lines()
+            .filter(|l| !l.starts_with('#'))
+            .map(|l| l.split_whitespace().map(|x| x.parse().unwrap()).collect())
+            .collect();
+        let n = rows.len();
+        let a = DMatrix::from_fn(n, n, |i, j| rows[i][j]);
+        assert!(to_faer(&a).thin_svd().is_err(), "faer converges here now");
+        let (u, s, v) = svd(&a).unwrap();
+        let back =
+            &u * DMatrix::from_diagonal(&nalgebra::DVector::from_vec(s.clone())) * v.transpose();
+        let tol = 10.0 * n as f64 * f64::EPSILON * s[0];
+        assert!((back - &a).amax() <= tol);
+        assert!(
+            (u.transpose() * &u - DMatrix::identity(n, n)).amax() <= 10.0 * n as f64 * f64::EPSILON
+        );
+        assert!(
+            (v.transpose() * &v - DMatrix::identity(n, n)).amax() <= 10.0 * n as f64 * f64::EPSILON
+        );
+        assert!(s.windows(2).all(|w| w[0] >= w[1]));
+    }
 }

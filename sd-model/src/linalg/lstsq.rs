@@ -36,7 +36,7 @@
 use faer::MatRef;
 use nalgebra::{DMatrix, DVector};
 
-use crate::linalg::convert::{from_faer, to_faer};
+use crate::linalg::convert::{from_faer, svd, to_faer};
 use crate::linalg::qr::qr_r;
 use crate::{ModelError, Result};
 
@@ -115,18 +115,13 @@ pub fn lstsq_faer(a: MatRef<'_, f64>, b: &[f64]) -> Result<LstSq> {
     }
     let scale = column_scales(a);
     let (r, c) = reduce(a, b, &scale);
-    let svd = r.thin_svd().map_err(|e| ModelError::NotConverged {
-        what: format!("the least-squares SVD ({e:?})"),
-    })?;
-    let (u, v) = (svd.U(), svd.V());
-    let s: Vec<f64> = svd.S().column_vector().iter().cloned().collect();
+    let (u, s, v) = svd(&from_faer(r.as_ref()))?;
     let smax = s.iter().cloned().fold(0.0, f64::max);
     if !(smax.is_finite() && smax > 0.0) {
         return Err(ModelError::Singular {
             what: "the least-squares matrix (all columns zero)".into(),
         });
     }
-    let v = from_faer(v);
     let mut x = DVector::zeros(n);
     let mut cov = DMatrix::zeros(n, n);
     let mut rank = 0;
