@@ -146,8 +146,10 @@ fn two_fold(a: &Estimate, b: &Estimate, fo: &FitOptions) -> Option<Vec<f64>> {
         });
         (!lines.is_empty()).then(|| lines.iter().map(|l| l.score()).collect())
     };
-    let mut scores = fold(a, b)?;
-    scores.extend(fold(b, a)?);
+    // the two folds are independent fits: in parallel
+    let (ab, ba) = rayon::join(|| fold(a, b), || fold(b, a));
+    let mut scores = ab?;
+    scores.extend(ba?);
     Some(scores)
 }
 

@@ -27,11 +27,10 @@ use std::collections::BTreeMap;
 /// no candidate is left.
 pub(super) fn level_fits(
     basis: &ModalBasis,
-    data: &Data<'_>,
+    (h, fast): (f64, &crate::data::Estimate),
     levels: &[Level<'_>],
 ) -> Option<(Vec<usize>, Vec<LevelFit>)> {
     // the levels' fits are independent: in parallel, collected in order
-    let h = data.h;
     let fit = |cand: &[usize]| -> Option<Vec<LevelFit>> {
         levels
             .par_iter()
@@ -39,7 +38,7 @@ pub(super) fn level_fits(
             .collect::<Result<Vec<_>>>()
             .ok()
     };
-    let cand = candidates(basis, &data.fast);
+    let cand = candidates(basis, fast);
     let first = fit(&cand)?;
     let cand: Vec<usize> = cand
         .iter()
@@ -133,7 +132,7 @@ pub(super) fn other_corners(
             continue;
         };
         let trial = without_unneeded_slow_poles(&b, data.h, &levels[0], alpha)?;
-        if let Some((cand, fits)) = level_fits(&trial, data, levels) {
+        if let Some((cand, fits)) = level_fits(&trial, (data.h, &data.fast), levels) {
             out.push(Variant {
                 basis: trial,
                 cand,
@@ -160,7 +159,7 @@ pub(super) fn without_slow_extras(
         return None;
     }
     let basis = damped.without_poles(&extras).ok()?;
-    let (cand, fits) = level_fits(&basis, data, levels)?;
+    let (cand, fits) = level_fits(&basis, (data.h, &data.fast), levels)?;
     Some(Variant { basis, cand, fits })
 }
 
@@ -305,15 +304,26 @@ pub(super) fn nonlinearity(
     let check = drift_check(data, alpha);
     let (levels, at) = levels_of(data);
     let damped = damped_basis(data, j, &levels[0], alpha)?;
-    progress("modal fit of every level");
+    progress("modal fit of every level; every physical mode tracked over the levels by local fits");
     // the bases in the order tried; the first whose level fits all succeed
     let bases = candidate_bases(&damped, &j.modal.basis, data.h, &levels[0], alpha)?;
-    let tried = bases
+    let rel: Vec<f64> = at
         .iter()
-        .find_map(|b| level_fits(b, data, &levels).map(|x| (b, x)));
+        .map(|a| a.map_or(1.0, |i| data.vals[i].level))
+        .collect();
+    let fast = (data.h, &data.fast);
+    // the level fits and the tracks are independent: side by side
+    let (tried, tracks) = rayon::join(
+        || {
+            bases
+                .iter()
+                .find_map(|b| level_fits(b, fast, &levels).map(|x| (b, x)))
+        },
+        || tracked(&levels, &rel, alpha),
+    );
     let Some((basis, (cand, fits))) = tried else {
         // no amplitude model: the physical modes tracked over the levels still name the kind
-        let tracks = tracked(data, &levels, &at, alpha).modes;
+        let tracks = tracks.modes;
         return Ok(per_level(
             data,
             found,
@@ -333,8 +343,6 @@ pub(super) fn nonlinearity(
         variants.extend(other_corners(j, data, &levels, alpha)?);
         variants.extend(without_slow_extras(&damped, data, &levels));
     }
-    progress("every physical mode tracked over the levels by local fits");
-    let tracks = tracked(data, &levels, &at, alpha);
     with_local_fits(&mut variants, &levels, &tracks.modes);
     let every: Vec<usize> = (0..levels.len()).collect();
     let chosen = choose(&variants, &levels, &every, data.h, alpha);
@@ -496,14 +504,10 @@ fn corner_shift(modes: &[MovingMode]) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// The physical modes tracked over `levels` ([`crate::tracks`]), the model experiment's
-/// physical fit on its thinned lines; empty when it fails.
-fn tracked(
-    data: &Data<'_>,
-    levels: &[Level<'_>],
-    at: &[Option<usize>],
-    alpha: f64,
-) -> crate::tracks::Tracked {
+/// The physical modes tracked over `levels` (excitation `rel` relative to the model
+/// experiment's; [`crate::tracks`]), the model experiment's physical fit on its thinned lines;
+/// empty when it fails.
+fn tracked(levels: &[Level<'_>], rel: &[f64], alpha: f64) -> crate::tracks::Tracked {
     let Ok(first) = levels[0].est.thinned() else {
         return Default::default();
     };
@@ -512,7 +516,7 @@ fn tracked(
         .enumerate()
         .map(|(k, lv)| crate::tracks::TrackLevel {
             name: &lv.name,
-            level: at[k].map_or(1.0, |i| data.vals[i].level),
+            level: rel[k],
             frd: &lv.est.frd,
             correlation: &lv.est.correlation,
             spectra: lv.est.spectra.as_deref(),
