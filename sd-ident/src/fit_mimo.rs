@@ -271,7 +271,7 @@ fn trailing_block(a: &Mat<f64>, extra: &Mat<f64>) -> Mat<f64> {
     let mut aug = Mat::<f64>::zeros(k, na + ne);
     aug.as_mut().submatrix_mut(0, 0, k, na).copy_from(a);
     aug.as_mut().submatrix_mut(0, na, k, ne).copy_from(extra);
-    let r = sd_model::linalg::qr_r(aug.as_ref());
+    let r = sd_model::linalg::qr_r(aug);
     let rows = ne.min(k.saturating_sub(na));
     Mat::from_fn(rows, ne, |i, j| r[(na + i, na + j)])
 }

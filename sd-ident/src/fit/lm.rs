@@ -100,7 +100,7 @@ pub(super) fn reduced(j: &Mat<f64>, e: &Mat<f64>) -> (Mat<f64>, Vec<f64>) {
     for r in 0..rows {
         je[(r, np)] = -e[(r, 0)];
     }
-    let rf = sd_model::linalg::qr_r(je.as_ref());
+    let rf = sd_model::linalg::qr_r(je);
     (
         Mat::from_fn(np, np, |r, c| rf[(r, c)]),
         (0..np).map(|r| rf[(r, np)]).collect(),

@@ -59,9 +59,10 @@ pub struct LstSq {
 fn column_scales(a: MatRef<'_, f64>) -> Vec<f64> {
     (0..a.ncols())
         .map(|c| {
-            let amax = (0..a.nrows()).fold(0.0f64, |m, r| m.max(a[(r, c)].abs()));
+            let amax = a.col(c).iter().fold(0.0f64, |m, v| m.max(v.abs()));
             if amax > 0.0 {
-                let ss: f64 = (0..a.nrows()).map(|r| (a[(r, c)] / amax).powi(2)).sum();
+                let inv = 1.0 / amax;
+                let ss: f64 = a.col(c).iter().map(|v| (v * inv).powi(2)).sum();
                 amax * ss.sqrt()
             } else {
                 1.0
@@ -75,18 +76,17 @@ fn reduce(a: MatRef<'_, f64>, b: &[f64], scale: &[f64]) -> (faer::Mat<f64>, Vec<
     let (m, n) = (a.nrows(), a.ncols());
     let width = if m > n { n + 1 } else { n };
     let mut aug = faer::Mat::<f64>::zeros(m, width);
-    for c in 0..n {
-        for r in 0..m {
-            aug[(r, c)] = a[(r, c)] / scale[c];
+    for (c, &sc) in scale.iter().enumerate() {
+        let inv = 1.0 / sc;
+        for (v, x) in aug.col_as_slice_mut(c).iter_mut().zip(a.col(c).iter()) {
+            *v = x * inv;
         }
     }
     if m <= n {
         return (aug, b.to_vec());
     }
-    for (r, &v) in b.iter().enumerate() {
-        aug[(r, n)] = v;
-    }
-    let rf = qr_r(aug.as_ref());
+    aug.col_as_slice_mut(n).copy_from_slice(b);
+    let rf = qr_r(aug);
     let r = faer::Mat::<f64>::from_fn(n, n, |i, j| rf[(i, j)]);
     let c = (0..n).map(|i| rf[(i, n)]).collect();
     (r, c)
@@ -107,7 +107,7 @@ pub fn lstsq_faer(a: MatRef<'_, f64>, b: &[f64]) -> Result<LstSq> {
             found: format!("{}", b.len()),
         });
     }
-    let finite = (0..n).all(|c| (0..m).all(|r| a[(r, c)].is_finite()));
+    let finite = (0..n).all(|c| a.col(c).iter().all(|v| v.is_finite()));
     if !finite || b.iter().any(|v| !v.is_finite()) {
         return Err(ModelError::NonFinite {
             what: "the least-squares problem".into(),
