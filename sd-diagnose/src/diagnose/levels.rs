@@ -307,10 +307,7 @@ pub(super) fn nonlinearity(
     progress("modal fit of every level; every physical mode tracked over the levels by local fits");
     // the bases in the order tried; the first whose level fits all succeed
     let bases = candidate_bases(&damped, &j.modal.basis, data.h, &levels[0], alpha)?;
-    let rel: Vec<f64> = at
-        .iter()
-        .map(|a| a.map_or(1.0, |i| data.vals[i].level))
-        .collect();
+    let rel = level_ratios(data, &at);
     let fast = (data.h, &data.fast);
     // the level fits and the tracks are independent: side by side
     let (tried, tracks) = rayon::join(
@@ -504,6 +501,14 @@ fn corner_shift(modes: &[MovingMode]) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// Each level's excitation relative to the model experiment's (1 for the model experiment,
+/// `at[k] = None`).
+fn level_ratios(data: &Data<'_>, at: &[Option<usize>]) -> Vec<f64> {
+    at.iter()
+        .map(|a| a.map_or(1.0, |i| data.vals[i].level))
+        .collect()
+}
+
 /// The physical modes tracked over `levels` (excitation `rel` relative to the model
 /// experiment's; [`crate::tracks`]), the model experiment's physical fit on its thinned lines;
 /// empty when it fails.
@@ -539,11 +544,8 @@ pub(super) fn levels_left_out(
     at: &[Option<usize>],
     (variants, chosen, alpha): (&[Variant], usize, f64),
 ) -> Result<(Gain, LeftOut, BTreeMap<String, HeldOut>)> {
-    // each level's excitation relative to the model experiment's, and the linear model's lines
-    let rel: Vec<f64> = at
-        .iter()
-        .map(|a| a.map_or(1.0, |i| data.vals[i].level))
-        .collect();
+    let rel = level_ratios(data, at);
+    // the linear model's lines at each level
     let linear: Vec<Option<&[Line]>> = at.iter().map(|a| a.map(|i| &ch.model[i][..])).collect();
     let h = data.h;
     let folds = (1..levels.len())
