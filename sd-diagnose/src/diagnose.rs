@@ -3,6 +3,7 @@
 
 mod checks;
 mod decide;
+mod held_out;
 mod judged;
 mod levels;
 mod next;
