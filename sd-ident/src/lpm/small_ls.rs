@@ -23,8 +23,8 @@
 //!
 //! # Cost
 //!
-//! `O(w q (q + nz))` flops without allocation inside the sweep: about a tenth of a complex
-//! SVD with both singular-vector sets.
+//! `O(w q (q + nz))` flops; no iteration, where the SVD it replaces (both singular-vector
+//! sets) iterates to convergence.
 
 use nalgebra::DMatrix;
 use num_complex::Complex64 as C;
