@@ -32,16 +32,16 @@
 //! variance. For a linear system the ratio is ≈ `F(12, ν_N)`; the unit tests measure, on a
 //! two-mode structure simulated in the time domain (modes of 5 and 15 lines' half-power
 //! bandwidth, 6 steady periods), a mean ratio of 1.02 and the gate passed at 1.1 % of the lines
-//! (nominal 1 %), and with a cubic spring the distortion within a factor 1.4 of the robust method over 16 realisations
-//! in every quarter of the band.
+//! (nominal 1 %), and with a cubic spring the distortion within a factor 1.4 of the robust
+//! method over 16 realisations in every quarter of the band.
 //!
 //! **Where it is wrong.** Two modes within one denominator window leave curvature (a
 //! second-order denominator holds one). A resonance narrower than the line spacing makes the
 //! distortion of one realisation correlated over neighbouring lines (the products of its few
 //! resonant lines' fixed phases), so the roughness reads low there (seen during development on
 //! the unit test's structure with a mode of ζ = 0.004 at 0.98 Hz lines; no test measures it).
-//! A deterministic phase choice (Schroeder phases) likewise makes `G_S` smoother than a random-phase one. And the estimate is an
-//! average over 9 lines, so a distortion peaked at a narrower resonance is spread over them.
+//! A deterministic phase choice (Schroeder phases) likewise makes `G_S` smoother than a
+//! random-phase one. And the estimate is an average over 9 lines, so a distortion peaked at a narrower resonance is spread over them.
 
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64 as C;

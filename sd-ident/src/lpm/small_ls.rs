@@ -52,9 +52,9 @@ impl SmallLs {
     }
 }
 
-/// Reflects column `col` of `a` and every column of `z` with the reflector `u` acting on rows
-/// `j..`: `c ← c − 2u(uᴴc)/(uᴴu)`.
-fn reflect(u: &[C], unorm2: f64, j: usize, cols: &mut [&mut [C]]) {
+/// Reflects every column `c` of `cols` with the reflector `u` acting on rows `j..`:
+/// `c ← c − 2u(uᴴc)/(uᴴu)`.
+fn reflect(u: &[C], unorm2: f64, j: usize, cols: &mut [Vec<C>]) {
     for c in cols.iter_mut() {
         let s: C = u.iter().zip(&c[j..]).map(|(ui, ci)| ui.conj() * ci).sum();
         let f = s * (2.0 / unorm2);
@@ -80,6 +80,8 @@ pub(super) fn solve(k: &DMatrix<C>, z: &DMatrix<C>) -> Option<SmallLs> {
     for j in 0..q {
         let x = &cols[j][j..];
         let xnorm = x.iter().map(|v| v.norm_sqr()).sum::<f64>().sqrt();
+        // a zero column below the diagonal: R's diagonal entry would be zero (and the
+        // reflector undefined)
         if xnorm == 0.0 {
             return None;
         }
@@ -97,15 +99,14 @@ pub(super) fn solve(k: &DMatrix<C>, z: &DMatrix<C>) -> Option<SmallLs> {
         for v in done[j][j + 1..].iter_mut() {
             *v = C::new(0.0, 0.0);
         }
-        let mut rest: Vec<&mut [C]> = rest.iter_mut().map(|c| c.as_mut_slice()).collect();
-        reflect(uj, unorm2, j, &mut rest);
+        reflect(uj, unorm2, j, rest);
     }
     let r = DMatrix::<C>::from_fn(
         q,
         q,
         |i, c| if i <= c { cols[c][i] } else { C::new(0.0, 0.0) },
     );
-    let r_inv = upper_inverse(&r)?;
+    let r_inv = upper_inverse(&r);
     let fro = |m: &DMatrix<C>| m.iter().map(|v| v.norm_sqr()).sum::<f64>().sqrt();
     let cond = fro(&r) * fro(&r_inv);
     if !(cond.is_finite() && cond <= MAX_CONDITION) {
@@ -123,25 +124,20 @@ pub(super) fn solve(k: &DMatrix<C>, z: &DMatrix<C>) -> Option<SmallLs> {
     })
 }
 
-/// The inverse of an upper-triangular `r` by back substitution; `None` for a zero diagonal.
-fn upper_inverse(r: &DMatrix<C>) -> Option<DMatrix<C>> {
+/// The inverse of an upper-triangular `r` by back substitution. Its diagonal is nonzero
+/// ([`solve`]'s reflections give `−e^{iθ}‖x‖` with `‖x‖ > 0`); an entry that overflows
+/// makes `R⁻¹` non-finite, which [`solve`] refuses.
+fn upper_inverse(r: &DMatrix<C>) -> DMatrix<C> {
     let q = r.nrows();
     let mut inv = DMatrix::<C>::zeros(q, q);
     for c in 0..q {
-        for i in (0..=c).rev() {
-            let rhs = if i == c {
-                C::new(1.0, 0.0)
-            } else {
-                C::new(0.0, 0.0)
-            };
+        inv[(c, c)] = C::new(1.0, 0.0) / r[(c, c)];
+        for i in (0..c).rev() {
             let s: C = (i + 1..=c).map(|l| r[(i, l)] * inv[(l, c)]).sum();
-            if r[(i, i)].norm() == 0.0 {
-                return None;
-            }
-            inv[(i, c)] = (rhs - s) / r[(i, i)];
+            inv[(i, c)] = -s / r[(i, i)];
         }
     }
-    Some(inv)
+    inv
 }
 
 #[cfg(test)]

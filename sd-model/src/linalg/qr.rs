@@ -12,12 +12,12 @@
 //! # Why the scaling
 //!
 //! faer computes each Householder vector's norm overflow- and underflow-safely: besides `Σ x²`
-//! it accumulates `Σ (x·2⁻⁵¹¹)²`, which is a subnormal number for every `|x| < 1`. On x86 every
-//! operation that produces a subnormal takes a microcode assist (about a hundred cycles), and the
-//! columns of a least-squares basis scaled to unit norm have nearly all entries below 1: the
-//! norms then cost more than the whole update (`cargo test --release -p sd-model --lib
-//! scaled_qr_speed -- --ignored --nocapture` times both on a 20 000 × 40 matrix). Scaled so that each column's largest entry is near
-//! `2³⁰⁰`, every entry within 300 binades of it stays at or above 1, the safe accumulator stays
+//! it accumulates `Σ (x·2⁻⁵¹¹)²`, which is a subnormal number for every `|x| < 1`. On x86 an
+//! operation that produces a subnormal takes a microcode assist, and the columns of a
+//! least-squares basis scaled to unit norm have nearly all entries below 1, so the norms slow
+//! the whole factorisation (`cargo test --release -p sd-model --lib scaled_qr_speed --
+//! --ignored --nocapture` times the QR with and without the scaling on a 20 000 × 40 matrix).
+//! Scaled so that each column's largest entry is near `2³⁰⁰`, every entry within 300 binades of it stays at or above 1, the safe accumulator stays
 //! normal and the plain one far below overflow (`m·2⁶⁰⁰ ≪ 2¹⁰²⁴`), and faer takes its plain
 //! branch. The factor is bit-for-bit the one of the scaled problem, whose backward error is the
 //! usual `O(m n ε)‖A D‖` of Householder QR (Golub & Van Loan, *Matrix Computations*, 4th ed.,
@@ -28,11 +28,6 @@ use faer::Mat;
 /// The binary exponent the largest entry of each column is brought to.
 const TARGET_EXPONENT: i32 = 300;
 
-/// `2^k` for the exponent range of normal doubles.
-fn pow2(k: i32) -> f64 {
-    2f64.powi(k)
-}
-
 /// The power-of-two factor that brings the column's largest magnitude to about `2³⁰⁰` (1 for a
 /// zero column).
 fn column_factor(col: &[f64]) -> f64 {
@@ -42,7 +37,7 @@ fn column_factor(col: &[f64]) -> f64 {
     }
     // the exponent of amax (amax = f·2^e, 1 ≤ f < 2), read without the float's bits
     let e = amax.log2().floor() as i32;
-    pow2((TARGET_EXPONENT - e).clamp(-1000, 1000))
+    2f64.powi((TARGET_EXPONENT - e).clamp(-1000, 1000))
 }
 
 /// The upper-triangular factor `R` (`min(m, n) × n`) of the Householder QR of `a`, by faer's
