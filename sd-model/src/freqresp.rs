@@ -79,10 +79,19 @@ pub struct FreqRespEvaluator {
 /// adjacent rows, O(n²·nu) — backward stable like a dense LU (Golub & Van Loan, *Matrix
 /// Computations*, 4th ed., §3.5.5 and Laub's frequency-response algorithm, IEEE TAC 1981).
 #[derive(Debug, Clone)]
-struct HessenbergForm {
+pub(crate) struct HessenbergForm {
     h: DMatrix<f64>,
     b: DMatrix<C>,
     c: DMatrix<C>,
+}
+
+/// `(D⁻¹AD, D⁻¹B, CD)` for the exact power-of-two diagonal balancing `D` of A
+/// ([`crate::linalg::expm::balance_diag`]): the same response.
+fn balanced(sys: &StateSpace) -> (DMatrix<f64>, DMatrix<f64>, DMatrix<f64>) {
+    let (ab, d) = crate::linalg::expm::balance_diag(sys.a());
+    let bb = DMatrix::from_fn(sys.n(), sys.nu(), |i, j| sys.b()[(i, j)] / d[i]);
+    let cb = DMatrix::from_fn(sys.ny(), sys.n(), |i, j| sys.c()[(i, j)] * d[j]);
+    (ab, bb, cb)
 }
 
 /// Simple poles the reduced form is checked next to ([`FreqRespEvaluator::new`]).
@@ -133,6 +142,20 @@ impl HessenbergForm {
             c: to_complex(&(cb * &q)),
             h,
         }
+    }
+
+    /// The form of `sys` after the exact power-of-two diagonal balancing that
+    /// [`FreqRespEvaluator::new`] applies first.
+    pub(crate) fn of_model(sys: &StateSpace) -> Self {
+        let (ab, bb, cb) = balanced(sys);
+        HessenbergForm::new(&ab, &bb, &cb)
+    }
+
+    /// `C̃ (sI − H)⁻¹ B̃ + d` at `s`; `None` when `sI − H` is singular.
+    pub(crate) fn eval(&self, s: C, d: &DMatrix<C>) -> Option<DMatrix<C>> {
+        let mut g = d.clone();
+        let ny = g.nrows();
+        self.accumulate(s, g.as_mut_slice(), ny).then_some(g)
     }
 
     /// `C̃ (sI − H)⁻¹ B̃` into `g` (added; column-major ny×nu); `false` when `sI − H` is
@@ -209,9 +232,7 @@ impl FreqRespEvaluator {
         // exact power-of-two diagonal balancing first (as LAPACK does before an eigenvalue
         // problem): D⁻¹AD, D⁻¹B, CD leave G unchanged and keep the split bound meaningful for
         // models whose states have very different scales (registers next to positions)
-        let (ab, d) = crate::linalg::expm::balance_diag(sys.a());
-        let bb = DMatrix::from_fn(sys.n(), sys.nu(), |i, j| sys.b()[(i, j)] / d[i]);
-        let cb = DMatrix::from_fn(sys.ny(), sys.n(), |i, j| sys.c()[(i, j)] * d[j]);
+        let (ab, bb, cb) = balanced(sys);
         let bd: BlockDiagonal = block_diagonalize(
             &to_complex(&ab),
             &to_complex(&bb),
