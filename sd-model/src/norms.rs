@@ -173,14 +173,15 @@ fn bilinear_to_ct(sys: &StateSpace) -> Result<StateSpace> {
 ///
 /// The search runs on a fast evaluation: the eigenvector basis ([`Modal`]) when that basis
 /// passes its accuracy check, else the Hessenberg form of the balanced model (O(n²) per
-/// point, backward stable, but an orthogonal reduction can lose digits next to a nearly
-/// defective pole pair: 1e-6 relative near DC on the committed 128-state H∞ loop of
-/// `tests/tests/hinf_norm_reference.rs`, 5e-11 at its peak). Its result is accepted when a
-/// dense solve at the peak agrees with it within [`FAST_AGREE`]: the level-set step has then
-/// shown that no frequency exceeds the fast value by `2·10⁻¹²`, and the dense value is attained,
-/// so the norm lies between them. Otherwise the dense solves take over from that peak
-/// ([`level_set`] with dense σ̄, which searches every interval the Hamiltonian test leaves
-/// above the level, wherever the fast form erred).
+/// point, backward stable, but an orthogonal reduction moves a nearly defective pole pair by
+/// about √ε, so the response next to it can lose digits that dense solves of the model's own
+/// matrices keep). Its result is accepted when a dense solve at the peak agrees with it
+/// within [`FAST_AGREE`]: the level-set step ended where the Hamiltonian, which does not
+/// depend on the evaluation, showed no crossing `2·10⁻¹²` above the fast value (or where the
+/// polishes between its crossings found nothing higher), and the dense value is attained.
+/// Otherwise the dense solves take over from that peak ([`level_set`] with dense σ̄, which
+/// searches every interval the Hamiltonian test leaves above the level, wherever the fast
+/// form erred).
 fn hinf_ct(
     sys: &StateSpace,
     poles: &[C],
