@@ -519,9 +519,9 @@ fn follow(
             let band = (centre - half, centre + half);
             // a band whose lines are mostly within 2σ of zero holds no measurable resonance
             if band_snr(lv.frd, band).is_none_or(|s| s < MIN_BAND_SNR) {
-                // above a reference that resolved the mode, more excitation buried it: the
-                // total variance there is distortion
-                if fitted[0].is_some() && lv.level > levels[0].level {
+                // above the reference (which resolved the mode, or no other level is fitted),
+                // more excitation buried it: the total variance there is distortion
+                if lv.level > levels[0].level {
                     buried.push(lv.name.to_string());
                 }
                 continue;

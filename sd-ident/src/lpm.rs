@@ -9,7 +9,8 @@
 //! The `(nx + 1)(R + 1)` coefficients per output follow by least squares over the `2n + 1`
 //! lines (solved by a small Householder QR, r scaled to [−1, 1]; `small_ls`); `G_k` is the
 //! estimate, the residual gives the noise covariance `C_V = EᴴE/(2n + 1 − q)`, and
-//! `var Ĝ_k(i, j) = C_V(i, i)·[(KᴴK)⁻¹]_jj`; the covariance of entries (i, j) and (i', j') is `C_V(i, i')·[(KᴴK)⁻¹]_{jj'}`.
+//! `var Ĝ_k(i, j) = C_V(i, i)·[(KᴴK)⁻¹]_jj`; the covariance of entries (i, j) and (i', j')
+//! is `C_V(i, i')·[(KᴴK)⁻¹]_{jj'}`.
 //! The window is shifted (not shrunk) at the band edges. Default R = 2 and the smallest n with
 //! at least `nx + 2` residual degrees of freedom.
 //!

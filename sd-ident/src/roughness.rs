@@ -41,7 +41,8 @@
 //! resonant lines' fixed phases), so the roughness reads low there (seen during development on
 //! the unit test's structure with a mode of ζ = 0.004 at 0.98 Hz lines; no test measures it).
 //! A deterministic phase choice (Schroeder phases) likewise makes `G_S` smoother than a
-//! random-phase one. And the estimate is an average over 9 lines, so a distortion peaked at a narrower resonance is spread over them.
+//! random-phase one. And the estimate is an average over 9 lines, so a distortion peaked at
+//! a narrower resonance is spread over them.
 
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64 as C;

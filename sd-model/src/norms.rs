@@ -687,11 +687,12 @@ mod tests {
             }
         }
     }
+
     /// The fast evaluation decides nothing alone: given one that is wrong (a bump of 10 % near
     /// the lower of two resonance peaks, so that it ranks them the wrong way round, or 10⁻⁶ low
     /// everywhere), the dense check at its peak disagrees and the level-set search on dense
-    /// values finds the true norm — the closed-form peak of the higher resonance, 10⁻¹²
-    /// relative — at its frequency.
+    /// values finds the true norm — the higher resonance's peak near 1 rad/s, polished on
+    /// dense values by golden section — to 10⁻¹² relative, at its frequency.
     #[test]
     fn a_wrong_fast_evaluation_is_overruled_by_dense_values() {
         let hi = resonance(0.05, 1.0);

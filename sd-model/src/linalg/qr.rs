@@ -17,11 +17,12 @@
 //! least-squares basis scaled to unit norm have nearly all entries below 1, so the norms slow
 //! the whole factorisation (`cargo test --release -p sd-model --lib scaled_qr_speed --
 //! --ignored --nocapture` times the QR with and without the scaling on a 20 000 × 40 matrix).
-//! Scaled so that each column's largest entry is near `2³⁰⁰`, every entry within 300 binades of it stays at or above 1, the safe accumulator stays
-//! normal and the plain one far below overflow (`m·2⁶⁰⁰ ≪ 2¹⁰²⁴`), and faer takes its plain
-//! branch. The factor is bit-for-bit the one of the scaled problem, whose backward error is the
-//! usual `O(m n ε)‖A D‖` of Householder QR (Golub & Van Loan, *Matrix Computations*, 4th ed.,
-//! §5.2.2), i.e. column-wise relative, unchanged by the exact unscaling.
+//! Scaled so that each column's largest entry is near `2³⁰⁰`, every entry within 300 binades of it
+//! stays at or above 1, the safe accumulator stays normal and the plain one far below overflow
+//! (`m·2⁶⁰⁰ ≪ 2¹⁰²⁴`), and faer takes its plain branch. The factor is bit-for-bit the one of the
+//! scaled problem, whose backward error is the usual `O(m n ε)‖A D‖` of Householder QR (Golub
+//! & Van Loan, *Matrix Computations*, 4th ed., §5.2.2), i.e. column-wise relative, unchanged by
+//! the exact unscaling.
 
 use faer::Mat;
 
