@@ -267,9 +267,60 @@ fn mixsyn_designs_a_stable_loop() {
     succeeded(&o);
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(v["factor"].as_u64(), Some(4), "{v}");
+    // the stationary rms of z = [W₁e; W₂u] at each of the 4 fast phases, all finite
+    let phases = v["predicted_rms"]["phases"].as_array().unwrap();
+    assert_eq!(phases.len(), 4, "{v}");
+    assert!(phases
+        .iter()
+        .all(|p| p.as_array().unwrap().len() == 2 && p[0].as_f64().unwrap() > 0.0));
     assert_eq!(v["controller"]["ts"].as_f64(), Some(0.004), "{v}");
     assert_eq!(v["closed_loop_stable"], serde_json::json!(true));
     assert!(v["achieved_norm"].as_f64().unwrap() <= v["gamma"].as_f64().unwrap() * (1.0 + 1e-6));
+    // the error weighted twice at the sample instants: every loop's norm can only grow, so
+    // γ_min does too
+    let o = sdctl(&[
+        "mixsyn",
+        &p,
+        "--w1",
+        &w1,
+        "--w2",
+        &w2,
+        "--wd",
+        &wd,
+        "--factor",
+        "4",
+        "--wn",
+        "1e-3",
+        "--at-samples",
+        "2",
+        "--json",
+    ]);
+    succeeded(&o);
+    let v2: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let (g1, g2) = (
+        v["gamma_min"].as_f64().unwrap(),
+        v2["gamma_min"].as_f64().unwrap(),
+    );
+    assert!(g2 >= g1 * (1.0 - 1e-3), "{g2} < {g1}");
+    for bad in ["0", "-1", "nan"] {
+        let o = sdctl(&[
+            "mixsyn",
+            &p,
+            "--w1",
+            &w1,
+            "--wd",
+            &wd,
+            "--factor",
+            "4",
+            "--wn",
+            "1e-3",
+            "--at-samples",
+            bad,
+        ]);
+        one_line_error(&o, 2, "positive finite");
+    }
+    let o = sdctl(&["mixsyn", &p, "--w1", &w1, "--wd", &wd, "--at-samples", "2"]);
+    one_line_error(&o, 2, "--factor");
     let o = sdctl(&["mixsyn", &p, "--w1", &w1, "--wd", &wd, "--wn", "1e-3"]);
     one_line_error(&o, 2, "--factor");
     let o = sdctl(&["mixsyn", &p, "--w1", &w1, "--wd", &wd, "--factor", "0"]);

@@ -45,6 +45,7 @@ pub mod lmi;
 pub mod loopshape;
 pub mod mixsyn;
 pub mod multirate;
+pub mod multirate_rms;
 pub mod ncf;
 pub mod riccati;
 mod sda;
@@ -61,6 +62,7 @@ pub use multirate::{
     multirate_h2syn, multirate_hinfsyn, multirate_norm, multirate_plant, MultirateSynthesis,
     MultirateWeights,
 };
+pub use multirate_rms::{multirate_rms, MultirateRms};
 pub use ncf::{coprime_reduce, normalized_lcf, CoprimeReduction};
 pub use riccati::complex::{
     care_complex, dare_complex, CMatrix, ComplexRiccatiData, ComplexRiccatiSolution,

@@ -82,6 +82,11 @@ pub struct MultirateWeights<'a> {
     /// instead of (or beside) `mix.w2` on the held control at every fast sample, which also
     /// charges the hold's steps.
     pub w2_slow: Option<&'a StateSpace>,
+    /// `W₁`'s extra factor at the controller's sample instants (phase 0 of `z̄`), or none
+    /// (= 1: every fast sample counts alike). Above 1 the error *at* the samples counts more
+    /// than between them: the design moves towards the single-rate one (which counts only
+    /// the samples) — the handle of a design that must stay no worse at the samples.
+    pub at_samples: Option<f64>,
 }
 
 /// The lifted generalized plant at `T = factor·h` and its partition (module documentation):
@@ -114,6 +119,7 @@ pub fn multirate_plant(
     if let Some(wn) = w.wn {
         check_wn(wn, ny)?;
     }
+    let nz1 = check_at_samples(w)?;
     if w.wr.is_none() && w.mix.wd.is_none() && w.wn.is_none() {
         return Err(HinfError::InvalidArgument(
             "the multirate problem needs an exogenous input: a reference (W_r), an input \
@@ -148,8 +154,13 @@ pub fn multirate_plant(
         .collect();
     rows.extend((0..ny).map(|r| nz + r));
     let b = lifted.b() * &m_in;
-    let c = lifted.c().select_rows(rows.iter());
+    let mut c = lifted.c().select_rows(rows.iter());
     let mut d = lifted.d().select_rows(rows.iter()) * &m_in;
+    if let Some(a) = w.at_samples {
+        // phase 0's z₁ rows come first
+        c.rows_mut(0, nz1).scale_mut(a);
+        d.rows_mut(0, nz1).scale_mut(a);
+    }
     if let Some(wn) = w.wn {
         // a slow input's samples are worth F fast ones (physical-time energies)
         let inv = 1.0 / (factor as f64).sqrt();
@@ -238,6 +249,21 @@ fn with_slow_effort(
     d.view_mut((nzs, 0), (ny, ni))
         .copy_from(&p.d().rows(nzl, ny));
     Ok(StateSpace::new(a, b, c, d, p.time())?)
+}
+
+/// The rows of `z₁` (W₁'s outputs), after checking the sample-instant factor: finite and
+/// positive, and only with a `W₁`.
+fn check_at_samples(w: &MultirateWeights<'_>) -> Result<usize> {
+    let nz1 = w.mix.w1.map_or(0, |w1| w1.ny());
+    match w.at_samples {
+        Some(a) if !(a.is_finite() && a > 0.0) => Err(HinfError::InvalidArgument(format!(
+            "the error's factor at the sample instants must be a positive finite number, got {a}"
+        ))),
+        Some(_) if nz1 == 0 => Err(HinfError::InvalidArgument(
+            "a factor at the sample instants weights the error W₁e: give W₁ as well".into(),
+        )),
+        _ => Ok(nz1),
+    }
 }
 
 fn check_wn(wn: &DMatrix<f64>, ny: usize) -> Result<()> {
@@ -393,6 +419,7 @@ mod tests {
             wr,
             wn,
             w2_slow: None,
+            at_samples: None,
         }
     }
 
@@ -505,6 +532,7 @@ mod tests {
             wr: None,
             wn: Some(&wnf),
             w2_slow: Some(&w2s),
+            at_samples: None,
         };
         let (w1s, wds, wns) = problem_at(&gs, 1);
         let slow = MultirateWeights {
@@ -517,6 +545,7 @@ mod tests {
             wr: None,
             wn: Some(&wns),
             w2_slow: Some(&w2s),
+            at_samples: None,
         };
         let multi = multirate_hinfsyn(&g, F, &fast, &HinfOptions::default()).unwrap();
         let single = multirate_hinfsyn(&gs, 1, &slow, &HinfOptions::default()).unwrap();

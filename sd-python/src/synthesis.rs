@@ -66,9 +66,9 @@ fn h2syn<'py>(
 /// Mixed-sensitivity synthesis (`sd_hinf::mixsyn`): `controller` (negative feedback),
 /// `report_json`, `generalized_plant`. With `factor` the multirate design
 /// (`sd_hinf::multirate_hinfsyn`: the plant at the fast rate, the controller at `factor` times
-/// its period, `wr`, `wn`, `w2_slow` as `sdctl mixsyn --factor`).
+/// its period, `wr`, `wn`, `w2_slow`, `at_samples` as `sdctl mixsyn --factor`).
 #[pyfunction]
-#[pyo3(signature = (plant, w1, w2, w3, wd, gamma, tol, factor=None, wr=None, wn=None, w2_slow=None))]
+#[pyo3(signature = (plant, w1, w2, w3, wd, gamma, tol, factor=None, wr=None, wn=None, w2_slow=None, at_samples=None))]
 #[allow(clippy::too_many_arguments)]
 fn mixsyn<'py>(
     py: Python<'py>,
@@ -83,6 +83,7 @@ fn mixsyn<'py>(
     wr: Option<SysIn<'py>>,
     wn: Option<f64>,
     w2_slow: Option<SysIn<'py>>,
+    at_samples: Option<f64>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let g = sys_in(&plant)?;
     let conv = |w: &Option<SysIn<'py>>| w.as_ref().map(sys_in).transpose();
@@ -97,9 +98,9 @@ fn mixsyn<'py>(
     let opt = options(gamma, tol);
     let (r, gp) = match factor {
         None => {
-            if wr.is_some() || wn.is_some() || w2s.is_some() {
+            if wr.is_some() || wn.is_some() || w2s.is_some() || at_samples.is_some() {
                 return Err(value_err(
-                    "Wr, wn and W2_slow belong to a multirate design: give factor",
+                    "wr, wn, w2_slow and at_samples belong to a multirate design: give factor",
                 ));
             }
             py.detach(|| sd_hinf::mixsyn(&g, &w, &opt))
@@ -115,6 +116,7 @@ fn mixsyn<'py>(
                 wr: wr.as_ref(),
                 wn: wn.as_ref(),
                 w2_slow: w2s.as_ref(),
+                at_samples,
             };
             let m = py
                 .detach(|| sd_hinf::multirate_hinfsyn(&g, f, &mw, &opt))

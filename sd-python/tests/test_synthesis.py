@@ -74,6 +74,17 @@ def test_multirate_mixsyn_matches_sdctl(sdctl, tmp_path):
                            "--wd", paths["wd"], "--factor", 4, "--wn", "1e-3", "--json"))
     assert cli["factor"] == 4
     assert m.gamma == pytest.approx(cli["gamma"], rel=1e-12)
+    # the error weighted twice at the sample instants, as sdctl --at-samples 2
+    m2 = sd.mixsyn(G, W1=one(10.0), W2=one(0.01), Wd=one(1.0), factor=4, wn=1e-3, at_samples=2.0)
+    cli2 = json.loads(sdctl("mixsyn", paths["g"], "--w1", paths["w1"], "--w2", paths["w2"],
+                            "--wd", paths["wd"], "--factor", 4, "--wn", "1e-3", "--at-samples", 2,
+                            "--json"))
+    assert m2.gamma == pytest.approx(cli2["gamma"], rel=1e-12)
+    assert m2.gamma_min >= m.gamma_min * (1 - 1e-3)
+    with pytest.raises(ValueError):
+        sd.mixsyn(G, W1=one(10.0), Wd=one(1.0), factor=4, wn=1e-3, at_samples=0.0)
+    with pytest.raises(ValueError):
+        sd.mixsyn(G, W1=one(10.0), Wd=one(1.0), wn=1e-3, at_samples=2.0)
     with pytest.raises(ValueError):
         sd.mixsyn(G, W1=one(10.0), Wd=one(1.0), wn=1e-3)
     with pytest.raises(TypeError):

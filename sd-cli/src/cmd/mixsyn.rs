@@ -40,6 +40,10 @@ pub(crate) struct Args {
     /// instead of or beside --w2 on the held control at every fast sample.
     #[arg(long)]
     pub(crate) w2_slow: Option<String>,
+    /// With --factor: W₁'s extra factor at the controller's sample instants (above 1 the
+    /// error at the samples counts more than between them).
+    #[arg(long, allow_negative_numbers = true)]
+    pub(crate) at_samples: Option<f64>,
     /// Design at this γ (at least γ_min) instead of at γ_min.
     #[arg(long, allow_negative_numbers = true)]
     pub(crate) gamma: Option<f64>,
@@ -83,9 +87,14 @@ impl Args {
         };
         let (r, p, extra) = match self.factor {
             None => {
-                if self.wr.is_some() || self.wn.is_some() || self.w2_slow.is_some() {
+                if self.wr.is_some()
+                    || self.wn.is_some()
+                    || self.w2_slow.is_some()
+                    || self.at_samples.is_some()
+                {
                     return Err(CliError::input(
-                        "--wr, --wn and --w2-slow belong to a multirate design: give --factor F",
+                        "--wr, --wn, --w2-slow and --at-samples belong to a multirate design: \
+                         give --factor F",
                     ));
                 }
                 let (r, p) =
@@ -147,11 +156,18 @@ impl Args {
             wr: wr.as_ref(),
             wn: wn.as_ref(),
             w2_slow: w2s.as_ref(),
+            at_samples: self.at_samples,
         };
         let r = sd_hinf::multirate_hinfsyn(g, factor, &w, opt)
             .map_err(|e| from_hinf(&self.plant, e))?;
+        let rms = sd_hinf::multirate_rms(g, factor, &w, &r.synthesis.controller)
+            .map_err(|e| from_hinf(&self.plant, e))?;
         let extra: Extra = vec![
             ("factor", factor.into()),
+            (
+                "predicted_rms",
+                serde_json::to_value(&rms).map_err(|e| CliError::numerical(e.to_string()))?,
+            ),
             (
                 "convention",
                 "u_k = K m_k at T = F·h, m_k = e(kF) the sampled error (negative feedback), \

@@ -752,7 +752,7 @@ def h2syn(P, nmeas: int, ncon: int) -> Result:
 
 def mixsyn(G, W1=None, W2=None, W3=None, Wd=None, gamma: Optional[float] = None,
            tol: float = 1e-3, factor: Optional[int] = None, Wr=None, wn: Optional[float] = None,
-           W2_slow=None) -> Result:
+           W2_slow=None, at_samples: Optional[float] = None) -> Result:
     """Mixed-sensitivity H∞ design ``[W1 S; W2 K S; W3 T]`` (``Wd``: an input disturbance,
     adding the process sensitivity), as ``sdctl mixsyn --json``: ``controller`` (negative
     feedback ``u = K (r − y)``), ``generalized_plant``, ``gamma``, ``gamma_min``,
@@ -762,14 +762,16 @@ def mixsyn(G, W1=None, W2=None, W3=None, Wd=None, gamma: Optional[float] = None,
     at the fast rate, the controller runs at F times ``G``'s period and the error between its
     samples counts (the lifted plant); ``Wr`` shapes a smooth reference (without it: disturbance
     rejection only), ``wn`` is the sensor noise at the slow samples, ``W2_slow`` an effort weight
-    on the controller's samples (discrete at the slow period)."""
+    on the controller's samples (discrete at the slow period), ``at_samples`` W1's extra factor
+    at the controller's sample instants (above 1 the error there counts more than between)."""
     ws = [None if w is None else _ss(w, n)._tuple() for w, n in ((W1, "W1"), (W2, "W2"), (W3, "W3"), (Wd, "Wd"))]
     extra = [None if w is None else _ss(w, n)._tuple() for w, n in ((Wr, "Wr"), (W2_slow, "W2_slow"))]
     if factor is not None and (isinstance(factor, bool) or int(factor) != factor):
         raise TypeError(f"factor must be a whole number, got {factor!r}")
     d = _native.mixsyn(_ss(G, "G")._tuple(), *ws, None if gamma is None else float(gamma), float(tol),
                        None if factor is None else int(factor), extra[0],
-                       None if wn is None else float(wn), extra[1])
+                       None if wn is None else float(wn), extra[1],
+                       None if at_samples is None else float(at_samples))
     report = json.loads(d.pop("report_json"))
     if factor is not None:
         report["factor"] = int(factor)

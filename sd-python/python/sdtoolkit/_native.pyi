@@ -121,11 +121,11 @@ def makeweight(dc: Any, freq_hz: Any, mag: Any, hf: Any, order: Any, dt: Any) ->
     """MATLAB-like `makeweight`: gain `dc` at low frequency, `mag` at `freq_hz`, `hf` at high
     frequency, of order 1 or 2."""
 
-def mixsyn(plant: Any, w1: Any, w2: Any, w3: Any, wd: Any, gamma: Any, tol: Any, factor: Any = ..., wr: Any = ..., wn: Any = ..., w2_slow: Any = ...) -> Any:
+def mixsyn(plant: Any, w1: Any, w2: Any, w3: Any, wd: Any, gamma: Any, tol: Any, factor: Any = ..., wr: Any = ..., wn: Any = ..., w2_slow: Any = ..., at_samples: Any = ...) -> Any:
     """Mixed-sensitivity synthesis (`sd_hinf::mixsyn`): `controller` (negative feedback),
     `report_json`, `generalized_plant`. With `factor` the multirate design
     (`sd_hinf::multirate_hinfsyn`: the plant at the fast rate, the controller at `factor` times
-    its period, `wr`, `wn`, `w2_slow` as `sdctl mixsyn --factor`)."""
+    its period, `wr`, `wn`, `w2_slow`, `at_samples` as `sdctl mixsyn --factor`)."""
 
 def model_from_json(text: Any) -> Any:
     """A model from the toolkit's model JSON text (docs/formats.md; also `{"type": "tf", ...}`)."""

@@ -414,8 +414,11 @@ fn controllers(truth: &Truth, fitted: &Fitted, averaging: f64) -> Result<Control
         // … and on the true 1 kHz plant (with its averaging sensor)
         let clt = ClosedLoop::new(&true_slow, k).map_err(s)?;
         let tsum = clt.summary().map_err(s)?;
+        let pr = multi.predicted(k)?;
         summary.push((name, json!({
             "fast_rate_norm": finite_or_null(multi.fast_norm(k)?),
+            "predicted_rms_at_samples_m": finite_or_null(pr.at_samples_m),
+            "predicted_rms_between_samples_m": finite_or_null(pr.between_m),
             "slow_rate_norm": finite_or_null(multi.slow_norm(k)?),
             "bandwidth_hz": sum.bandwidth_hz, "crossover_hz": sum.crossover_hz, "sensitivity_peak_db": sum.sensitivity_peak_db,
             "sensitivity_peak_hz": sum.sensitivity_peak_hz, "sensitivity_at_alias_db": s347,
@@ -457,6 +460,8 @@ fn controllers(truth: &Truth, fitted: &Fitted, averaging: f64) -> Result<Control
         .find(|(n, _)| *n == "controller_multirate")
     {
         v["fast_model_order"] = json!(multi.fast_model.n());
+        v["at_samples"] = json!(multi.at_samples);
+        v["sample_factor_scan"] = multi.scan_json();
     }
     Ok(Controllers {
         c1,
@@ -530,7 +535,8 @@ fn standstill(
         },
     )
     .map_err(s)?;
-    let skip = samples / 10;
+    // a whole number of slow periods: the kept fast run starts at a sample instant
+    let skip = samples / 10 / 5 * 5;
     if f.y.iter().chain(&sl.y).any(|v| !v.is_finite()) {
         return Err(format!(
             "the standstill run with {name} diverged: its loop with the true stage is unstable"
@@ -550,9 +556,23 @@ fn standstill(
 }
 
 /// A standstill run's summary (JSON).
-fn standstill_summary(wf: &sd_analysis::Spectrum, ws: &sd_analysis::Spectrum) -> serde_json::Value {
+fn standstill_summary(r: &Run) -> serde_json::Value {
+    let (wf, ws) = (&r.wf, &r.ws);
     json!({"rms_slow": ws.rms(), "rms_fast": wf.rms(), "dominant_hz_slow": ws.dominant_hz(), "dominant_hz_fast": wf.dominant_hz(),
-        "rms_fast_above_slow_nyquist": wf.band_power(500.0, 2500.0).sqrt()})
+        "rms_fast_above_slow_nyquist": wf.band_power(500.0, 2500.0).sqrt(),
+        "rms_at_samples": r.rms_phases(true), "rms_between_samples": r.rms_phases(false)})
+}
+
+impl Run {
+    /// The rms of the 5 kHz error at the controller's sample instants (every fifth fast
+    /// sample: the run starts at one), or at the instants between them.
+    pub(super) fn rms_phases(&self, at_samples: bool) -> f64 {
+        sd_model::rms_of(
+            (self.fast.iter().enumerate())
+                .filter(|(i, _)| (i % 5 == 0) == at_samples)
+                .map(|(_, v)| *v),
+        )
+    }
 }
 
 /// Step 5: the controllers at standstill, sampling the position ideally (as in the paper's
@@ -587,7 +607,7 @@ fn standstills(
             ..Default::default()
         };
         let r = standstill(truth, (name, k, seed), samples, sensor)?;
-        with_sensor.insert(name.to_string(), standstill_summary(&r.wf, &r.ws));
+        with_sensor.insert(name.to_string(), standstill_summary(&r));
     }
     Ok((stand, with_sensor))
 }
