@@ -302,22 +302,15 @@ fn mixsyn_designs_a_stable_loop() {
         v2["gamma_min"].as_f64().unwrap(),
     );
     assert!(g2 >= g1 * (1.0 - 1e-3), "{g2} < {g1}");
+    let multirate = |extra: &[&str]| -> std::process::Output {
+        let mut args = vec![
+            "mixsyn", &p, "--w1", &w1, "--wd", &wd, "--factor", "4", "--wn", "1e-3",
+        ];
+        args.extend_from_slice(extra);
+        sdctl(&args)
+    };
     for bad in ["0", "-1", "nan"] {
-        let o = sdctl(&[
-            "mixsyn",
-            &p,
-            "--w1",
-            &w1,
-            "--wd",
-            &wd,
-            "--factor",
-            "4",
-            "--wn",
-            "1e-3",
-            "--at-samples",
-            bad,
-        ]);
-        one_line_error(&o, 2, "positive finite");
+        one_line_error(&multirate(&["--at-samples", bad]), 2, "positive finite");
     }
     let o = sdctl(&["mixsyn", &p, "--w1", &w1, "--wd", &wd, "--at-samples", "2"]);
     one_line_error(&o, 2, "--factor");
@@ -326,19 +319,5 @@ fn mixsyn_designs_a_stable_loop() {
     let o = sdctl(&["mixsyn", &p, "--w1", &w1, "--wd", &wd, "--factor", "0"]);
     one_line_error(&o, 2, "at least 1");
     // an effort weight at the fast period where the slow one is meant
-    let o = sdctl(&[
-        "mixsyn",
-        &p,
-        "--w1",
-        &w1,
-        "--wd",
-        &wd,
-        "--factor",
-        "4",
-        "--wn",
-        "1e-3",
-        "--w2-slow",
-        &w2,
-    ]);
-    one_line_error(&o, 2, "slow effort weight");
+    one_line_error(&multirate(&["--w2-slow", &w2]), 2, "slow effort weight");
 }

@@ -344,6 +344,22 @@ pub fn multirate_norm(
     w: &MultirateWeights<'_>,
     k: &StateSpace,
 ) -> Result<f64> {
+    let h = closed_loop(g, factor, w, k)?.hinf_norm()?;
+    Ok(if h.stable { h.value } else { f64::INFINITY })
+}
+
+/// The lifted closed loop of the slow controller `k` on the multirate problem: inputs
+/// `[r̄; d̄; n_k]`, outputs `[z̄; z₂ₛ]` ([`multirate_plant`]'s exogenous and performance
+/// channels).
+///
+/// # Errors
+/// As [`multirate_plant`]; a controller of the wrong size or period.
+pub(crate) fn closed_loop(
+    g: &StateSpace,
+    factor: usize,
+    w: &MultirateWeights<'_>,
+    k: &StateSpace,
+) -> Result<StateSpace> {
     let (p, part) = multirate_plant(g, factor, w)?;
     if !k.time().compatible(&p.time()) {
         return Err(HinfError::InvalidArgument(format!(
@@ -352,9 +368,7 @@ pub fn multirate_norm(
             p.ts().unwrap_or(f64::NAN)
         )));
     }
-    let cl = lft_lower(&p, k, part)?;
-    let h = cl.hinf_norm()?;
-    Ok(if h.stable { h.value } else { f64::INFINITY })
+    lft_lower(&p, k, part)
 }
 
 #[cfg(test)]

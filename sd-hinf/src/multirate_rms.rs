@@ -22,9 +22,8 @@
 //! sample (`sd_analysis`-free: the same hand-stepped loop as the lifting test) within the
 //! sampling error of 200 000 fast samples.
 
-use crate::error::{HinfError, Result};
-use crate::lft::lft_lower;
-use crate::multirate::{multirate_plant, MultirateWeights};
+use crate::error::Result;
+use crate::multirate::{closed_loop, MultirateWeights};
 use sd_model::StateSpace;
 
 /// The stationary rms of the weighted outputs of a slow controller's loop on the multirate
@@ -59,7 +58,7 @@ impl MultirateRms {
 /// `W₃` alone. An unstable loop's rms are infinite.
 ///
 /// # Errors
-/// As [`multirate_plant`]; a controller of the wrong size or period.
+/// As [`crate::multirate_plant`]; a controller of the wrong size or period.
 pub fn multirate_rms(
     g: &StateSpace,
     factor: usize,
@@ -70,15 +69,7 @@ pub fn multirate_rms(
         at_samples: None,
         ..*w
     };
-    let (p, part) = multirate_plant(g, factor, &plain)?;
-    if !k.time().compatible(&p.time()) {
-        return Err(HinfError::InvalidArgument(format!(
-            "the controller's period must be the slow period T = {} · h = {:e} s",
-            factor,
-            p.ts().unwrap_or(f64::NAN)
-        )));
-    }
-    let cl = lft_lower(&p, k, part)?;
+    let cl = closed_loop(g, factor, &plain, k)?;
     let nslow = if w.w2_slow.is_some() { g.nu() } else { 0 };
     let nz = (cl.ny() - nslow) / factor;
     let stable = cl.poles()?.iter().all(|z| z.norm() < 1.0);
@@ -112,7 +103,7 @@ mod tests {
     use super::*;
     use crate::hinfsyn::HinfOptions;
     use crate::mixsyn::MixsynWeights;
-    use crate::multirate::multirate_hinfsyn;
+    use crate::multirate::{multirate_hinfsyn, multirate_plant};
     use crate::weights::makeweight;
     use nalgebra::{DMatrix, DVector};
     use sd_model::{c2d, stage::paper_stage, Discretization};
