@@ -217,6 +217,24 @@ fn motor_bench_physical_fit() {
             .map(|m| (m.freq_hz, m.damping))
             .collect::<Vec<_>>()
     );
+    // the held-out costs at the chosen order per rigid-body count, and the order rule's bound
+    let best = ro
+        .orders
+        .iter()
+        .map(|r| r.heldout_cost)
+        .fold(f64::INFINITY, f64::min);
+    for r in ro.orders.iter().filter(|r| r.order == ro.order) {
+        eprintln!(
+            "own roughness, order {}, rigid body {}: held-out cost per line {:.3} (bound {:.3} \
+             = {:.4} × {:.3})",
+            r.order,
+            r.rigid_body,
+            r.heldout_cost,
+            ro.heldout_factor * best,
+            ro.heldout_factor,
+            best
+        );
+    }
     assert!(ro.order <= 10 && ro.cost_per_line < 3.0, "{ro:?}");
     assert!(ro
         .modes
