@@ -65,7 +65,7 @@ pub struct Designs {
 }
 
 /// The predicted standstill rms of a 1 kHz controller's loop with the fast design model
-/// (`sd_hinf::multirate_rms` with the problem's disturbances): metres and newtons.
+/// (`sd_hinf::multirate_rms` with the problem's disturbances).
 #[derive(Debug, Clone, Copy)]
 pub struct Predicted {
     /// The position error at the controller's samples (m).
@@ -139,9 +139,9 @@ fn synthesize(g: &StateSpace, factor: usize, at: Option<f64>) -> Result<Design, 
 }
 
 /// Both designs: the single-rate one on the 1 kHz design model, then the multirate one on the
-/// 5 kHz fit reduced to [`FAST_ORDER`] states with the least sample-instant factor of
-/// `2^(j/4)`, `j = 0 … `[`SAMPLE_FACTORS`], whose predicted rms at the samples is no worse than the single-rate
-/// design's (module documentation); the factor-1 design when none is.
+/// 5 kHz fit reduced to [`FAST_ORDER`] states with the least sample-instant factor
+/// `2^(j/4)`, `j = 0 … `[`SAMPLE_FACTORS`], whose predicted rms at the samples is no worse
+/// than the single-rate design's (module documentation); the factor-1 design when none is.
 pub fn design(p_fast: &StateSpace, p_design: &StateSpace) -> Result<Designs, String> {
     let fast_model = if p_fast.n() > FAST_ORDER {
         p_fast
@@ -152,30 +152,48 @@ pub fn design(p_fast: &StateSpace, p_design: &StateSpace) -> Result<Designs, Str
         p_fast.clone()
     };
     let single = synthesize(p_design, 1, None)?;
-    let mut d = Designs {
-        multirate: synthesize(&fast_model, FACTOR, None)?,
-        single,
-        fast_model,
-        at_samples: 1.0,
-        scan: Vec::new(),
-    };
-    let bound = d.predicted(&d.single.controller)?.at_samples_m;
+    let bound = predicted(&fast_model, &single.controller)?.at_samples_m;
+    let mut scan = Vec::new();
+    let mut chosen: Option<(f64, Design)> = None;
     for j in 0..=SAMPLE_FACTORS {
         let a = 2f64.powf(j as f64 / 4.0);
-        let m = synthesize(&d.fast_model, FACTOR, Some(a))?;
-        let rms = d.predicted(&m.controller)?;
-        d.scan.push(ScanPoint {
+        let m = synthesize(&fast_model, FACTOR, Some(a))?;
+        let rms = predicted(&fast_model, &m.controller)?;
+        scan.push(ScanPoint {
             factor: a,
             gamma: m.gamma,
             rms,
         });
-        if rms.at_samples_m <= bound {
-            d.multirate = m;
-            d.at_samples = a;
+        let meets = rms.at_samples_m <= bound;
+        if meets || chosen.is_none() {
+            chosen = Some((a, m));
+        }
+        if meets {
             break;
         }
     }
-    Ok(d)
+    let Some((at_samples, multirate)) = chosen else {
+        return Err("the multirate design's scan tried no factor".into());
+    };
+    Ok(Designs {
+        multirate,
+        single,
+        fast_model,
+        at_samples,
+        scan,
+    })
+}
+
+/// The predicted standstill rms of a 1 kHz controller's loop with the fast design model `g`
+/// (infinite when that loop is unstable).
+fn predicted(g: &StateSpace, k: &StateSpace) -> Result<Predicted, String> {
+    let w = Weights::at(g, FACTOR)?;
+    let r = sd_hinf::multirate_rms(g, FACTOR, &w.view(), k).map_err(|e| e.to_string())?;
+    Ok(Predicted {
+        at_samples_m: r.at_samples(0) / W1,
+        between_m: r.between(0) / W1,
+        effort: r.slow_effort.first().copied().unwrap_or(f64::NAN),
+    })
 }
 
 impl Designs {
@@ -195,14 +213,7 @@ impl Designs {
     /// The predicted standstill rms of a 1 kHz controller's loop with the fast design model
     /// (infinite when that loop is unstable).
     pub fn predicted(&self, k: &StateSpace) -> Result<Predicted, String> {
-        let w = Weights::at(&self.fast_model, FACTOR)?;
-        let r = sd_hinf::multirate_rms(&self.fast_model, FACTOR, &w.view(), k)
-            .map_err(|e| e.to_string())?;
-        Ok(Predicted {
-            at_samples_m: r.at_samples(0) / W1,
-            between_m: r.between(0) / W1,
-            effort: r.slow_effort.first().copied().unwrap_or(f64::NAN),
-        })
+        predicted(&self.fast_model, k)
     }
     /// The scan over sample-instant factors as report JSON.
     pub fn scan_json(&self) -> serde_json::Value {
