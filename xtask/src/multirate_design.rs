@@ -189,9 +189,10 @@ pub fn design(p_fast: &StateSpace, p_design: &StateSpace) -> Result<Designs, Str
 fn predicted(g: &StateSpace, k: &StateSpace) -> Result<Predicted, String> {
     let w = Weights::at(g, FACTOR)?;
     let r = sd_hinf::multirate_rms(g, FACTOR, &w.view(), k).map_err(|e| e.to_string())?;
+    let missing = || "the multirate rms has no error output".to_string();
     Ok(Predicted {
-        at_samples_m: r.at_samples(0) / W1,
-        between_m: r.between(0) / W1,
+        at_samples_m: r.at_samples(0).ok_or_else(missing)? / W1,
+        between_m: r.between(0).ok_or_else(missing)? / W1,
         effort: r.slow_effort.first().copied().unwrap_or(f64::NAN),
     })
 }
