@@ -112,6 +112,8 @@ fn run_case(seed: u64) -> Option<Outcome> {
     for rk in d2.ranking.iter().take(4) {
         println!("   after: {} held-out {:?}", rk.cause, rk.held_out);
     }
+    // the named cause's parameters with their standard errors (a clock error per experiment)
+    println!("   after: parameters {}", d2.parameters);
     let held = |name: &str| {
         d2.ranking
             .iter()

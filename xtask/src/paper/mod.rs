@@ -29,6 +29,7 @@
 //!    the 1 kHz measurement, and the robust stability margins of both controllers (Fig. 4
 //!    uncertainty).
 
+use crate::multirate_design::FACTOR;
 use plotters::style::RGBColor;
 use sd_analysis::{cps, welch, ClosedLoop, Window};
 use sd_ident::{frf_periodic, Lines, MultisineSpec, PeriodicOptions, Phases, Role};
@@ -523,7 +524,7 @@ fn standstill(
         &Standstill {
             name: name.into(),
             controller: k.clone(),
-            factor: 5,
+            factor: FACTOR,
             samples,
             noise: Noise {
                 force_rms: 0.05,
@@ -536,14 +537,14 @@ fn standstill(
     )
     .map_err(s)?;
     // a whole number of slow periods: the kept fast run starts at a sample instant
-    let skip = samples / 10 / 5 * 5;
+    let skip = samples / 10 / FACTOR * FACTOR;
     if f.y.iter().chain(&sl.y).any(|v| !v.is_finite()) {
         return Err(format!(
             "the standstill run with {name} diverged: its loop with the true stage is unstable"
         ));
     }
     let fast: Vec<f64> = f.y[skip..].to_vec();
-    let slow: Vec<f64> = sl.y[skip / 5..].to_vec();
+    let slow: Vec<f64> = sl.y[skip / FACTOR..].to_vec();
     let wf = welch(&fast, 5000.0, 2500, 0.5, Window::Hann).map_err(s)?;
     let ws = welch(&slow, 1000.0, 500, 0.5, Window::Hann).map_err(s)?;
     Ok(Run {
@@ -564,12 +565,12 @@ fn standstill_summary(r: &Run) -> serde_json::Value {
 }
 
 impl Run {
-    /// The rms of the 5 kHz error at the controller's sample instants (every fifth fast
-    /// sample: the run starts at one), or at the instants between them.
+    /// The rms of the 5 kHz error at the controller's sample instants (every `FACTOR`-th
+    /// fast sample: the run starts at one), or at the instants between them.
     pub(super) fn rms_phases(&self, at_samples: bool) -> f64 {
         sd_model::rms_of(
             (self.fast.iter().enumerate())
-                .filter(|(i, _)| (i % 5 == 0) == at_samples)
+                .filter(|(i, _)| (i % FACTOR == 0) == at_samples)
                 .map(|(_, v)| *v),
         )
     }
