@@ -529,8 +529,9 @@ impl Modal<'_> {
 
     /// Fits one family. `start` holds the single-cause estimates (the pairs start there).
     /// Single causes: grids over the whole range, then golden section. Delay + averaging: a
-    /// 0.2 × 0.2 grid, then coordinate refinement in shrinking windows along σ = α + β/2 (the delay both act like) and β. A cause with clock
-    /// errors: clock errors over ±3 % at the other cause's single estimate, then alternately
+    /// 0.2 × 0.2 grid and the two single causes' estimates, from the best of them coordinate
+    /// refinement in shrinking windows along σ = α + β/2 (the delay both act like) and β, kept
+    /// only where it improves on that start. A cause with clock errors: clock errors over ±3 % at the other cause's single estimate, then alternately
     /// the other parameter over its whole range and the clock errors within ±0.4 %.
     fn fit(&self, fam: Family, targets: &[Target<'_>], start: &RateTied) -> Result<RateTied> {
         let ideal = NonIdeal::ideal();
@@ -545,14 +546,17 @@ impl Modal<'_> {
             }
             Family::Clock => clocks = self.fit_clocks(ideal, &[], 0.03, targets)?,
             Family::DelayAverage => {
+                // the grid and the nested single causes' estimates (the pair contains both:
+                // its fit must never end worse than either, as a grid cell far from a small
+                // delay with a small window can)
+                let grid =
+                    (0..=8).flat_map(|i| (0..=5).map(move |j| (0.2 * i as f64, 0.2 * j as f64)));
+                let singles = [(start.hold_delay, 0.0), (0.0, start.averaging)];
                 let mut best = (f64::INFINITY, 0.0, 0.0);
-                for i in 0..=8 {
-                    for j in 0..=5 {
-                        let (x, y) = (0.2 * i as f64, 0.2 * j as f64);
-                        let c = self.eval_fixed(x, y, &[], targets);
-                        if c < best.0 {
-                            best = (c, x, y);
-                        }
+                for (x, y) in grid.chain(singles) {
+                    let c = self.eval_fixed(x, y, &[], targets);
+                    if c < best.0 {
+                        best = (c, x, y);
                     }
                 }
                 // refined in (σ, β) with σ = α + β/2, the delay both act like to first order:
@@ -576,7 +580,12 @@ impl Modal<'_> {
                     )
                     .0;
                 }
-                (a, b) = ((sg - 0.5 * bb).max(0.0), bb);
+                let refined = ((sg - 0.5 * bb).max(0.0), bb);
+                (a, b) = if ev(sg, bb) <= best.0 {
+                    refined
+                } else {
+                    (best.1, best.2)
+                };
             }
             Family::DelayClock | Family::AverageClock => {
                 let delay = fam == Family::DelayClock;

@@ -293,8 +293,8 @@ fn reported() {
     report(3500..3560);
 }
 
-/// Developer tool, not a check: one case's diagnosis with its progress, ranking and proposal
-/// (`SEED=13 cargo test --release -p sd-tests --test diagnose_next debug -- --ignored
+/// Developer tool, not a check: one case's diagnosis with its progress, ranking and proposal,
+/// then with the proposed experiment run its answer and ranking (`SEED=13 cargo test --release -p sd-tests --test diagnose_next debug -- --ignored
 /// --nocapture`).
 #[test]
 #[ignore]
@@ -314,4 +314,17 @@ fn debug() {
     }
     println!("next {:#?}", d.next_experiment);
     println!("no proposal {:?}", d.no_next_experiment);
+    let Some(n) = d.next_experiment else { return };
+    let Some(x) = proposed(seed, effect, rec, (n.rate_hz, n.period_samples, n.periods)) else {
+        println!("the testbed cannot run the proposal");
+        return;
+    };
+    let mut exps = case.experiments.clone();
+    exps.push(x);
+    let d2 = sd_diagnose::diagnose(&exps, &Default::default()).unwrap();
+    println!("after: {} partial {:?}", d2.cause, d2.partial);
+    for rk in &d2.ranking {
+        println!("   {rk:?}");
+    }
+    println!("after: parameters {}", d2.parameters);
 }

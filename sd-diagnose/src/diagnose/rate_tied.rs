@@ -87,6 +87,48 @@ pub(super) fn below_floor(f: Family, p: &RateTied) -> bool {
     }
 }
 
+/// Whether the clock errors `p.clock_error` of a hypothesis fitted to `targets` are told from
+/// zero: at least one beyond `z·σ`, `σ` its standard error ([`Modal::std_errors`]) and `z` the
+/// two-sided normal quantile of the naming level `α·`[`NAMING_ALPHA_RATIO`] shared out over the
+/// `m` experiments (Bonferroni: `z = Φ⁻¹(1 − α/(20 m))`, 3.48 for two experiments at α = 1 %).
+/// A clock error per experiment is a free parameter each: with a small delay or window mis-fitted
+/// (or a rival that is not quite the cause) one of them takes up 2–3 σ of the misfit and buys
+/// a pair its place, the way the floor's limit `→ 0` would; a real clock error of 0.2 % stands at
+/// 7 σ or more on a second of 1 kHz data. Families without clock errors are always told.
+///
+/// [`Modal::std_errors`]: crate::hypotheses::Modal::std_errors
+pub(super) fn clocks_told(j: &Judged<'_>, f: &Fitted, targets: &[Target<'_>]) -> Result<bool> {
+    if !f.family.clock() {
+        return Ok(true);
+    }
+    let std = j.modal.std_errors(f.family, targets, &f.params)?;
+    let m = f.params.clock_error.len().max(1) as f64;
+    let z = sd_model::normal_quantile(1.0 - j.modal.alpha * NAMING_ALPHA_RATIO / (2.0 * m));
+    Ok(f.params
+        .clock_error
+        .iter()
+        .zip(&std.clock_error)
+        .any(|(e, s)| s.is_some_and(|s| e.abs() > z * s)))
+}
+
+/// The hypotheses that compete for the name (those of [`clocks_told`]) with their judged
+/// statistics; `fitted` stays whole for the ranking the report shows.
+fn told(
+    j: &Judged<'_>,
+    fitted: &[Fitted],
+    stats: &[Option<Statistic>],
+    targets: &[Target<'_>],
+) -> Result<(Vec<Fitted>, Vec<Option<Statistic>>)> {
+    let mut out = (Vec::new(), Vec::new());
+    for (f, s) in fitted.iter().zip(stats) {
+        if clocks_told(j, f, targets)? {
+            out.0.push(f.clone());
+            out.1.push(*s);
+        }
+    }
+    Ok(out)
+}
+
 /// Whether family `fam` with parameters `p` may be named at all: a rate-tied family none of
 /// whose causes is below its physical floor ([`below_floor`]).
 pub(super) fn nameable(fam: Family, p: &RateTied) -> bool {
@@ -97,8 +139,9 @@ pub(super) fn nameable(fam: Family, p: &RateTied) -> bool {
 }
 
 /// The other hypotheses, sharing no cause with the chosen one (`k`), that explain the data as
-/// well: each passes the naming threshold too (`judge`), and neither the training data nor the
-/// judged (held-out) data put the chosen one's score sum lower by [`PAIR_DECISIVE`]. With any,
+/// well: each passes the naming threshold too (`judge`), neither the training data nor the
+/// judged (held-out) data put the chosen one's score sum lower by [`PAIR_DECISIVE`], and the
+/// training data do not put theirs lower by as much either. With any,
 /// the data do not tell the causes apart (a small hold delay and a short averaging window lag
 /// the phase alike), and naming either would be a guess.
 pub(super) fn rivals(
@@ -119,9 +162,36 @@ pub(super) fn rivals(
                 && !related(f.family)
                 && explains(&judge(i), alpha)
                 && !decisive(f, &fitted[k])
+                && !decisive(&fitted[k], f)
                 && sum(judge(i)) - mine < PAIR_DECISIVE
         })
         .collect()
+}
+
+/// `others` with the pair the criterion ranks first (`fitted[0]`) when [`pick`] passed it over
+/// for the single cause `k` nested in it because the pair's second cause did not pay for itself
+/// on the judged data: the criterion wants the second cause and the judged data do not, so its
+/// presence is undetermined (a small delay with a window lags the phase like a larger delay
+/// alone at one slow rate), and naming the single cause would be a guess. Not when the pair
+/// may not be named ([`nameable`]: a second cause below its floor is no cause) or does not
+/// explain the judged data.
+fn with_demoted_pair(
+    fitted: &[Fitted],
+    k: usize,
+    mut others: Vec<usize>,
+    judge: &dyn Fn(usize) -> Statistic,
+    alpha: f64,
+) -> Vec<usize> {
+    let top = &fitted[0];
+    if k != 0
+        && top.family.nested().contains(&fitted[k].family)
+        && nameable(top.family, &top.params)
+        && explains(&judge(0), alpha)
+        && !others.contains(&0)
+    {
+        others.push(0);
+    }
+    others
 }
 
 /// The one cause that the chosen pair `k` and every rival pair contain, when it alone explains
@@ -302,6 +372,7 @@ pub(super) fn halves(
         .zip(&held_stats)
         .map(|(f, h)| ranked(f, h.map(|s| s.value)))
         .collect();
+    let (fitted, held_stats) = told(j, &fitted, &held_stats, &train)?;
     let judge = |i: usize| held_stats[i].unwrap_or(fitted[i].stat);
     let k = pick(&fitted, &judge, held.is_some());
     let others = rivals(&fitted, k, &judge, j.modal.alpha);
@@ -309,6 +380,7 @@ pub(super) fn halves(
         Some(s) => (s, rivals(&fitted, s, &judge, j.modal.alpha)),
         None => (k, others),
     };
+    let others = with_demoted_pair(&fitted, k, others, &judge, j.modal.alpha);
     let unsure = !others.is_empty();
     let chosen = &fitted[k];
     // the chosen hypothesis and those that explain the data as well, for the next experiment
@@ -479,20 +551,24 @@ pub(super) fn leave_one_out(
             .collect()
     };
     for ((k, v), fitted) in tied.iter().enumerate().zip(searched) {
-        let fitted = fitted?;
-        let held = fitted
-            .iter()
-            .map(|f| held_out_lines(j, (f.family, &f.params), v, false))
-            .collect::<Result<Vec<_>>>()?;
+        let all = fitted?;
         let c = v.whole.inflation;
-        let stat_of = |i: usize| statistic([(held[i].as_slice(), c)], j.modal.alpha);
+        let all_stats = all
+            .iter()
+            .map(|f| {
+                let lines = held_out_lines(j, (f.family, &f.params), v, false)?;
+                Ok(Some(statistic([(lines.as_slice(), c)], j.modal.alpha)))
+            })
+            .collect::<Result<Vec<_>>>()?;
+        if k == 0 {
+            ranking = (all.iter().zip(&all_stats))
+                .map(|(f, s)| ranked(f, s.map(|s| s.value)))
+                .collect();
+        }
+        let (fitted, stats) = told(j, &all, &all_stats, &trains[k])?;
+        let stat_of = |i: usize| stats[i].unwrap_or(fitted[i].stat);
         let p = pick(&fitted, &stat_of, true);
         if k == 0 {
-            ranking = fitted
-                .iter()
-                .enumerate()
-                .map(|(i, f)| ranked(f, Some(stat_of(i).value)))
-                .collect();
             first = Some(fitted[p].clone());
         }
         picks.push(fitted[p].family);
