@@ -9,9 +9,11 @@
 //!
 //! Seeds (the small-effect population, [`small`]): development (looked at while building and
 //! tuning the noise model and the search) `0..60`: `NEXT_SEEDS=0..60 cargo test --release -p
-//! sd-tests --test diagnose_next development -- --ignored --nocapture`; reported once, not
-//! looked at before: `3500..3560` (`cargo test --release -p sd-tests --test diagnose_next
-//! reported -- --ignored --nocapture`). The default run checks one development case end to
+//! sd-tests --test diagnose_next development -- --ignored --nocapture`; `3500..3560` was
+//! reported at 82b7fd0 and re-run at e4fe7b2, then looked at case by case (seeds 3500 and
+//! 3517) while fixing: spent (development now); reported once, not looked at before:
+//! `4200..4260` (`cargo test --release -p sd-tests --test diagnose_next reported -- --ignored
+//! --nocapture`). The default run checks one development case end to
 //! end (`the_proposal_decides_a_fixed_case`).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -281,7 +283,7 @@ fn the_proposal_decides_a_fixed_case() {
 fn development() {
     let seeds = sd_tests::env_seeds("NEXT_SEEDS", 0..60);
     assert!(
-        seeds.end <= 3500 || seeds.start >= 3560,
+        seeds.end <= 4200 || seeds.start >= 4260,
         "development seeds must not touch the reported range"
     );
     report(seeds);
@@ -290,7 +292,7 @@ fn development() {
 #[test]
 #[ignore]
 fn reported() {
-    report(3500..3560);
+    report(4200..4260);
 }
 
 /// Developer tool, not a check: one case's diagnosis with its progress, ranking and proposal,

@@ -168,28 +168,35 @@ pub(super) fn rivals(
         .collect()
 }
 
-/// `others` with the pair the criterion ranks first (`fitted[0]`) when [`pick`] passed it over
-/// for the single cause `k` nested in it because the pair's second cause did not pay for itself
-/// on the judged data: the criterion wants the second cause and the judged data do not, so its
-/// presence is undetermined (a small delay with a window lags the phase like a larger delay
-/// alone at one slow rate), and naming the single cause would be a guess. Not when the pair
+/// `others` with the pairs whose presence the data leave undetermined against the single cause
+/// `k` nested in them: the pair the criterion ranks first (`fitted[0]`) when [`pick`] passed
+/// it over for `k` because its second cause did not pay for itself on the judged data, and a
+/// pair whose second cause pays for itself on the judged data (score sum lower by more than
+/// its `½ ln K'`) where the criterion preferred `k`. Training and judged data then disagree
+/// about the second cause (a small delay with a window lags the phase like a larger delay
+/// alone at one slow rate), and naming the single cause would be a guess. Not for a pair that
 /// may not be named ([`nameable`]: a second cause below its floor is no cause) or does not
 /// explain the judged data.
-fn with_demoted_pair(
+fn with_undetermined_pairs(
     fitted: &[Fitted],
     k: usize,
     mut others: Vec<usize>,
     judge: &dyn Fn(usize) -> Statistic,
     alpha: f64,
 ) -> Vec<usize> {
-    let top = &fitted[0];
-    if k != 0
-        && top.family.nested().contains(&fitted[k].family)
-        && nameable(top.family, &top.params)
-        && explains(&judge(0), alpha)
-        && !others.contains(&0)
-    {
-        others.push(0);
+    let sum = |s: Statistic| penalised(&s, 0);
+    let mine = judge(k);
+    let pen = penalised(&mine, 1) - sum(mine);
+    for (i, f) in fitted.iter().enumerate() {
+        let undetermined = (i == 0 && k != 0) || (i != 0 && sum(judge(i)) + pen < sum(mine));
+        if undetermined
+            && f.family.nested().contains(&fitted[k].family)
+            && nameable(f.family, &f.params)
+            && explains(&judge(i), alpha)
+            && !others.contains(&i)
+        {
+            others.push(i);
+        }
     }
     others
 }
@@ -380,7 +387,7 @@ pub(super) fn halves(
         Some(s) => (s, rivals(&fitted, s, &judge, j.modal.alpha)),
         None => (k, others),
     };
-    let others = with_demoted_pair(&fitted, k, others, &judge, j.modal.alpha);
+    let others = with_undetermined_pairs(&fitted, k, others, &judge, j.modal.alpha);
     let unsure = !others.is_empty();
     let chosen = &fitted[k];
     // the chosen hypothesis and those that explain the data as well, for the next experiment
