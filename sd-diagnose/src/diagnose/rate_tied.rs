@@ -170,11 +170,13 @@ pub(super) fn rivals(
 
 /// `others` with the pairs whose presence the data leave undetermined against the single cause
 /// `k` nested in them: the pair the criterion ranks first (`fitted[0]`) when [`pick`] passed
-/// it over for `k` because its second cause did not pay for itself on the judged data, and a
-/// pair whose second cause pays for itself on the judged data (score sum lower by more than
-/// its `½ ln K'`) where the criterion preferred `k`. Training and judged data then disagree
-/// about the second cause (a small delay with a window lags the phase like a larger delay
-/// alone at one slow rate), and naming the single cause would be a guess. Not for a pair that
+/// it over for `k` because its second cause did not pay for itself on the judged data, unless
+/// the judged data reject it (score sum higher than `k`'s by more than its `½ ln K'`: the
+/// training data's gain was their own, e.g. an estimator bias, and `k` is named); and a pair
+/// whose second cause pays for itself on the judged data (score sum lower by more than its
+/// `½ ln K'`) where the criterion preferred `k`. Training and judged data then disagree about
+/// the second cause (a small delay with a window lags the phase like a larger delay alone at
+/// one slow rate), and naming the single cause would be a guess. Not for a pair that
 /// may not be named ([`nameable`]: a second cause below its floor is no cause) or does not
 /// explain the judged data.
 fn with_undetermined_pairs(
@@ -188,7 +190,14 @@ fn with_undetermined_pairs(
     let mine = judge(k);
     let pen = penalised(&mine, 1) - sum(mine);
     for (i, f) in fitted.iter().enumerate() {
-        let undetermined = (i == 0 && k != 0) || (i != 0 && sum(judge(i)) + pen < sum(mine));
+        // the criterion's pair passed over, unless the judged data reject its second cause
+        // (worse by more than it costs); or a pair the judged data want
+        let gain = sum(mine) - sum(judge(i));
+        let undetermined = if i == 0 {
+            k != 0 && gain > -pen
+        } else {
+            gain > pen
+        };
         if undetermined
             && f.family.nested().contains(&fitted[k].family)
             && nameable(f.family, &f.params)
