@@ -531,8 +531,9 @@ impl Modal<'_> {
     /// Single causes: grids over the whole range, then golden section. Delay + averaging: a
     /// 0.2 × 0.2 grid and the two single causes' estimates, from the best of them coordinate
     /// refinement in shrinking windows along σ = α + β/2 (the delay both act like) and β, kept
-    /// only where it improves on that start. A cause with clock errors: clock errors over ±3 % at the other cause's single estimate, then alternately
-    /// the other parameter over its whole range and the clock errors within ±0.4 %.
+    /// only where it improves on that start. A cause with clock errors: clock errors over ±3 %
+    /// at the other cause's single estimate, then alternately the other parameter over its
+    /// whole range and the clock errors within ±0.4 %.
     fn fit(&self, fam: Family, targets: &[Target<'_>], start: &RateTied) -> Result<RateTied> {
         let ideal = NonIdeal::ideal();
         let (mut a, mut b, mut clocks) = (0.0, 0.0, Vec::new());
