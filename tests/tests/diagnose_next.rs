@@ -13,9 +13,11 @@
 //! reported at 82b7fd0 and re-run at e4fe7b2, then looked at case by case (seeds 3500 and
 //! 3517) while fixing: spent (development now); `4200..4260` was reported once before the
 //! pair rule took its present form (seed 4200 then looked at: spent), `4300..4360` at 6047e07
-//! (before a pair's causes were tested against zero; seed 4338 looked at: spent); reported
-//! once, not looked at before: `4400..4460` (`cargo test --release -p sd-tests --test
-//! diagnose_next reported -- --ignored --nocapture`). The default run checks one development case end to
+//! (before a pair's causes were tested against zero; seed 4338 looked at: spent), `4400..4460`
+//! at a019881 (before a pair not told from zero could leave its single cause undetermined;
+//! seeds 4424 and 4433 looked at: spent); reported once, not looked at before: `4500..4560`
+//! (`cargo test --release -p sd-tests --test diagnose_next reported -- --ignored
+//! --nocapture`). The default run checks one development case end to
 //! end (`the_proposal_decides_a_fixed_case`).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -310,7 +312,7 @@ fn the_proposal_decides_a_fixed_case() {
 fn development() {
     let seeds = sd_tests::env_seeds("NEXT_SEEDS", 0..60);
     assert!(
-        seeds.end <= 4400 || seeds.start >= 4460,
+        seeds.end <= 4500 || seeds.start >= 4560,
         "development seeds must not touch the reported range"
     );
     report(seeds);
@@ -319,7 +321,7 @@ fn development() {
 #[test]
 #[ignore]
 fn reported() {
-    report(4400..4460);
+    report(4500..4560);
 }
 
 /// Developer tool, not a check: one case's diagnosis with its progress, ranking and proposal,

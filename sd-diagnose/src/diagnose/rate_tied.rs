@@ -179,9 +179,11 @@ pub(super) fn rivals(
         .collect()
 }
 
-/// `others` with the pairs whose presence the data leave undetermined against the single cause
-/// `k` nested in them: the pair the criterion ranks first (`fitted[0]`) when [`pick`] passed
-/// it over for `k` because its second cause did not pay for itself on the judged data, unless
+/// The pairs among `all` (every hypothesis, by criterion, also those whose causes are not
+/// told from zero, [`causes_told`]) not yet in `others` whose presence the data leave
+/// undetermined against the single cause `chosen` nested in them: a pair the criterion ranks
+/// above `chosen` (passed over by [`pick`] because its second cause did not pay for itself on
+/// the judged data, or not told from zero), unless
 /// the judged data reject it (score sum higher than `k`'s by more than its `½ ln K'`: the
 /// training data's gain was their own, e.g. an estimator bias, and `k` is named); and a pair
 /// whose second cause pays for itself on the judged data (score sum lower by more than its
@@ -189,36 +191,42 @@ pub(super) fn rivals(
 /// the second cause (a small delay with a window lags the phase like a larger delay alone at
 /// one slow rate), and naming the single cause would be a guess. Not for a pair that
 /// may not be named ([`nameable`]: a second cause below its floor is no cause) or does not
-/// explain the judged data.
+/// explain the judged data, nor for one with clock errors (a free parameter per experiment
+/// that is not told from zero takes up misfit, not a cause).
 fn with_undetermined_pairs(
-    fitted: &[Fitted],
-    k: usize,
-    mut others: Vec<usize>,
+    all: &[Fitted],
+    chosen: Family,
+    others: &[Family],
     judge: &dyn Fn(usize) -> Statistic,
     alpha: f64,
-) -> Vec<usize> {
+) -> Vec<Fitted> {
+    let Some(k) = all.iter().position(|f| f.family == chosen) else {
+        return Vec::new();
+    };
     let sum = |s: Statistic| penalised(&s, 0);
     let mine = judge(k);
     let pen = penalised(&mine, 1) - sum(mine);
-    for (i, f) in fitted.iter().enumerate() {
-        // the criterion's pair passed over, unless the judged data reject its second cause
+    let mut out = Vec::new();
+    for (i, f) in all.iter().enumerate() {
+        // a pair the criterion prefers, unless the judged data reject its second cause
         // (worse by more than it costs); or a pair the judged data want
         let gain = sum(mine) - sum(judge(i));
-        let undetermined = if i == 0 {
-            k != 0 && gain > -pen
+        let undetermined = if f.criterion < all[k].criterion {
+            gain > -pen
         } else {
             gain > pen
         };
         if undetermined
-            && f.family.nested().contains(&fitted[k].family)
+            && !f.family.clock()
+            && f.family.nested().contains(&chosen)
             && nameable(f.family, &f.params)
             && explains(&judge(i), alpha)
-            && !others.contains(&i)
+            && !others.contains(&f.family)
         {
-            others.push(i);
+            out.push(f.clone());
         }
     }
-    others
+    out
 }
 
 /// The one cause that the chosen pair `k` and every rival pair contain, when it alone explains
@@ -399,7 +407,8 @@ pub(super) fn halves(
         .zip(&held_stats)
         .map(|(f, h)| ranked(f, h.map(|s| s.value)))
         .collect();
-    let (fitted, held_stats) = told(j, &fitted, &held_stats, &train)?;
+    let (all, all_stats) = (fitted, held_stats);
+    let (fitted, held_stats) = told(j, &all, &all_stats, &train)?;
     let judge = |i: usize| held_stats[i].unwrap_or(fitted[i].stat);
     let k = pick(&fitted, &judge, held.is_some());
     let others = rivals(&fitted, k, &judge, j.modal.alpha);
@@ -407,18 +416,28 @@ pub(super) fn halves(
         Some(s) => (s, rivals(&fitted, s, &judge, j.modal.alpha)),
         None => (k, others),
     };
-    let others = with_undetermined_pairs(&fitted, k, others, &judge, j.modal.alpha);
-    let unsure = !others.is_empty();
     let chosen = &fitted[k];
-    // the chosen hypothesis and those that explain the data as well, for the next experiment
-    let contest: Vec<Fitted> = if unsure {
-        std::iter::once(k)
-            .chain(others)
-            .map(|i| fitted[i].clone())
-            .collect()
-    } else {
-        Vec::new()
-    };
+    // the chosen hypothesis and those that explain the data as well, for the next experiment;
+    // a pair whose causes are not all told from zero may not be named but can leave the
+    // single cause in it undetermined
+    let mut contest: Vec<Fitted> = std::iter::once(k)
+        .chain(others)
+        .map(|i| fitted[i].clone())
+        .collect();
+    let named: Vec<Family> = contest.iter().map(|f| f.family).collect();
+    let all_judge = |i: usize| all_stats[i].unwrap_or(all[i].stat);
+    let alpha = j.modal.alpha;
+    contest.extend(with_undetermined_pairs(
+        &all,
+        chosen.family,
+        &named,
+        &all_judge,
+        alpha,
+    ));
+    let unsure = contest.len() > 1;
+    if !unsure {
+        contest.clear();
+    }
     let Some(held) = held else {
         // without held-out data the discrepancy must stand at the naming level itself, on the
         // naming yardstick (residue and pole covariance)
