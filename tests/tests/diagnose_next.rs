@@ -325,8 +325,8 @@ fn reported() {
 }
 
 /// Developer tool, not a check: one case's diagnosis with its progress, ranking and proposal,
-/// then with the proposed experiment run its answer and ranking (`SEED=13 cargo test --release -p sd-tests --test diagnose_next debug -- --ignored
-/// --nocapture`).
+/// then with the proposed experiment run its answer and ranking (`SEED=13 cargo test
+/// --release -p sd-tests --test diagnose_next debug -- --ignored --nocapture`).
 #[test]
 #[ignore]
 fn debug() {
