@@ -60,7 +60,7 @@ pub(super) fn pick(fitted: &[Fitted], judge: &dyn Fn(usize) -> Statistic, held: 
     // on the held-out data the pair's extra parameter must pay ½ ln K' like in the criterion
     let sum = |s: Statistic| penalised(&s, 0);
     let me = judge(0);
-    let pen = penalised(&me, 1) - sum(me);
+    let pen = param_cost(&me);
     let better = (0..fitted.len())
         .filter(|&i| nested.contains(&fitted[i].family))
         .min_by(|x, y| sum(judge(*x)).total_cmp(&sum(judge(*y))));
@@ -70,6 +70,11 @@ pub(super) fn pick(fitted: &[Fitted], judge: &dyn Fn(usize) -> Statistic, held: 
         Some(i) if sum(me) + pen >= sum(judge(i)) && !decisive(&fitted[0], &fitted[i]) => i,
         _ => 0,
     }
+}
+
+/// What one more parameter costs on the judged data `s`: the criterion's `½ ln K'`.
+fn param_cost(s: &Statistic) -> f64 {
+    penalised(s, 1) - penalised(s, 0)
 }
 
 /// Whether the single cause `f` of parameters `p` is below its physical floor: a hold delay
@@ -97,8 +102,10 @@ pub(super) fn below_floor(f: Family, p: &RateTied) -> bool {
 /// delay or window mis-fitted one of them takes up 2–3 σ of misfit and buys a pair its place;
 /// and a pair's split of a lag into delay and window can be undetermined (standard errors of
 /// hundreds on a lag of 1.4 periods) while the pair still fits an estimator bias better than
-/// the delay alone. A real clock error of 0.2 % stands at 7 σ or more on a second of 1 kHz
-/// data, a real 0.2-period window beside a delay at 10 σ or more.
+/// the delay alone. For scale (`SEED=3500 cargo test --release -p sd-tests --test
+/// diagnose_next debug -- --ignored --nocapture`): about 2.6·10⁻⁴ for a clock error on 1 kHz
+/// data, so a clock error of 0.2 % stands beyond 7 σ; 0.016 for a 0.21-period window beside
+/// a delay, 13 σ.
 ///
 /// [`Modal::std_errors`]: crate::hypotheses::Modal::std_errors
 pub(super) fn causes_told(j: &Judged<'_>, f: &Fitted, targets: &[Target<'_>]) -> Result<bool> {
@@ -205,7 +212,7 @@ fn with_undetermined_pairs(
     };
     let sum = |s: Statistic| penalised(&s, 0);
     let mine = judge(k);
-    let pen = penalised(&mine, 1) - sum(mine);
+    let pen = param_cost(&mine);
     let mut out = Vec::new();
     for (i, f) in all.iter().enumerate() {
         // a pair the criterion prefers, unless the judged data reject its second cause
