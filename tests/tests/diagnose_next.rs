@@ -15,9 +15,10 @@
 //! pair rule took its present form (seed 4200 then looked at: spent), `4300..4360` at 6047e07
 //! (before a pair's causes were tested against zero; seed 4338 looked at: spent), `4400..4460`
 //! at a019881 (before a pair not told from zero could leave its single cause undetermined;
-//! seeds 4424 and 4433 looked at: spent); reported once, not looked at before: `4500..4560`
-//! (`cargo test --release -p sd-tests --test diagnose_next reported -- --ignored
-//! --nocapture`). The default run checks one development case end to
+//! seeds 4424 and 4433 looked at: spent), `4500..4560` at b2eca7b (before the realized share
+//! of the predicted separation, `REALIZED_SHARE`, measured on `0..60`); reported once, not
+//! looked at before: `4600..4660` (`cargo test --release -p sd-tests --test diagnose_next
+//! reported -- --ignored --nocapture`). The default run checks one development case end to
 //! end (`the_proposal_decides_a_fixed_case`).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -312,7 +313,7 @@ fn the_proposal_decides_a_fixed_case() {
 fn development() {
     let seeds = sd_tests::env_seeds("NEXT_SEEDS", 0..60);
     assert!(
-        seeds.end <= 4500 || seeds.start >= 4560,
+        seeds.end <= 4600 || seeds.start >= 4660,
         "development seeds must not touch the reported range"
     );
     report(seeds);
@@ -321,7 +322,7 @@ fn development() {
 #[test]
 #[ignore]
 fn reported() {
-    report(4500..4560);
+    report(4600..4660);
 }
 
 /// Developer tool, not a check: one case's diagnosis with its progress, ranking and proposal,

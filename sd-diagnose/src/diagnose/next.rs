@@ -13,7 +13,9 @@ use super::read::{Data, Val};
 use crate::data::{Estimate, Part};
 use crate::hypotheses::{Family, Fitted, Target};
 use crate::modal::Residues;
-use crate::next_experiment::{separation_power, Injection, NextExperiment, NoProposal, NEXT_POWER};
+use crate::next_experiment::{
+    separation_power, Injection, NextExperiment, NoProposal, NEXT_POWER, REALIZED_SHARE,
+};
 use crate::{RateTied, Result};
 use nalgebra::DMatrix;
 use num_complex::Complex64 as C;
@@ -23,7 +25,7 @@ use std::collections::BTreeMap;
 /// Slowest rate proposed: the model experiment's over this.
 const MAX_FACTOR: usize = 20;
 /// Steady periods proposed, as multiples of the template's.
-const PERIOD_MULTIPLES: [usize; 4] = [1, 2, 4, 8];
+const PERIOD_MULTIPLES: [usize; 6] = [1, 2, 4, 8, 16, 32];
 /// Rates refitted at the template's periods (the refit is the most work).
 const MAX_REFITS: usize = 6;
 /// Candidates verified by a refit at more periods than the template's.
@@ -281,9 +283,9 @@ fn separation(
             let pa = predict(j, (&start, start.clock(tied.len())), c.factor, &f)?;
             let v: Vec<f64> = var.iter().zip(&pa).map(|(v, p)| v + p.1).collect();
             let values: Vec<C> = truth.iter().map(|p| p.0).collect();
-            let lambda = j
-                .modal
-                .refit_excess(a.family, &start, &all, (&values, &v))?;
+            let lambda = REALIZED_SHARE
+                * j.modal
+                    .refit_excess(a.family, &start, &all, (&values, &v))?;
             let inflation = t.val.whole.inflation;
             let p = separation_power(lambda, (f.len(), k_old), inflation, PAIR_DECISIVE, thr);
             out.power = out.power.min(p);
@@ -339,7 +341,7 @@ fn screen(
     let fitted: Vec<Fitted> = rivals.iter().map(|r| r.0.clone()).collect();
     let excess = contests(&fitted)
         .into_iter()
-        .map(|(a, b)| excess(&preds[a], &preds[b], &var))
+        .map(|(a, b)| REALIZED_SHARE * excess(&preds[a], &preds[b], &var))
         .collect();
     Ok((excess, f.len()))
 }
@@ -456,8 +458,8 @@ pub(super) fn propose(
 
 /// The rates worth a refit, most promising first: every whole fraction not yet measured whose
 /// period is a whole number of samples, screened at the template's periods with the
-/// hypotheses as fitted, kept when the screening's power with eight times the periods reaches
-/// [`NEXT_POWER`] (the screening is optimistic: no refit).
+/// hypotheses as fitted, kept when the screening's power with the most periods (32 times the
+/// template's) reaches [`NEXT_POWER`] (the screening is optimistic: no refit).
 fn screened_factors(
     j: &Judged<'_>,
     ctx: (&Template<'_>, &[&Val<'_>]),
