@@ -16,9 +16,11 @@
 //! (before a pair's causes were tested against zero; seed 4338 looked at: spent), `4400..4460`
 //! at a019881 (before a pair not told from zero could leave its single cause undetermined;
 //! seeds 4424 and 4433 looked at: spent), `4500..4560` at b2eca7b (before the realized share
-//! of the predicted separation, `REALIZED_SHARE`, measured on `0..60`); reported once, not
-//! looked at before: `4600..4660` (`cargo test --release -p sd-tests --test diagnose_next
-//! reported -- --ignored --nocapture`). The default run checks one development case end to
+//! of the predicted separation, `REALIZED_SHARE`, measured on `0..60`), `4600..4660` at
+//! a8b0201 (then run as development for a change that did not help and was not kept: a
+//! contest of a delay against a window joined by their pair); reported once, not looked at
+//! before: `4700..4760` (`cargo test --release -p sd-tests --test diagnose_next reported --
+//! --ignored --nocapture`). The default run checks one development case end to
 //! end (`the_proposal_decides_a_fixed_case`).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -313,7 +315,7 @@ fn the_proposal_decides_a_fixed_case() {
 fn development() {
     let seeds = sd_tests::env_seeds("NEXT_SEEDS", 0..60);
     assert!(
-        seeds.end <= 4600 || seeds.start >= 4660,
+        seeds.end <= 4700 || seeds.start >= 4760,
         "development seeds must not touch the reported range"
     );
     report(seeds);
@@ -322,7 +324,7 @@ fn development() {
 #[test]
 #[ignore]
 fn reported() {
-    report(4600..4660);
+    report(4700..4760);
 }
 
 /// Developer tool, not a check: one case's diagnosis with its progress, ranking and proposal,
