@@ -60,7 +60,7 @@ pub const NEXT_POWER: f64 = 0.9;
 /// The share of a predicted noncentrality a proposal realizes (module documentation,
 /// "Calibration"): the median observed over predicted held-out excess on the development
 /// cases, rounded.
-pub(crate) const REALIZED_SHARE: f64 = 0.25;
+pub const REALIZED_SHARE: f64 = 0.25;
 
 /// Where a proposal's excitation enters: `like`'s injection point.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
