@@ -20,7 +20,8 @@
 //! a8b0201 (then run as development for a change that did not help and was not kept: a
 //! contest of a delay against a window joined by their pair), `4700..4760` at a8b0201 (seed
 //! 4706 then looked at: spent); fresh, never run: `4800..4860` (`cargo test --release -p
-//! sd-tests --test diagnose_next reported -- --ignored --nocapture`). The default run checks one development case end to
+//! sd-tests --test diagnose_next reported -- --ignored --nocapture`). The clock population
+//! ([`clock`]): `NEXT_CLOCK=1 NEXT_SEEDS=0..60 … development` (run once at a8b0201). The default run checks one development case end to
 //! end (`the_proposal_decides_a_fixed_case`).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -34,11 +35,33 @@ fn small() -> bool {
     std::env::var("NEXT_LARGE").is_err()
 }
 
+/// `NEXT_CLOCK` selects the second ambiguous population: small clock errors of the
+/// slower experiment (0.05–0.3 %) and small hold delays (0.03–0.2), alone or together, on
+/// short records (3 or 4 steady periods), where a clock error's phase drift and a delay's lag
+/// can look alike at one slow rate.
+fn clock() -> bool {
+    std::env::var("NEXT_CLOCK").is_ok()
+}
+
 /// The hidden effect of `seed` (as `diagnose_more_data`'s: the 0.6-period delay every fourth)
 /// and its recording: periodic, 3–8 steady periods, either injection, drift in 30 % (the
 /// hidden-effect suite's recordings, periodic ones only).
 fn effect_of(seed: u64) -> (Effect, Recording) {
     let mut r = sd_tests::gen::Rng::new(seed * 131 + 11);
+    if clock() {
+        let sign = if r.uniform() < 0.5 { -1.0 } else { 1.0 };
+        let effect = match seed % 3 {
+            0 => Effect::Delay(r.range(0.03, 0.2)),
+            1 => Effect::Clock(sign * r.range(5e-4, 3e-3)),
+            _ => Effect::DelayClock(r.range(0.03, 0.2), sign * r.range(5e-4, 3e-3)),
+        };
+        let rec = Recording {
+            periodic: true,
+            steady: 3 + (seed / 3 % 2) as usize,
+            ..sd_tests::diagcases::random_recording(&mut r, true)
+        };
+        return (effect, rec);
+    }
     let effect = if small() {
         match seed % 3 {
             0 => Effect::Delay(r.range(0.03, 0.2)),
