@@ -43,13 +43,14 @@
 //! #42 development cases (seeds 0..60 of `tests/tests/diagnose_next.rs`, the proposals run on
 //! the testbed's fine-step route and diagnosed again) the wrong hypotheses' held-out excess
 //! came to a median 0.245 of the predicted one (quartiles 0.086 and 0.79, 29 contests). The
-//! refit is not the cause (a full nonlinear refit of a judged hypothesis gives its
-//! Gauss–Newton excess within 5 % on seed 13); the noise model is the likely one: on seed 13
-//! the proposal's lines near its own Nyquist frequency, which carry most of a delay's or a
-//! window's phase, came out 4× noisier than either of the template's variances (presumably a
-//! loop at a slower rate has less controller gain there, so a reference moves the plant input
-//! less). Every figure the proposal states (`expected_statistic`, `expected_held_out`,
-//! `power`) is the calibrated one.
+//! refit looks not to be the cause (on seed 13 a full nonlinear refit of a judged hypothesis
+//! agreed with its Gauss–Newton excess); the noise model is the likely one: on seed 13 the
+//! proposal's lines near its own Nyquist frequency, which carry most of a delay's or a
+//! window's phase, came out several times noisier than either of the template's variances
+//! (presumably a loop at a slower rate has less controller gain there, so a reference moves
+//! the plant input less). Both were seen with temporary instrumentation, not kept. Every
+//! figure the proposal states (`expected_statistic`, `expected_held_out`, `power`) is the
+//! calibrated one.
 
 use serde::Serialize;
 use std::collections::BTreeMap;

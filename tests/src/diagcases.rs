@@ -428,7 +428,8 @@ pub fn proposed(
     )
 }
 
-fn sign(r: &mut Rng) -> f64 {
+/// +1 or −1 with equal probability.
+pub fn sign(r: &mut Rng) -> f64 {
     if r.uniform() < 0.5 {
         -1.0
     } else {

@@ -428,7 +428,7 @@ fn cases(seeds: std::ops::Range<u64>, form: Form) -> Vec<Outcome> {
 }
 
 /// [`cases`], with `with_three` false without the three-level cases (the default run's
-/// non-periodic forms: their route is the four-level cases', at a third of the suite's time).
+/// non-periodic forms: the suite's time; the three-level route runs in the periodic subset).
 fn cases_with(seeds: std::ops::Range<u64>, form: Form, with_three: bool) -> Vec<Outcome> {
     let four = [1.0, 2.0, 4.0, 8.0];
     let three = [1.0, 2.0, 4.0];

@@ -21,8 +21,8 @@
 //! contest of a delay against a window joined by their pair), `4700..4760` at a8b0201 (seed
 //! 4706 then looked at: spent); fresh, never run: `4800..4860` (`cargo test --release -p
 //! sd-tests --test diagnose_next reported -- --ignored --nocapture`). The clock population
-//! ([`clock`]): `NEXT_CLOCK=1 NEXT_SEEDS=0..60 … development` (run once at a8b0201). The default run checks one development case end to
-//! end (`the_proposal_decides_a_fixed_case`).
+//! ([`clock`]): `NEXT_CLOCK=1 NEXT_SEEDS=0..60 … development` (run once at a8b0201). The
+//! default run checks one development case end to end (`the_proposal_decides_a_fixed_case`).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use sd_tests::diagcases::{build, per_seed, proposed, Effect, Recording};
@@ -49,7 +49,7 @@ fn clock() -> bool {
 fn effect_of(seed: u64) -> (Effect, Recording) {
     let mut r = sd_tests::gen::Rng::new(seed * 131 + 11);
     if clock() {
-        let sign = if r.uniform() < 0.5 { -1.0 } else { 1.0 };
+        let sign = sd_tests::diagcases::sign(&mut r);
         let effect = match seed % 3 {
             0 => Effect::Delay(r.range(0.03, 0.2)),
             1 => Effect::Clock(sign * r.range(5e-4, 3e-3)),
